@@ -1,0 +1,28 @@
+"""``mapkit convert``: rewrite a map (canonical ARIA form now; other formats by output suffix)."""
+
+from __future__ import annotations
+
+import os
+
+import click
+
+from mapkit.cli.options import force_option
+from mapkit.formats.registry import convert_file
+
+
+@click.command()
+@click.argument("src", type=click.Path(exists=True, dir_okay=False))
+@click.argument("dst", type=click.Path(dir_okay=False))
+@force_option
+def convert(src: str, dst: str, force: bool) -> None:
+    """Read SRC and write DST in the format its suffix names.
+
+    A .map output is ARIA's canonical form: the bytes ARIA's own writer would emit.
+
+    \b
+    Example:
+      mapkit convert scanned.map clean.map
+    """
+    if os.path.exists(dst) and not force and os.path.abspath(dst) != os.path.abspath(src):
+        raise click.UsageError(f"{dst} exists; add --force to overwrite it")
+    click.echo(convert_file(src, dst))

@@ -1,0 +1,192 @@
+"""Findings about a map: :class:`Issue` values with stable :class:`IssueCode` numbers.
+
+The parser's tolerant mode (:func:`mapkit.recover`) and the validator both report
+:class:`Issue` values. Codes are numbered in ranges and never renumbered:
+
+* 1xx syntax (what the reader met in the file),
+* 2xx header consistency,
+* 3xx geometry,
+* 4xx objects,
+* 5xx navigation,
+* 6xx info sections.
+
+The table of every code is generated from :class:`IssueCode` (``docs/codes.md``).
+"""
+
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass, field
+from typing import Any
+
+__all__ = ["Issue", "IssueCode", "Location", "Report", "Severity"]
+
+
+class Severity(str, enum.Enum):
+    """How bad a finding is."""
+
+    ERROR = "error"
+    WARNING = "warning"
+    INFO = "info"
+
+    @property
+    def rank(self) -> int:
+        """0 for errors, 1 for warnings, 2 for info (sort key)."""
+        return {"error": 0, "warning": 1, "info": 2}[self.value]
+
+
+class IssueCode(enum.IntEnum):
+    """Stable numbers for every kind of finding. Never renumber; only add.
+
+    Each member's docstring-like summary lives in :data:`CODE_SUMMARY`.
+    """
+
+    # 1xx: syntax (reader)
+    JUNK_BEFORE_INTRO = 101
+    UNKNOWN_LINE = 102
+    BAD_DATA_ROW = 103
+    LAST_ROW_WITHOUT_NEWLINE = 104
+    HEADER_LINE_AFTER_DATA = 105
+    LOSSY_OBJECT_LINE = 106
+    NON_FINITE_NUMBER = 107
+    DUPLICATE_HEADER_KEY = 108
+    CR_IN_HEADER = 109
+    BAD_HEADER_LINE = 110
+    BAD_SOURCES_LINE = 111
+    TOO_MANY_TOKENS = 112
+    BOX_RECOMPUTED = 113
+    LOSSY_QUOTE = 114
+
+
+#: One line per code: (default severity, summary). Extended by the validator's ranges.
+CODE_SUMMARY: dict[IssueCode, tuple[Severity, str]] = {
+    IssueCode.JUNK_BEFORE_INTRO: (Severity.WARNING, "lines before the intro line (ARIA skips them)"),
+    IssueCode.UNKNOWN_LINE: (Severity.INFO, "unknown header keyword, kept and written after the objects"),
+    IssueCode.BAD_DATA_ROW: (Severity.WARNING, "data row ARIA skips silently"),
+    IssueCode.LAST_ROW_WITHOUT_NEWLINE: (
+        Severity.WARNING,
+        "last data row has no newline: ARIA drops it, mapkit keeps it",
+    ),
+    IssueCode.HEADER_LINE_AFTER_DATA: (
+        Severity.WARNING,
+        "header line after the first data tag: ARIA ignores it",
+    ),
+    IssueCode.LOSSY_OBJECT_LINE: (Severity.WARNING, "object line with tokens ARIA drops"),
+    IssueCode.NON_FINITE_NUMBER: (Severity.ERROR, "NaN or infinite number"),
+    IssueCode.DUPLICATE_HEADER_KEY: (Severity.WARNING, "header key given twice; the last one wins"),
+    IssueCode.CR_IN_HEADER: (Severity.INFO, "CR inside a header line (ARIA deletes it)"),
+    IssueCode.BAD_HEADER_LINE: (Severity.ERROR, "header line ARIA rejects (the load fails)"),
+    IssueCode.BAD_SOURCES_LINE: (Severity.WARNING, "Sources: line with duplicate or empty names"),
+    IssueCode.TOO_MANY_TOKENS: (Severity.WARNING, "line longer than ARIA reads (511 tokens / 9999 bytes)"),
+    IssueCode.BOX_RECOMPUTED: (
+        Severity.WARNING,
+        "bounding box wider than 2 km: ARIA 2.9.4 recomputes it and sorts the data",
+    ),
+    IssueCode.LOSSY_QUOTE: (Severity.WARNING, "a quote inside a quoted token: ARIA splits it there"),
+}
+
+
+@dataclass(frozen=True, slots=True)
+class Location:
+    """Where a finding is. Every field is optional.
+
+    Attributes:
+        source: File name.
+        line: 1-based line number in the file.
+        object: Name of the map object concerned.
+        xy: World coordinates in millimetres.
+    """
+
+    source: str | None = None
+    line: int | None = None
+    object: str | None = None
+    xy: tuple[float, float] | None = None
+
+    def __str__(self) -> str:
+        parts = []
+        if self.source is not None or self.line is not None:
+            parts.append(f"{self.source or ''}{':' if self.line is not None else ''}"
+                         f"{self.line if self.line is not None else ''}")
+        if self.object is not None:
+            parts.append(f'object "{self.object}"')
+        if self.xy is not None:
+            parts.append(f"at ({self.xy[0]:.0f}, {self.xy[1]:.0f})")
+        return " ".join(parts)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The location as JSON-ready data (absent fields omitted)."""
+        out: dict[str, Any] = {}
+        for key in ("source", "line", "object"):
+            value = getattr(self, key)
+            if value is not None:
+                out[key] = value
+        if self.xy is not None:
+            out["xy"] = [self.xy[0], self.xy[1]]
+        return out
+
+
+@dataclass(frozen=True, slots=True)
+class Issue:
+    """One finding.
+
+    Attributes:
+        code: Stable number, see :class:`IssueCode`.
+        severity: error, warning or info.
+        message: One line for a person.
+        location: Where it is.
+    """
+
+    code: IssueCode
+    severity: Severity
+    message: str
+    location: Location = field(default_factory=Location)
+
+    @classmethod
+    def make(cls, code: IssueCode, message: str, **where: Any) -> Issue:
+        """An issue with the code's default severity, located by keyword arguments of Location."""
+        return cls(code, CODE_SUMMARY[code][0], message, Location(**where))
+
+    def __str__(self) -> str:
+        where = str(self.location)
+        return f"{where + ': ' if where else ''}{self.severity.value} MK{int(self.code)}: {self.message}"
+
+    def to_dict(self) -> dict[str, Any]:
+        """The issue as JSON-ready data."""
+        return {
+            "code": int(self.code),
+            "name": self.code.name,
+            "severity": self.severity.value,
+            "message": self.message,
+            "location": self.location.to_dict(),
+        }
+
+
+@dataclass(frozen=True, slots=True)
+class Report:
+    """A list of findings with helpers for counting and exit codes."""
+
+    issues: tuple[Issue, ...] = ()
+
+    def by_severity(self, severity: Severity) -> tuple[Issue, ...]:
+        """The findings of one severity, in order."""
+        return tuple(i for i in self.issues if i.severity is severity)
+
+    @property
+    def errors(self) -> tuple[Issue, ...]:
+        """Error findings."""
+        return self.by_severity(Severity.ERROR)
+
+    @property
+    def warnings(self) -> tuple[Issue, ...]:
+        """Warning findings."""
+        return self.by_severity(Severity.WARNING)
+
+    def codes(self) -> list[int]:
+        """The codes of all findings, in order."""
+        return [int(i.code) for i in self.issues]
+
+    def __len__(self) -> int:
+        return len(self.issues)
+
+    def __bool__(self) -> bool:
+        return bool(self.issues)

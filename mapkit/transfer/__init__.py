@@ -1,0 +1,1 @@
+"""Moving maps between robot and terminal: the MKT protocol and its transports."""

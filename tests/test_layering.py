@@ -1,0 +1,80 @@
+"""The layers point one way: each module imports only from its own layer or below."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+PKG = Path(__file__).resolve().parent.parent / "mapkit"
+
+# Lower number = lower layer. A module may import mapkit modules of its layer or lower ones.
+LAYERS = {
+    "mapkit.errors": 0, "mapkit.diagnostics": 0, "mapkit._typing": 0, "mapkit._atomic": 0,
+    "mapkit.samples": 0,
+    "mapkit.model": 1,
+    "mapkit.formats": 2,
+    "mapkit.edit": 3, "mapkit.raster": 3, "mapkit.mesh": 3, "mapkit.validate": 3,
+    "mapkit.build": 3, "mapkit.render": 3, "mapkit.simulate": 3, "mapkit.logs": 3,
+    "mapkit.transfer": 4, "mapkit.ros": 4, "mapkit.demo": 4,
+    "mapkit.cli": 5,
+}
+# Siblings in layer 3 that may use each other (one direction only).
+ALLOWED_SIBLINGS = {
+    ("mapkit.validate", "mapkit.raster"), ("mapkit.build", "mapkit.raster"),
+    ("mapkit.mesh", "mapkit.raster"), ("mapkit.render", "mapkit.raster"),
+    ("mapkit.simulate", "mapkit.raster"), ("mapkit.raster", "mapkit.logs"),
+    ("mapkit.build", "mapkit.logs"), ("mapkit.simulate", "mapkit.logs"),
+    ("mapkit.ros", "mapkit.transfer"),
+}
+
+
+def layer_of(module: str) -> tuple[str, int] | None:
+    best = None
+    for prefix, layer in LAYERS.items():
+        if (module == prefix or module.startswith(prefix + ".")) and (
+            best is None or len(prefix) > len(best[0])
+        ):
+            best = (prefix, layer)
+    return best
+
+
+def module_name(path: Path) -> str:
+    rel = path.relative_to(PKG.parent).with_suffix("")
+    parts = list(rel.parts)
+    if parts[-1] == "__init__":
+        parts.pop()
+    return ".".join(parts)
+
+
+def imports(path: Path) -> list[tuple[str, int]]:
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    out = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            out.extend((a.name, node.lineno) for a in node.names)
+        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            out.append((node.module, node.lineno))
+    return out
+
+
+FILES = sorted(p for p in PKG.rglob("*.py") if module_name(p) not in ("mapkit", "mapkit.__main__"))
+
+
+@pytest.mark.parametrize("path", FILES, ids=lambda p: module_name(p))
+def test_imports_point_down(path: Path) -> None:
+    me = layer_of(module_name(path))
+    assert me is not None, f"{module_name(path)} has no layer: add it to LAYERS in this test"
+    for target, lineno in imports(path):
+        if not target.startswith("mapkit"):
+            continue
+        if target == "mapkit":
+            assert me[1] >= 5, f"{path}:{lineno}: only the CLI imports the top-level package"
+            continue
+        other = layer_of(target)
+        assert other is not None, f"{path}:{lineno}: {target} has no layer"
+        if other[0] == me[0]:
+            continue
+        ok = other[1] < me[1] or (me[0], other[0]) in ALLOWED_SIBLINGS
+        assert ok, f"{path}:{lineno}: {me[0]} (layer {me[1]}) must not import {target}"
