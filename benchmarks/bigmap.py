@@ -1,0 +1,89 @@
+"""The benchmark map: 1,000,000 points, 20,000 lines and 200 objects, made deterministically.
+
+Used by every benchmark that needs "the 1,000,000-point benchmark map". Points lie on a 20 mm
+lattice along the walls of a grid of rooms (like a scanned building), lines are the walls'
+segments, objects are goals (names with spaces), goals with heading, forbidden areas (some
+rotated), forbidden lines, a dock and a home.
+
+    python benchmarks/bigmap.py OUT.map      # writes the map and prints its size
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+from mapkit import MapData, MapObject, Scan, save  # noqa: E402
+
+N_POINTS = 1_000_000
+N_LINES = 20_000
+N_OBJECTS = 200
+
+
+def make_big_map(seed: int = 1) -> MapData:
+    """The benchmark map as a :class:`MapData` (same every call)."""
+    rng = np.random.default_rng(seed)
+    # A 100 x 100 m building of 5 m rooms: walls every 5000 mm in x and y, doors left out.
+    side, room = 100_000, 5_000
+    n_walls = 2 * (side // room + 1)
+    per_wall = N_POINTS // n_walls + 1
+    pts = []
+    for k in range(side // room + 1):
+        c = k * room
+        t = rng.integers(0, side // 20, per_wall) * 20
+        jitter = rng.integers(-2, 3, per_wall) * 20
+        pts.append(np.stack([np.full(per_wall, c) + jitter, t], axis=1))
+        pts.append(np.stack([t, np.full(per_wall, c) + jitter], axis=1))
+    points = np.concatenate(pts)[:N_POINTS] - side // 2
+    # Lines: short wall segments along the same walls.
+    starts = rng.integers(0, side // 20, N_LINES) * 20 - side // 2
+    walls = rng.integers(0, side // room + 1, N_LINES) * room - side // 2
+    length = rng.integers(5, 100, N_LINES) * 20
+    horizontal = rng.random(N_LINES) < 0.5
+    x1 = np.where(horizontal, starts, walls)
+    y1 = np.where(horizontal, walls, starts)
+    x2 = np.where(horizontal, starts + length, walls)
+    y2 = np.where(horizontal, walls, starts + length)
+    lines = np.stack([x1, y1, x2, y2], axis=1)
+    objects = [MapObject("RobotHome", -47500, -47500, 0, name="Home"),
+               MapObject("Dock", -47500, -45000, 90, name="Dock 1")]
+    for i in range(N_OBJECTS - 2):
+        cx = (i % 19) * room - side // 2 + room // 2
+        cy = (i // 19) * room - side // 2 + room // 2
+        kind = i % 4
+        if kind == 0:
+            objects.append(MapObject("Goal", cx, cy, 0, name=f"Goal room {i}"))
+        elif kind == 1:
+            objects.append(MapObject("GoalWithHeading", cx, cy, (i * 37) % 360 - 179,
+                                     name=f"Station {i} west"))
+        elif kind == 2:
+            angle = 0.0 if i % 8 == 2 else 30.0
+            objects.append(MapObject("ForbiddenArea", 0, 0, angle, name=f"Keep out {i}",
+                                     from_to=(cx - 600, cy - 400, cx + 600, cy + 400)))
+        else:
+            objects.append(MapObject("ForbiddenLine", cx - 1000, cy + 1500, 0,
+                                     from_to=(cx - 1000, cy + 1500, cx + 1000, cy + 1500)))
+    scan = Scan.from_arrays(points, lines, resolution=20)
+    return MapData(scans=(scan,), objects=tuple(objects),
+                   info={"MapInfo": [("GoalType", "Name=Goal"), ("GoalType", "Name=GoalWithHeading"),
+                                     ("DockType", "Name=Dock")]})
+
+
+def write_big_map(path: Path) -> Path:
+    """Write the benchmark map to ``path`` (if it is not there already) and return the path."""
+    if not path.exists():
+        save(make_big_map(), path)
+    return path
+
+
+if __name__ == "__main__":
+    out = Path(sys.argv[1] if len(sys.argv) > 1 else "bigmap.map")
+    if out.exists():
+        out.unlink()
+    write_big_map(out)
+    print(f"{out}: {out.stat().st_size / 1e6:.1f} MB")
