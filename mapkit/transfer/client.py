@@ -219,7 +219,8 @@ class Client:
             if kind_of(name) == "map":
                 req["if_md5"] = md5
         resp = self._request(FrameType.GET, req, (FrameType.OFFER, FrameType.NOT_MODIFIED))
-        offer = Offer.from_json(resp.json())
+        d = resp.json()
+        offer = Offer.from_json(d)
         if offer.name != name:
             raise LocalTransferError(f"asked for {name!r}, the robot offered {offer.name!r}")
         base = {**offer.json(), "host": self.host, "path": dest}
@@ -228,8 +229,9 @@ class Client:
                     "seconds": round(time.monotonic() - t0, 4), "mb_per_s": None}
         validate = validate_map_file if kind_of(local) == "map" and kind_of(name) == "map" else None
         store = PartialFile.open(folder, local, offer, validate=validate)
+        w = d.get("window")
         rx = Receiver(offer, ref=resp.ref, have=store.have, window=max(self.window * 4, 64),
-                      idle_timeout=max(self.timeout, 60.0))
+                      idle_timeout=max(self.timeout, 60.0), sender_window=w if isinstance(w, int) else None)
         tick = _Ticker(progress, offer.size, lambda: rx.bytes_received)
         info: dict[str, Any] = {}
         ok = False

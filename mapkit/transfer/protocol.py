@@ -161,6 +161,7 @@ class Flag(enum.IntFlag):
 
     AUTH = 0x0001  #: a 16-byte tag follows the payload
     RETX = 0x0002  #: this DATA frame is a resend (informational)
+    ACKREQ = 0x0004  #: the sender's window is full (or this is its last chunk): acknowledge now
 
 
 class Status(enum.IntEnum):
@@ -1269,6 +1270,7 @@ class TransferComplete:
 @dataclass
 class _Flight:
     sent: float
+    order: int
 
 
 class Sender(_Machine):
@@ -1307,13 +1309,14 @@ class Sender(_Machine):
         self._pending: deque[int] = deque()
         self._flight: dict[int, _Flight] = {}
         self._sends: dict[int, int] = {}
+        self._order = 0
         self.chunks_sent = 0
         self.chunks_resent = 0
         self.chunks_skipped = 0
         self.sent_indices: set[int] = set()
         self.bytes_acked = 0
         self.result: dict[str, Any] = {}
-        self._offer_out = Out(FrameType.OFFER, dump_json(offer.json()), ref=ref)
+        self._offer_out = Out(FrameType.OFFER, dump_json({**offer.json(), "window": self.window}), ref=ref)
 
     def start(self, now: float) -> list[Out]:
         """The OFFER frame."""
@@ -1405,11 +1408,26 @@ class Sender(_Machine):
                 raise ProtocolError(f"ACK has a bad range {r!r}")
             spans.append(r)
         acked = self.acked
+        newest = -1  # send order of the newest in-flight chunk this ACK covers
+        flight = self._flight
         for a, b in spans:
             j = acked.find(0, a, b)
             while j >= 0:
+                fl = flight.get(j)
+                if fl is not None and fl.order > newest:
+                    newest = fl.order
                 self._mark(j)
                 j = acked.find(0, j + 1, b)
+        # fast resend: chunks sent before one that arrived are lost (exact on ordered links)
+        if newest >= 0:
+            lost = []
+            for i, fl in flight.items():
+                if fl.order >= newest:
+                    break
+                lost.append(i)
+            for i in lost:
+                del flight[i]
+            self._pending.extendleft(reversed(lost))
         progress = self._acked_count > before
         for i in d.get("nack", []):
             if isinstance(i, int) and 0 <= i < n and not self.acked[i] and i in self._flight:
@@ -1431,7 +1449,8 @@ class Sender(_Machine):
         self._sends[i] = sends
         retx = sends > 1
         self._flight.pop(i, None)
-        self._flight[i] = _Flight(now)
+        self._order += 1
+        self._flight[i] = _Flight(now, self._order)
         self.chunks_sent += 1
         if retx:
             self.chunks_resent += 1
@@ -1444,6 +1463,9 @@ class Sender(_Machine):
             i = self._pending.popleft()
             if not self.acked[i]:
                 out.append(self._send(i, now))
+        if out and (len(self._flight) >= self.window or not self._pending):
+            last = out[-1]  # window full or nothing more to send: ask for an ACK now
+            out[-1] = Out(last.type, last.payload, ref=last.ref, flags=last.flags | Flag.ACKREQ)
         if self._acked_count == self.offer.chunks and self.state == "data":
             self.state = "done"
             self._tries = 1
@@ -1479,6 +1501,9 @@ class Sender(_Machine):
         cutoff = now - self.rto * 0.5
         stale = [i for i, fl in self._flight.items() if fl.sent <= cutoff] or list(self._flight)[:1]
         out = [self._send(i, now) for i in stale]
+        if out:
+            last = out[-1]
+            out[-1] = Out(last.type, last.payload, ref=last.ref, flags=last.flags | Flag.ACKREQ)
         self._arm(now)
         return out + self._fill(now)
 
@@ -1494,7 +1519,8 @@ class Receiver(_Machine):
         ref: The OFFER's ref.
         have: Chunks already held (resume), byte-per-chunk, or None.
         window: Largest window the sender may use.
-        ack_every: Acknowledge after this many new chunks (default ``window // 4``).
+        ack_every: Acknowledge after this many new chunks (default: half the smaller of the
+            sender's and this window). DATA with :attr:`Flag.ACKREQ` is acknowledged at once.
         idle_timeout: Give up after this long without a frame.
 
     Attributes:
@@ -1506,7 +1532,8 @@ class Receiver(_Machine):
     """
 
     def __init__(self, offer: Offer, *, ref: int = 0, have: bytearray | None = None,
-                 window: int = 64, ack_every: int | None = None, idle_timeout: float = 30.0) -> None:
+                 window: int = 64, ack_every: int | None = None, idle_timeout: float = 30.0,
+                 sender_window: int | None = None) -> None:
         super().__init__(rto=1.0, max_tries=1, idle_timeout=idle_timeout)
         self.offer = offer
         self.ref = ref
@@ -1515,7 +1542,7 @@ class Receiver(_Machine):
             raise ValueError("have bitmap does not match the number of chunks")
         self.held = sum(self.have)
         self.window = window
-        self.ack_every = ack_every or max(1, window // 4)
+        self.ack_every = ack_every or max(1, min(window, sender_window or window) // 2)
         self._next = self.have.find(0)
         if self._next < 0:
             self._next = offer.chunks
@@ -1627,7 +1654,7 @@ class Receiver(_Machine):
             self.state = "verify"
             self._events.append(TransferComplete(self.offer))
             return [self._ack_out()]
-        if self._unacked >= self.ack_every or not in_order:
+        if self._unacked >= self.ack_every or not in_order or f.flags & Flag.ACKREQ:
             return [self._ack_out()]
         return []
 

@@ -454,8 +454,8 @@ class MapServer:
             if ev.type == FrameType.BYE:
                 link.send([Out(FrameType.BYE, b"{}", ref=ev.ref)])
                 return
-            if last is not None and ev.ref == last.ref and ev.type in (
-                    FrameType.DONE, FrameType.DATA, FrameType.ACK, FrameType.OFFER):
+            if last is not None and (ev.type == FrameType.DATA or (ev.ref == last.ref and ev.type in (
+                    FrameType.DONE, FrameType.ACK, FrameType.OFFER))):
                 link.send(last.handle(ev, time.monotonic()))  # late frames of the last transfer
                 continue
             try:
@@ -494,10 +494,12 @@ class MapServer:
         return None
 
     def _push(self, link: FrameLink, f: Frame, peer: str) -> Receiver:
-        offer = Offer.from_json(f.json(), max_chunk=self.max_chunk)
+        d = f.json()
+        offer = Offer.from_json(d, max_chunk=self.max_chunk)
         dest = self.folder.begin_write(offer)
+        w = d.get("window")
         rx = Receiver(offer, ref=f.ref, have=dest.have, window=max(self.window * 4, 64),
-                      idle_timeout=self.idle_timeout)
+                      idle_timeout=self.idle_timeout, sender_window=w if isinstance(w, int) else None)
         ok = False
         try:
             def on_events() -> list[Out]:

@@ -163,14 +163,18 @@ class PartialFile:
             have, crcs = cls._load_journal(fd, journal, offer)
             self = cls(folder, name, offer, fd, have, crcs, checkpoint_interval=checkpoint_interval,
                        validate=validate)
-            if self.resumed:
-                self._verify_held()
-            else:
-                self._prepare(reserve)
-            return self
         except BaseException:
             os.close(fd)
             raise
+        try:
+            if self.resumed:
+                self._verify_held()
+            else:
+                self._prepare(reserve)  # discards the temp file itself on failure
+        except BaseException:
+            self._close_fd()
+            raise
+        return self
 
     @staticmethod
     def _load_journal(fd: int, journal: str, offer: Offer) -> tuple[bytearray, array.array[int]]:

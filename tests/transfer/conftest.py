@@ -1,0 +1,61 @@
+"""Fixtures for the transfer tests: a map server on 127.0.0.1, a fault-injecting TCP proxy."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from mapkit.transfer import MapServer
+from mkt_helpers import SECRET, Proxy
+
+
+@pytest.fixture
+def secret() -> bytes:
+    """The shared secret used by the tests."""
+    return SECRET
+
+
+@pytest.fixture
+def robot_dir(tmp_path: Path) -> Path:
+    """An empty maps folder for the server."""
+    d = tmp_path / "robot"
+    d.mkdir()
+    return d
+
+
+@pytest.fixture
+def make_server(robot_dir: Path) -> Iterator[Any]:
+    """Start MapServers on a free port with short timeouts; all are closed at the end."""
+    servers: list[MapServer] = []
+
+    def make(folder: Any = None, **kw: Any) -> MapServer:
+        kw.setdefault("secret", SECRET)
+        kw.setdefault("rto", 0.2)
+        kw.setdefault("idle_timeout", 5.0)
+        srv = MapServer(folder if folder is not None else robot_dir, host="127.0.0.1", port=0, **kw)
+        servers.append(srv.start())
+        return srv
+
+    yield make
+    for s in servers:
+        s.close()
+
+
+@pytest.fixture
+def proxy() -> Iterator[Any]:
+    """Make :class:`Proxy` objects, closed at the end."""
+    made: list[Proxy] = []
+
+    def make(target: tuple[str, int], **kw: Any) -> Proxy:
+        p = Proxy(target, **kw)
+        made.append(p)
+        return p
+
+    yield make
+    for p in made:
+        p.close()
+
+
