@@ -183,6 +183,7 @@ class Client:
             dt = time.monotonic() - t0
             return {**offer.json(), "host": self.host, "chunks_sent": tx.chunks_sent,
                     "chunks_resent": tx.chunks_resent, "chunks_skipped": tx.chunks_skipped,
+                    "chunks_distinct": len(tx.sent_indices),
                     "seconds": round(dt, 4), "mb_per_s": round(offer.size / dt / 1e6, 2) if dt else None,
                     "verified": tx.result}
         raise LocalTransferError("unreachable")  # pragma: no cover
