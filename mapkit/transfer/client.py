@@ -77,15 +77,16 @@ def offer_for_file(path: str | os.PathLike[str], *, name: str | None = None,
 
 
 class _Ticker:
-    def __init__(self, progress: Progress | None, total: int, get: Callable[[], int]) -> None:
-        self.progress, self.total, self.get = progress, total, get
+    def __init__(self, progress: Progress | None, total: int, get: Callable[[], int],
+                 interval: float) -> None:
+        self.progress, self.total, self.get, self.interval = progress, total, get, interval
         self._last = 0.0
 
     def __call__(self, force: bool = False) -> None:
         if self.progress is None:
             return
         now = time.monotonic()
-        if force or now - self._last >= 0.1:
+        if force or now - self._last >= self.interval:
             self._last = now
             self.progress(self.get(), self.total)
 
@@ -103,6 +104,7 @@ class Client:
         rto: First resend timeout in seconds.
         chunk_size: Bytes per chunk.
         window: Chunks in flight.
+        progress_interval: Seconds between progress callbacks (0: after every frame).
 
     Attributes:
         server: The server's HELLO_ACK (name, limits, features).
@@ -114,13 +116,15 @@ class Client:
 
     def __init__(self, host: str, port: int = DEFAULT_PORT, *, secret: bytes | None = None,
                  insecure: bool = False, tls: ssl.SSLContext | None = None, timeout: float = 10.0,
-                 rto: float = 2.0, chunk_size: int = DEFAULT_CHUNK_SIZE, window: int = 16) -> None:
+                 rto: float = 2.0, chunk_size: int = DEFAULT_CHUNK_SIZE, window: int = 16,
+                 progress_interval: float = 0.1) -> None:
         if secret is None and not insecure:
             raise LocalTransferError("no shared secret: give --secret-file or MAPKIT_SECRET, or "
                                      "--insecure if the robot runs without one")
         self.host, self.port = host, port
         self.timeout, self.rto, self.window = timeout, rto, window
         self.chunk_size = chunk_size
+        self.progress_interval = progress_interval
         self._ref = 0
         sock = connect(host, port, timeout=timeout, tls=tls)
         session = int.from_bytes(secrets.token_bytes(8), "big")
@@ -170,7 +174,8 @@ class Client:
 
                 tx = Sender(offer, read, ref=self._next_ref(), window=self.window, rto=self.rto,
                             idle_timeout=max(self.timeout, 60.0))
-                tick = _Ticker(progress, offer.size, lambda tx=tx: tx.bytes_acked)
+                tick = _Ticker(progress, offer.size, lambda tx=tx: tx.bytes_acked,
+                               self.progress_interval)
                 try:
                     run(self.link, tx, tick=tick)
                 except Rejected as err:
@@ -233,7 +238,7 @@ class Client:
         w = d.get("window")
         rx = Receiver(offer, ref=resp.ref, have=store.have, window=max(self.window * 4, 64),
                       idle_timeout=max(self.timeout, 60.0), sender_window=w if isinstance(w, int) else None)
-        tick = _Ticker(progress, offer.size, lambda: rx.bytes_received)
+        tick = _Ticker(progress, offer.size, lambda: rx.bytes_received, self.progress_interval)
         info: dict[str, Any] = {}
         ok = False
 
@@ -253,6 +258,7 @@ class Client:
             return out
 
         try:
+            store.start_writer()
             self.link.send(rx.accept(time.monotonic()))
             self.link.send(on_events())
             run(self.link, rx, start=False, on_events=on_events, tick=tick)

@@ -520,6 +520,7 @@ class MapServer:
             if dest.resumed:
                 log.info("%s: resuming %s with %d of %d chunks", peer, offer.name, dest.resumed,
                          offer.chunks)
+            dest.start_writer()
             link.send(rx.accept(time.monotonic()))
             link.send(on_events())
             run(link, rx, start=False, on_events=on_events)
@@ -533,6 +534,8 @@ class MapServer:
             return rx
         except TransferError as err:
             log.warning("%s: push of %s failed: %s", peer, offer.name, err)
+            no_space = getattr(rx.error, "status", None) == Status.NO_SPACE
+            dest.close(keep=not no_space)  # a full disk keeps no partial file
             raise _Ended(str(err)) from err
         finally:
             if not ok:

@@ -25,6 +25,8 @@ import hashlib
 import json
 import logging
 import os
+import queue
+import threading
 import time
 import zlib
 from collections.abc import Callable
@@ -44,6 +46,15 @@ READ_BLOCK = 1 << 20
 # Indirections so tests can inject faults (a full disk) without touching the real os module.
 _pwrite = os.pwrite
 _fallocate = getattr(os, "posix_fallocate", None)
+
+
+def _read_umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+_UMASK = _read_umask()  # read once, at import: os.umask is process-wide, not thread-safe
 
 
 class StoreError(LocalTransferError):
@@ -125,6 +136,10 @@ class PartialFile:
         self._hashed = 0  # chunks fed to the hasher, in order
         self._dirty = False
         self._last_checkpoint = time.monotonic()
+        self._queue: queue.Queue[Any] | None = None
+        self._worker: threading.Thread | None = None
+        self._error: BaseException | None = None
+        self._failed = False
 
     # opening ---------------------------------------------------------------------------------
     @classmethod
@@ -247,12 +262,64 @@ class PartialFile:
                         self.name, dropped)
 
     # writing -----------------------------------------------------------------------------------
+    def start_writer(self, depth: int = 8) -> None:
+        """Write and hash in a background thread from now on (overlaps disk and SHA-256 with
+        the network). :meth:`write` then queues; errors come out of the next call."""
+        if self._queue is None:
+            self._queue = queue.Queue(depth)
+            self._worker = threading.Thread(target=self._work, name=f"mapkit-write-{self.name}",
+                                            daemon=True)
+            self._worker.start()
+
+    def _work(self) -> None:
+        q = self._queue
+        assert q is not None
+        while True:
+            item = q.get()
+            try:
+                if item is None:
+                    return
+                if self._error is None:
+                    self._write_now(*item)
+            except BaseException as err:
+                self._error = err
+            finally:
+                q.task_done()
+
+    def flush(self) -> None:
+        """Wait until queued chunks are written.
+
+        Raises:
+            StoreError: The background writer failed.
+        """
+        if self._queue is not None:
+            self._queue.join()
+        if self._error is not None:
+            err, self._error = self._error, None
+            self._failed = True
+            raise err
+
+    def _stop_writer(self) -> None:
+        if self._queue is not None:
+            self._queue.put(None)
+            if self._worker is not None:
+                self._worker.join()
+            self._queue = None
+
     def write(self, index: int, data: bytes | bytearray | memoryview, crc: int | None = None) -> None:
         """Store chunk ``index`` (``crc``: its CRC-32 if already known).
 
         Raises:
-            StoreError: ``NO_SPACE`` or ``IO_ERROR``.
+            StoreError: ``NO_SPACE`` or ``IO_ERROR`` (with a background writer: of an earlier chunk).
         """
+        if self._error is not None:
+            self.flush()
+        if self._queue is not None:
+            self._queue.put((index, data, crc))
+        else:
+            self._write_now(index, data, crc)
+
+    def _write_now(self, index: int, data: bytes | bytearray | memoryview, crc: int | None) -> None:
         assert self._fd is not None
         off = index * self.offer.chunk_size
         try:
@@ -311,9 +378,11 @@ class PartialFile:
                 ``NO_SPACE`` / ``IO_ERROR`` on file-system errors. The target is untouched.
         """
         assert self._fd is not None
-        if sum(self.have) != self.offer.chunks:
-            raise StoreError(f"{self.name}: finalize with chunks missing", Status.INTERNAL)
         try:
+            self.flush()
+            self._stop_writer()
+            if sum(self.have) != self.offer.chunks:
+                raise StoreError(f"{self.name}: finalize with chunks missing", Status.INTERNAL)
             self._catch_up()
             os.fsync(self._fd)
             sha = self._hasher.hexdigest()
@@ -336,9 +405,7 @@ class PartialFile:
             try:
                 mode = os.stat(self.target).st_mode & 0o7777
             except FileNotFoundError:
-                mask = os.umask(0)
-                os.umask(mask)
-                mode = 0o666 & ~mask
+                mode = 0o666 & ~_UMASK
             os.fchmod(self._fd, mode)
             os.replace(self.temp, self.target)
             fsync_dir(self.folder)
@@ -358,6 +425,11 @@ class PartialFile:
         """End without publishing: keep the partial data and journal for a resume, or delete them."""
         if self._fd is None:
             return
+        try:
+            self.flush()
+        except StoreError as err:
+            keep = keep and err.status != Status.NO_SPACE
+        self._stop_writer()
         if keep and sum(self.have):
             try:
                 self.checkpoint()
@@ -369,6 +441,9 @@ class PartialFile:
             self._discard()
 
     def _discard(self) -> None:
+        if self._queue is not None and threading.current_thread() is not self._worker:
+            self._error = self._error or StoreError("discarded", Status.INTERNAL)
+            self._stop_writer()
         for p in (self.temp, self.journal):
             with contextlib.suppress(FileNotFoundError):
                 os.unlink(p)

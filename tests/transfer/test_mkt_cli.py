@@ -155,20 +155,22 @@ def test_serve_process_killed_mid_transfer_then_resumed(tmp_path, robot_dir, sec
     old = make_map(100, 4)
     (robot_dir / "site.map").write_bytes(old)
     proc, port = start_serve(robot_dir, secret_file)
-    state = {"slept": False}
+    state = {"phase": 0, "at": 0}
 
-    def progress(done: int, total: int) -> None:
-        if done > total * 0.2 and not state["slept"]:
-            state["slept"] = True
-            time.sleep(0.8)  # let the robot save a checkpoint of its journal
-        elif done > total * 0.5 and proc.poll() is None:
+    def progress(done: int, total: int) -> None:  # called after every frame
+        if state["phase"] == 0 and done > total * 0.2:
+            state["phase"], state["at"] = 1, done
+            time.sleep(0.8)  # the robot's next write saves a checkpoint of its journal
+        elif state["phase"] == 1 and done > state["at"]:
+            state["phase"] = 2
+            time.sleep(0.8)  # (it got new chunks after the pause: let the checkpoint finish)
             proc.send_signal(signal.SIGKILL)
             proc.wait()
 
     try:
         with pytest.raises(TransferError):
             send_file(src, "127.0.0.1", port, chunk_size=chunk, window=4, progress=progress,
-                      **client_options(rto=2.0))
+                      **client_options(rto=2.0, progress_interval=0))
         assert proc.wait(10) == -signal.SIGKILL
         # no partial file under the final name: the old map is intact
         assert (robot_dir / "site.map").read_bytes() == old
