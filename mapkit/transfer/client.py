@@ -76,6 +76,10 @@ def offer_for_file(path: str | os.PathLike[str], *, name: str | None = None,
     return fd, Offer(name, st.st_size, sha, chunk_size, md5, kind, round(st.st_mtime, 3))
 
 
+def _attr(obj: Any, name: str) -> Callable[[], int]:
+    return lambda: int(getattr(obj, name))
+
+
 class _Ticker:
     def __init__(self, progress: Progress | None, total: int, get: Callable[[], int],
                  interval: float) -> None:
@@ -174,8 +178,7 @@ class Client:
 
                 tx = Sender(offer, read, ref=self._next_ref(), window=self.window, rto=self.rto,
                             idle_timeout=max(self.timeout, 60.0))
-                tick = _Ticker(progress, offer.size, lambda tx=tx: tx.bytes_acked,
-                               self.progress_interval)
+                tick = _Ticker(progress, offer.size, _attr(tx, "bytes_acked"), self.progress_interval)
                 try:
                     run(self.link, tx, tick=tick)
                 except Rejected as err:
@@ -238,7 +241,7 @@ class Client:
         w = d.get("window")
         rx = Receiver(offer, ref=resp.ref, have=store.have, window=max(self.window * 4, 64),
                       idle_timeout=max(self.timeout, 60.0), sender_window=w if isinstance(w, int) else None)
-        tick = _Ticker(progress, offer.size, lambda: rx.bytes_received, self.progress_interval)
+        tick = _Ticker(progress, offer.size, _attr(rx, "bytes_received"), self.progress_interval)
         info: dict[str, Any] = {}
         ok = False
 
@@ -282,7 +285,7 @@ class Client:
         maps = d.get("maps") if isinstance(d.get("maps"), list) else []
         for m in maps:  # never trust names from the wire
             check_name(m.get("name") if isinstance(m, dict) else None, suffixes=None)
-        return d
+        return dict(d)
 
     def load(self, name: str | None = None, *, md5: str | None = None,
              rollback: bool = False) -> dict[str, Any]:

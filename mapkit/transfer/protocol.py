@@ -70,8 +70,8 @@ import os
 import struct
 import zlib
 from collections import deque
-from collections.abc import Callable, Iterable
-from dataclasses import dataclass, field
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass
 from typing import Any, Union
 
 from mapkit.errors import ChecksumError, LocalTransferError, RemoteTransferError, TransferError
@@ -95,10 +95,10 @@ __all__ = [
     "Offer",
     "Out",
     "ProtocolError",
+    "Receiver",
     "Rejected",
     "ReplayError",
     "Request",
-    "Receiver",
     "Sender",
     "ServerHandshake",
     "Status",
@@ -519,7 +519,7 @@ class Channel:
         self.stats["garbage"] += nxt - self._pos
         self._pos = nxt
 
-    def _decode_one(self) -> Event | None | object:
+    def _decode_one(self) -> Event | object | None:
         buf, pos = self._buf, self._pos
         if len(buf) - pos < HEADER_SIZE:
             if len(buf) - pos >= 4 and buf[pos:pos + 4] != MAGIC:
@@ -614,7 +614,8 @@ _AGAIN = object()
 # -- keys and secrets ----------------------------------------------------------------------------
 
 
-def load_secret(*, path: str | os.PathLike[str] | None = None, env: dict[str, str] | None = None) -> bytes | None:
+def load_secret(*, path: str | os.PathLike[str] | None = None,
+                env: Mapping[str, str] | None = None) -> bytes | None:
     """Read the pre-shared secret from a file, or else the ``MAPKIT_SECRET`` environment variable.
 
     Surrounding whitespace (the trailing newline of a file) is removed. The secret is never taken
@@ -637,10 +638,10 @@ def load_secret(*, path: str | os.PathLike[str] | None = None, env: dict[str, st
         >>> load_secret(env={}) is None
         True
     """
-    env = os.environ if env is None else env
+    environ: Mapping[str, str] = os.environ if env is None else env
     where = ""
-    if path is None and env.get("MAPKIT_SECRET_FILE"):
-        path = env["MAPKIT_SECRET_FILE"]
+    if path is None and environ.get("MAPKIT_SECRET_FILE"):
+        path = environ["MAPKIT_SECRET_FILE"]
     if path is not None:
         where = os.fspath(path)
         try:
@@ -648,9 +649,9 @@ def load_secret(*, path: str | os.PathLike[str] | None = None, env: dict[str, st
                 secret = fh.read(65536).strip()
         except OSError as err:
             raise LocalTransferError(f"{where}: cannot read the secret: {err.strerror}") from err
-    elif env.get("MAPKIT_SECRET"):
+    elif environ.get("MAPKIT_SECRET"):
         where = "MAPKIT_SECRET"
-        secret = env["MAPKIT_SECRET"].strip().encode("utf-8")
+        secret = environ["MAPKIT_SECRET"].strip().encode("utf-8")
     else:
         return None
     if len(secret) < MIN_SECRET:
@@ -855,7 +856,7 @@ class Offer:
         md5 = d.get("md5")
         if md5 is not None:
             _unhex(md5, 16, "OFFER md5")
-        offer = cls(name, size, sha.lower(), cs, md5.lower() if md5 else None,
+        offer = cls(name, size, str(sha).lower(), cs, str(md5).lower() if md5 else None,
                     str(d.get("kind", kind_of(name))),
                     d["mtime"] if isinstance(d.get("mtime"), (int, float)) else None)
         if d.get("chunks", offer.chunks) != offer.chunks:
@@ -899,8 +900,8 @@ def rejected_from(frame: Frame, peer: str = "peer") -> Rejected:
         default_reason = Status(code).reason
     except ValueError:
         default_reason = f"code {code}"
-    reason = d.get("reason") if isinstance(d.get("reason"), str) else default_reason
-    message = d.get("message") if isinstance(d.get("message"), str) else ""
+    reason = str(d["reason"]) if isinstance(d.get("reason"), str) else default_reason
+    message = str(d["message"]) if isinstance(d.get("message"), str) else ""
     return Rejected(code, reason, message, peer=peer)
 
 
@@ -1062,9 +1063,9 @@ class ClientHandshake(_Machine):
         if f.type == FrameType.AUTH_OK and self._pending is not None \
                 and self._pending.type == FrameType.AUTH:
             if self.secret is not None:
-                proof = f.json().get("proof")
-                if not (f.authentic and isinstance(proof, str)
-                        and hmac.compare_digest(proof, self._expect_proof)):
+                got = f.json().get("proof")
+                if not (f.authentic and isinstance(got, str)
+                        and hmac.compare_digest(got, self._expect_proof)):
                     raise AuthenticationError("the server could not prove it knows the shared secret")
             self._pending = None
             self._finish()
@@ -1167,8 +1168,8 @@ class ServerHandshake(_Machine):
             return [self._ack]
         if f.type == FrameType.AUTH and self._ack is not None:
             if self._expect:
-                proof = f.json().get("proof")
-                if not (f.authentic and isinstance(proof, str) and hmac.compare_digest(proof, self._expect)):
+                got = f.json().get("proof")
+                if not (f.authentic and isinstance(got, str) and hmac.compare_digest(got, self._expect)):
                     raise AuthenticationError("the client's proof does not match: it uses another "
                                               "shared secret")
             assert self._ok is not None

@@ -430,12 +430,13 @@ class PartialFile:
         except StoreError as err:
             keep = keep and err.status != Status.NO_SPACE
         self._stop_writer()
-        if keep and sum(self.have):
+        held = any(self.have)
+        if keep and held:
             try:
                 self.checkpoint()
             except StoreError:
                 keep = False
-        if keep and sum(self.have):
+        if keep and held:
             self._close_fd()
         else:
             self._discard()

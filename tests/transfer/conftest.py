@@ -7,9 +7,9 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from mkt_helpers import SECRET, Proxy
 
 from mapkit.transfer import MapServer
-from mkt_helpers import SECRET, Proxy
 
 
 @pytest.fixture

@@ -15,11 +15,11 @@ import time
 from pathlib import Path
 
 import pytest
+from mkt_helpers import SECRET, client_options, listing, make_map
 
 from mapkit.cli.main import cli
 from mapkit.errors import TransferError
 from mapkit.transfer import send_file
-from mkt_helpers import SECRET, client_options, listing, make_map
 
 
 @pytest.fixture

@@ -11,9 +11,9 @@ import shutil
 import subprocess
 import threading
 from concurrent.futures import ThreadPoolExecutor
-from pathlib import Path
 
 import pytest
+from mkt_helpers import client_options, listing, make_map, wait_idle
 
 import mapkit.transfer.store as store_mod
 from mapkit.errors import LocalTransferError, TransferError
@@ -31,7 +31,6 @@ from mapkit.transfer import (
 )
 from mapkit.transfer.protocol import Channel, FrameType, Out
 from mapkit.transfer.store import partial_paths
-from mkt_helpers import SECRET, client_options, listing, make_map, wait_idle
 
 
 def sha(data: bytes) -> str:
@@ -100,7 +99,7 @@ def test_push_cut_at_many_points_resumes_and_resends_only_missing(tmp_path, robo
     src = tmp_path / "big.2d"
     src.write_bytes(data)
     srv = make_server(window=4)
-    temp, journal = partial_paths(str(robot_dir), "big.2d")
+    _, journal = partial_paths(str(robot_dir), "big.2d")
     held_before = 0
     crossed = 0
     cuts = [3_000, 40_000, 90_000, 150_000, 100_000, 70_000]  # bytes per attempt; 655 KB in all
@@ -112,7 +111,8 @@ def test_push_cut_at_many_points_resumes_and_resends_only_missing(tmp_path, robo
         crossed += p.c2s
         assert not (robot_dir / "big.2d").exists()  # never a partial file under the final name
         if os.path.exists(journal):
-            held = sum(store_mod.decode_bitmap(json.load(open(journal))["have"], n))
+            with open(journal) as fh:
+                held = sum(store_mod.decode_bitmap(json.load(fh)["have"], n))
             assert held >= held_before  # what was received is kept
             held_before = held
     assert held_before > n // 3
@@ -178,12 +178,12 @@ def test_wrong_secret_and_no_secret_are_refused(tmp_path, robot_dir, make_server
     src = tmp_path / "a.map"
     src.write_bytes(make_map(10))
     srv = make_server()
-    with pytest.raises(Rejected, match="auth_failed: the client's proof does not match|wrong tag") as e:
+    with pytest.raises(Rejected, match=r"auth_failed: the client's proof does not match|wrong tag") as e:
         send_file(src, *srv.address, **client_options(secret=b"another-secret-0123456789"))
     assert e.value.status == Status.AUTH_FAILED
-    with pytest.raises(Rejected, match="auth_required: this server requires authentication"):
+    with pytest.raises(Rejected, match=r"auth_required: this server requires authentication"):
         send_file(src, *srv.address, **client_options(secret=None, insecure=True))
-    with pytest.raises(LocalTransferError, match="no shared secret"):
+    with pytest.raises(LocalTransferError, match=r"no shared secret"):
         send_file(src, *srv.address, **client_options(secret=None))
     assert listing(robot_dir) == []
 
@@ -192,7 +192,7 @@ def test_insecure_server_refuses_secret_clients_and_vice_versa(tmp_path, robot_d
     src = tmp_path / "a.map"
     src.write_bytes(make_map(10))
     srv = make_server(secret=None, insecure=True)
-    with pytest.raises(Rejected, match="this server has no shared secret"):
+    with pytest.raises(Rejected, match=r"this server has no shared secret"):
         send_file(src, *srv.address, **client_options())
     send_file(src, *srv.address, **client_options(secret=None, insecure=True))
     assert listing(robot_dir) == ["a.map"]
@@ -247,17 +247,13 @@ def test_bad_names_are_refused(tmp_path, robot_dir, make_server, name, match) ->
     src = tmp_path / "ok.map"
     src.write_bytes(make_map(10))
     srv = make_server()
-    with pytest.raises(Rejected, match=match) as e:
-        with Client(*srv.address, **client_options()) as c:
-            fd, offer = os.open(src, os.O_RDONLY), None
-            os.close(fd)
-            # bypass the client's own name check to see the server's
-            from mapkit.transfer.protocol import Offer, Sender
-            from mapkit.transfer.tcp import run
+    from mapkit.transfer.protocol import Offer, Sender
+    from mapkit.transfer.tcp import run
 
-            data = src.read_bytes()
-            offer = Offer.for_bytes(name, data)
-            run(c.link, Sender(offer, lambda i: data, ref=9))
+    data = src.read_bytes()
+    offer = Offer.for_bytes(name, data)  # the client's own name check is bypassed here
+    with pytest.raises(Rejected, match=match) as e, Client(*srv.address, **client_options()) as c:
+        run(c.link, Sender(offer, lambda i: data, ref=9))
     assert e.value.status == Status.BAD_NAME
     assert listing(robot_dir) == []
     assert not (tmp_path.parent / "escape.map").exists()
@@ -267,7 +263,7 @@ def test_client_checks_names_too(tmp_path, make_server) -> None:
     srv = make_server()
     src = tmp_path / "a.map"
     src.write_bytes(make_map(5))
-    with pytest.raises(TransferError, match="no folders allowed"):
+    with pytest.raises(TransferError, match=r"no folders allowed"):
         send_file(src, *srv.address, name="../../x.map", **client_options())
 
 
@@ -275,7 +271,7 @@ def test_oversized_offer_is_refused(tmp_path, robot_dir, make_server) -> None:
     src = tmp_path / "big.2d"
     src.write_bytes(os.urandom(50_000))
     srv = make_server(MapFolder(robot_dir, max_size=40_000))
-    with pytest.raises(Rejected, match="too_large: big.2d has 50000 bytes, this robot accepts at most 40000"):
+    with pytest.raises(Rejected, match=r"too_large: big.2d has 50000 bytes, this robot accepts at most 40000"):
         send_file(src, *srv.address, **client_options())
     assert listing(robot_dir) == []
 
@@ -292,7 +288,7 @@ def test_name_being_written_by_another_client_is_refused(tmp_path, robot_dir, ma
         first.link.send([Out(FrameType.OFFER, json.dumps(offer.json()).encode(), ref=77)])
         ack = first.link.receive(5)
         assert ack is not None and ack.type == FrameType.ACCEPT
-        with pytest.raises(Rejected, match="busy: big.2d is being written by another client") as e:
+        with pytest.raises(Rejected, match=r"busy: big.2d is being written by another client") as e:
             send_file(src, *srv.address, **client_options())
         assert e.value.status == Status.BUSY
         del Request
@@ -319,22 +315,22 @@ def test_load_checks_md5_and_parse_and_keeps_the_active_map(tmp_path, robot_dir,
     (robot_dir / "broken.map").write_bytes(b"not a map\n")
     load_map(host, "good.map", port, **client_options())
     active = (robot_dir / "active.map").read_bytes()
-    with pytest.raises(Rejected, match="md5_mismatch: good.map on the robot has MD5"):
+    with pytest.raises(Rejected, match=r"md5_mismatch: good.map on the robot has MD5"):
         load_map(host, "good.map", port, md5="0" * 32, **client_options())
-    with pytest.raises(Rejected, match="parse_error: not a valid map: broken.map: not an ARIA map"):
+    with pytest.raises(Rejected, match=r"parse_error: not a valid map: broken.map: not an ARIA map"):
         load_map(host, "broken.map", port, **client_options())
-    with pytest.raises(Rejected, match="not_found: missing.map: no such map"):
+    with pytest.raises(Rejected, match=r"not_found: missing.map: no such map"):
         load_map(host, "missing.map", port, md5="0" * 32, **client_options())
     assert (robot_dir / "active.map").read_bytes() == active
-    with pytest.raises(Rejected, match="no previous map to roll back to"):
+    with pytest.raises(Rejected, match=r"no previous map to roll back to"):
         load_map(host, None, port, rollback=True, **client_options())
 
 
 def test_fetch_missing_and_bad_names(tmp_path, make_server) -> None:
     srv = make_server()
-    with pytest.raises(Rejected, match="not_found: nope.map: no such map on this robot"):
+    with pytest.raises(Rejected, match=r"not_found: nope.map: no such map on this robot"):
         fetch_file(srv.address[0], "nope.map", tmp_path / "x.map", port=srv.address[1], **client_options())
-    with pytest.raises(Rejected, match="bad_name"):
+    with pytest.raises(Rejected, match=r"bad_name"):
         fetch_file(srv.address[0], "../../etc/passwd.map", tmp_path / "x.map", port=srv.address[1],
                    **client_options())
     assert not (tmp_path / "x.map").exists()
@@ -342,7 +338,7 @@ def test_fetch_missing_and_bad_names(tmp_path, make_server) -> None:
 
 def test_receive_only_server_refuses_pull_list_and_load(tmp_path, robot_dir, make_server) -> None:
     srv = make_server(push_only=True)
-    with pytest.raises(Rejected, match="unsupported: this peer only receives files"):
+    with pytest.raises(Rejected, match=r"unsupported: this peer only receives files"):
         list_maps(*srv.address, **client_options())
 
 
@@ -369,7 +365,7 @@ def test_full_disk_on_a_small_tmpfs(tmp_path, tiny_tmpfs, make_server) -> None:
     big = tmp_path / "site.map"
     big.write_bytes(make_map(12_000))  # ~140 KB: does not fit beside the filler
     srv = make_server(MapFolder(tiny_tmpfs, reserve=0))
-    with pytest.raises(Rejected, match="no_space: site.map: no space") as e:
+    with pytest.raises(Rejected, match=r"no_space: site.map: no space") as e:
         send_file(big, *srv.address, **client_options())
     assert e.value.status == Status.NO_SPACE
     assert (tiny_tmpfs / "site.map").read_bytes() == old
@@ -392,7 +388,7 @@ def test_disk_filling_up_during_the_transfer(tmp_path, robot_dir, make_server, m
 
     monkeypatch.setattr(store_mod, "_pwrite", limited)
     srv = make_server()
-    with pytest.raises(Rejected, match="no_space: writing site.map: no space left on the device"):
+    with pytest.raises(Rejected, match=r"no_space: writing site.map: no space left on the device"):
         send_file(big, *srv.address, chunk_size=16 * 1024, **client_options())
     wait_idle(srv)
     assert (robot_dir / "site.map").read_bytes() == old
@@ -445,9 +441,9 @@ def test_tls_push_and_pull(tmp_path, robot_dir, make_server, cert) -> None:
     src.write_bytes(make_map(2000))
     send_file(src, *srv.address, tls=client_tls_context(str(crt)), chunk_size=4096, **client_options())
     assert (robot_dir / "a.map").read_bytes() == src.read_bytes()
-    with pytest.raises(LocalTransferError, match="TLS with 127.0.0.1:.* failed"):
+    with pytest.raises(LocalTransferError, match=r"TLS with 127.0.0.1:.* failed"):
         send_file(src, *srv.address, tls=client_tls_context(), **client_options())
-    with pytest.raises(LocalTransferError, match="cannot load the TLS certificate"):
+    with pytest.raises(LocalTransferError, match=r"cannot load the TLS certificate"):
         server_tls_context(str(tmp_path / "missing.pem"))
 
 
