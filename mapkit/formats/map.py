@@ -571,10 +571,10 @@ def _aria_box(
             return None, None
         lo, hi = xy.min(axis=0), xy.max(axis=0)
         return (int(lo[0]), int(lo[1])), (int(hi[0]), int(hi[1]))
+    if len(xy) == 0:
+        return None, None  # nothing to bound; the writer writes no box then
     lo0 = hmin if hmin is not None else (0, 0)
     hi0 = hmax if hmax is not None else (0, 0)
-    if len(xy) == 0:
-        return lo0, hi0
     lo, hi = xy.min(axis=0), xy.max(axis=0)
     return (
         (min(lo0[0], int(lo[0])), min(lo0[1], int(lo[1]))),
