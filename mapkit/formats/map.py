@@ -621,7 +621,7 @@ def loads(data: str | bytes, *, source: str = "<string>") -> MapData:
     Examples:
         >>> m = loads("2D-Map\\nDATA\\n1 2\\n")
         >>> m.points.tolist(), m.md5
-        ([[1, 2]], 'a0c7eb7cb0aaa20c3b0a0ab3a9b5e0b9')
+        ([[1, 2]], '688ea5a151f70b05bdfb3e892a0574ec')
     """
     return parse_map(data, source=source)
 
