@@ -31,7 +31,6 @@ from mapkit.transfer.protocol import (
     DEFAULT_CHUNK_SIZE,
     DEFAULT_PORT,
     Channel,
-    ChunkReceived,
     ClientHandshake,
     FrameType,
     Offer,
@@ -40,7 +39,6 @@ from mapkit.transfer.protocol import (
     Request,
     Sender,
     Status,
-    TransferComplete,
     kind_of,
 )
 from mapkit.transfer.server import validate_map_file
@@ -242,23 +240,10 @@ class Client:
         rx = Receiver(offer, ref=resp.ref, have=store.have, window=max(self.window * 4, 64),
                       idle_timeout=max(self.timeout, 60.0), sender_window=w if isinstance(w, int) else None)
         tick = _Ticker(progress, offer.size, _attr(rx, "bytes_received"), self.progress_interval)
-        info: dict[str, Any] = {}
         ok = False
 
         def on_events() -> list[Any]:
-            out: list[Any] = []
-            for e in rx.pop_events():
-                try:
-                    if isinstance(e, ChunkReceived):
-                        store.write(e.index, e.data, e.crc)
-                    elif isinstance(e, TransferComplete):
-                        info.update(store.finalize())
-                        out += rx.verified({k: v for k, v in info.items() if k != "path"},
-                                           time.monotonic())
-                except TransferError as err:
-                    out += rx.fail(err)
-                    break
-            return out
+            return store.take(rx)
 
         try:
             store.start_writer()

@@ -960,6 +960,33 @@ class _Machine:
             return True
         return False
 
+    ref = 0
+
+    def _handle(self, f: Frame, now: float) -> list[Out]:  # pragma: no cover - overridden
+        return []
+
+    def _guarded(self, f: Frame, now: float, peer: str) -> list[Out]:
+        """A REJECT/CANCEL of this exchange ends it; a local error is answered with CANCEL."""
+        if f.type in (FrameType.REJECT, FrameType.CANCEL):
+            if f.ref == self.ref:
+                self._fail(rejected_from(f, peer))
+            return []
+        try:
+            return self._handle(f, now)
+        except TransferError as err:
+            return self.fail(err, self.ref)
+
+    def _resend(self, now: float, out: Out | None) -> list[Out]:
+        """``[out]`` again when the resend timer expired; fail after ``max_tries`` sends."""
+        if self._timer is None or now < self._timer or out is None:
+            return []
+        if self._tries >= self.max_tries:
+            self._fail(TimeoutTransferError(f"no answer to {out.type.name} after {self._tries} tries"))
+            return []
+        self._tries += 1
+        self._arm(now)
+        return [out]
+
     def fail(self, err: TransferError, ref: int = 0) -> list[Out]:
         """Give up with ``err`` (e.g. the application's disk is full); returns the CANCEL to send."""
         if self.finished:
@@ -1014,15 +1041,7 @@ class ClientHandshake(_Machine):
         """Resend HELLO or AUTH when its answer is late."""
         if self.finished or self._idle(now, "waiting for the handshake"):
             return []
-        if self._timer is not None and now >= self._timer and self._pending is not None:
-            if self._tries >= self.max_tries:
-                self._fail(TimeoutTransferError(f"no answer to {self._pending.type.name} after "
-                                                f"{self._tries} tries"))
-                return []
-            self._tries += 1
-            self._arm(now)
-            return [self._pending]
-        return []
+        return self._resend(now, self._pending)
 
     def handle(self, ev: Event, now: float) -> list[Out]:
         """Take a frame from the server."""
@@ -1121,12 +1140,12 @@ class ServerHandshake(_Machine):
             return []
         self._heard(now)
         try:
-            return self._handle(ev)
+            return self._hello_or_auth(ev)
         except TransferError as err:
             self._fail(err)
             return [reject_out(err, ev.ref, plain=True)]
 
-    def _handle(self, f: Frame) -> list[Out]:
+    def _hello_or_auth(self, f: Frame) -> list[Out]:
         if f.type == FrameType.HELLO:
             if self._ack is not None:
                 if f.payload == self._hello:
@@ -1222,15 +1241,7 @@ class Request(_Machine):
         """Resend when the answer is late."""
         if self.finished or self._idle(now, f"waiting for the answer to {self.out.type.name}"):
             return []
-        if self._timer is not None and now >= self._timer:
-            if self._tries >= self.max_tries:
-                self._fail(TimeoutTransferError(f"no answer to {self.out.type.name} after "
-                                                f"{self._tries} tries"))
-                return []
-            self._tries += 1
-            self._arm(now)
-            return [self.out]
-        return []
+        return self._resend(now, self.out)
 
     def handle(self, ev: Event, now: float) -> list[Out]:
         """Take a frame; finishes on the answer."""
@@ -1337,17 +1348,10 @@ class Sender(_Machine):
         self._heard(now)
         if isinstance(ev, Damaged):
             return []
-        try:
-            return self._handle(ev, now)
-        except TransferError as err:
-            return self.fail(err, self.ref)
+        return self._guarded(ev, now, "receiver")
 
     def _handle(self, f: Frame, now: float) -> list[Out]:
         t = f.type
-        if t in (FrameType.REJECT, FrameType.CANCEL):
-            if f.ref == self.ref:
-                self._fail(rejected_from(f, "receiver"))
-            return []
         if f.ref != self.ref and t != FrameType.PING:
             return []
         if t == FrameType.ACCEPT and self.state == "offer":
@@ -1605,17 +1609,10 @@ class Receiver(_Machine):
             if ev.type in (FrameType.DONE, FrameType.DATA, FrameType.OFFER) and self._final is not None:
                 return [self._final]
             return []
-        try:
-            return self._handle(ev, now)
-        except TransferError as err:
-            return self.fail(err, self.ref)
+        return self._guarded(ev, now, "sender")
 
     def _handle(self, f: Frame, now: float) -> list[Out]:
         t = f.type
-        if t in (FrameType.REJECT, FrameType.CANCEL):
-            if f.ref == self.ref:
-                self._fail(rejected_from(f, "sender"))
-            return []
         if t == FrameType.PING:
             return [Out(FrameType.PONG, f.payload, ref=f.ref)]
         if f.ref != self.ref and t != FrameType.DATA:

@@ -36,7 +36,6 @@ from mapkit.transfer.protocol import (
     MAX_CHUNK_SIZE,
     AuthenticationError,
     Channel,
-    ChunkReceived,
     Frame,
     FrameType,
     Offer,
@@ -46,7 +45,6 @@ from mapkit.transfer.protocol import (
     Sender,
     ServerHandshake,
     Status,
-    TransferComplete,
     dump_json,
     kind_of,
     reject_out,
@@ -126,17 +124,19 @@ class MapFolder:
         """The path of a (checked) name."""
         return os.path.join(self.root, name)
 
+    def _open(self, name: str) -> int:
+        try:
+            return os.open(self.path(name), os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0))
+        except FileNotFoundError as err:
+            raise StoreError(f"{name}: no such map on this robot", Status.NOT_FOUND) from err
+        except OSError as err:
+            raise StoreError(f"{name}: {err.strerror}", Status.IO_ERROR) from err
+
     def digests(self, name: str, fd: int | None = None) -> tuple[str, str, os.stat_result]:
         """``(sha256, md5, stat)`` of a file in the folder, cached by inode, size and mtime."""
         own = fd is None
-        if own:
-            try:
-                fd = os.open(self.path(name), os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0))
-            except FileNotFoundError as err:
-                raise StoreError(f"{name}: no such map on this robot", Status.NOT_FOUND) from err
-            except OSError as err:
-                raise StoreError(f"{name}: {err.strerror}", Status.IO_ERROR) from err
-        assert fd is not None
+        if fd is None:
+            fd = self._open(name)
         try:
             st = os.fstat(fd)
             key = (st.st_ino, st.st_size, st.st_mtime_ns, st.st_ctime_ns)
@@ -207,12 +207,7 @@ class MapFolder:
             check_name(name, suffixes=self.suffixes)
         else:
             self.check_name(name)
-        try:
-            fd = os.open(self.path(name), os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0))
-        except FileNotFoundError as err:
-            raise StoreError(f"{name}: no such map on this robot", Status.NOT_FOUND) from err
-        except OSError as err:
-            raise StoreError(f"{name}: {err.strerror}", Status.IO_ERROR) from err
+        fd = self._open(name)
         try:
             sha, md5, st = self.digests(name, fd)
         except BaseException:
@@ -503,19 +498,7 @@ class MapServer:
         ok = False
         try:
             def on_events() -> list[Out]:
-                out: list[Out] = []
-                for e in rx.pop_events():
-                    try:
-                        if isinstance(e, ChunkReceived):
-                            dest.write(e.index, e.data, e.crc)
-                        elif isinstance(e, TransferComplete):
-                            info = dest.finalize()
-                            info.pop("path", None)
-                            out += rx.verified(info, time.monotonic())
-                    except TransferError as err:
-                        out += rx.fail(err)
-                        break
-                return out
+                return dest.take(rx)
 
             if dest.resumed:
                 log.info("%s: resuming %s with %d of %d chunks", peer, offer.name, dest.resumed,

@@ -33,8 +33,17 @@ from collections.abc import Callable
 from typing import Any
 
 from mapkit._atomic import atomic_write, fsync_dir
-from mapkit.errors import ChecksumError, LocalTransferError
-from mapkit.transfer.protocol import Offer, Status, decode_bitmap, encode_bitmap
+from mapkit.errors import ChecksumError, LocalTransferError, TransferError
+from mapkit.transfer.protocol import (
+    ChunkReceived,
+    Offer,
+    Out,
+    Receiver,
+    Status,
+    TransferComplete,
+    decode_bitmap,
+    encode_bitmap,
+)
 
 __all__ = ["PartialFile", "StoreChecksumError", "StoreError", "check_name", "file_digests", "partial_paths"]
 
@@ -420,6 +429,27 @@ class PartialFile:
         self._close_fd()
         info["path"] = self.target
         return info
+
+    def take(self, rx: Receiver) -> list[Out]:
+        """Handle a :class:`~mapkit.transfer.protocol.Receiver`'s events: store each chunk, and
+        on completion :meth:`finalize` and answer VERIFIED; a failure answers CANCEL.
+
+        Returns:
+            The frames to send.
+        """
+        out: list[Out] = []
+        for e in rx.pop_events():
+            try:
+                if isinstance(e, ChunkReceived):
+                    self.write(e.index, e.data, e.crc)
+                elif isinstance(e, TransferComplete):
+                    info = self.finalize()
+                    info.pop("path", None)
+                    out += rx.verified(info, time.monotonic())
+            except TransferError as err:
+                out += rx.fail(err)
+                break
+        return out
 
     def close(self, *, keep: bool = True) -> None:
         """End without publishing: keep the partial data and journal for a resume, or delete them."""
