@@ -77,6 +77,13 @@ def test_send_with_load_and_rollback_human_output(tmp_path, runner, robot_dir, m
     assert r.exit_code == 0 and "is now a.map" in r.stdout and "previous: b.map" in r.stdout
 
 
+def test_cli_default_port_is_the_protocol_default() -> None:
+    import mapkit.cli.transfer as cli_transfer
+    from mapkit.transfer import DEFAULT_PORT
+
+    assert cli_transfer.DEFAULT_PORT == DEFAULT_PORT == 7373
+
+
 def test_cli_errors_are_one_line(tmp_path, runner, robot_dir, make_server, secret_file) -> None:
     srv = make_server()
     bad = tmp_path / "bad.map"
