@@ -8,9 +8,10 @@ environment variable, never from the command line. Without one, both sides must 
 from __future__ import annotations
 
 import logging
+import os
 import signal
-import sys
 import threading
+import sys
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -189,37 +190,40 @@ def receive(listen_addr: str, folder: str, secret_file: str | None, insecure: bo
       mapkit receive --listen 0.0.0.0:7373 -o incoming --secret-file secret
       (on the robot)  mapkit send log.2d laptop:7373 --secret-file secret
     """
-    from mapkit.transfer import MapFolder, MapServer
+    from mapkit.transfer import MapFolder, MapServer, receive_files
 
     host, port, secret, tls = _server_setup(listen_addr, secret_file, insecure, tls_cert, tls_key)
-    got: list[dict[str, Any]] = []
-    done = threading.Event()
+    root = os.path.abspath(folder)
 
-    def received(info: dict[str, Any]) -> None:
-        got.append(info)
+    def listening(address: tuple[str, int]) -> None:
+        err(f"mapkit receive: waiting on {address[0]}:{address[1]} for files into {root} "
+            f"(auth {'hmac-sha256' if secret else 'none'}, tls {'on' if tls else 'off'})")
+
+    def show(info: dict[str, Any]) -> None:
         if not as_json:
             click.echo(f"received {info['name']} ({_size(info['size'])}, SHA-256 {info['sha256'][:16]}…) "
                        f"from {info['peer']}")
-        if once:
-            done.set()
+
+    if once:
+        first = receive_files(folder, host, port, count=1, secret=secret, insecure=insecure, tls=tls,
+                              on_listening=listening)
+        for info in first:
+            show(info)
+        if as_json:
+            echo_json(first[0] if first else None)
+        return
+    got: list[dict[str, Any]] = []
+
+    def received(info: dict[str, Any]) -> None:
+        got.append(info)
+        show(info)
 
     srv = MapServer(MapFolder(folder), host=host, port=port, secret=secret, insecure=insecure,
                     tls=tls, push_only=True, on_received=received)
-    h, p = srv.address
-    err(f"mapkit receive: waiting on {h}:{p} for files into {srv.folder.root} "
-        f"(auth {'hmac-sha256' if secret else 'none'}, tls {'on' if tls else 'off'})")
-    if once:
-        srv.start()
-        try:
-            done.wait()
-        except KeyboardInterrupt:
-            pass
-        finally:
-            srv.close()
-    else:
-        _serve(srv)
+    listening(srv.address)
+    _serve(srv)
     if as_json:
-        echo_json(got[0] if once and got else got)
+        echo_json(got)
 
 
 @click.command()

@@ -45,7 +45,8 @@ from mapkit.transfer.server import validate_map_file
 from mapkit.transfer.store import PartialFile, check_name, file_digests
 from mapkit.transfer.tcp import FrameLink, connect, run
 
-__all__ = ["Client", "Progress", "fetch_file", "list_maps", "load_map", "offer_for_file", "send_file"]
+__all__ = ["Client", "Progress", "fetch_file", "list_maps", "load_map", "offer_for_file",
+           "receive_files", "send_file"]
 
 #: ``progress(done_bytes, total_bytes)``, called a few times a second during a transfer.
 Progress = Callable[[int, int], None]
@@ -349,3 +350,44 @@ def load_map(host: str, name: str | None, port: int = DEFAULT_PORT, *, md5: str 
     """Make a map active on a robot (or roll back)."""
     with Client(host, port, **options) as c:
         return c.load(name, md5=md5, rollback=rollback)
+
+
+def receive_files(folder: str | os.PathLike[str], host: str = "0.0.0.0", port: int = DEFAULT_PORT, *,
+                  count: int = 1, timeout: float | None = None,
+                  on_listening: Callable[[tuple[str, int]], None] | None = None,
+                  **options: Any) -> list[dict[str, Any]]:
+    """Wait for peers to push files into ``folder`` (the terminal side of ``mapkit receive``).
+
+    Runs a push-only :class:`~mapkit.transfer.server.MapServer` until ``count`` files arrived or
+    ``timeout`` seconds passed. ``options`` are :class:`MapServer` arguments (``secret``,
+    ``insecure``, ``tls``...).
+
+    Returns:
+        One record per received file: ``{"name", "size", "sha256", "md5", "peer", "resumed", "path"}``.
+
+    Examples:
+        >>> import tempfile, threading, pathlib
+        >>> inbox, src = pathlib.Path(tempfile.mkdtemp()), pathlib.Path(tempfile.mkdtemp()) / "s.2d"
+        >>> _ = src.write_bytes(b"laser")
+        >>> def robot(addr):
+        ...     threading.Thread(target=send_file, args=(src, *addr), kwargs={"insecure": True}).start()
+        >>> [r["name"] for r in receive_files(inbox, "127.0.0.1", 0, insecure=True, on_listening=robot)]
+        ['s.2d']
+    """
+    import threading
+
+    from mapkit.transfer.server import MapServer
+
+    got: list[dict[str, Any]] = []
+    done = threading.Event()
+
+    def received(info: dict[str, Any]) -> None:
+        got.append(info)
+        if len(got) >= count:
+            done.set()
+
+    with MapServer(folder, host=host, port=port, push_only=True, on_received=received, **options) as srv:
+        if on_listening is not None:
+            on_listening(srv.address)
+        done.wait(timeout)
+    return got
