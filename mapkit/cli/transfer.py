@@ -10,8 +10,8 @@ from __future__ import annotations
 import logging
 import os
 import signal
-import threading
 import sys
+import threading
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
