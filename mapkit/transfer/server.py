@@ -424,8 +424,9 @@ class MapServer:
         try:
             run(link, hs)
         except (AuthenticationError, ProtocolError) as err:
-            with contextlib.suppress(TransferError):
-                link.send([reject_out(err, plain=True)])
+            if hs.error is None:  # the channel refused a frame; the machine has not answered
+                with contextlib.suppress(TransferError):
+                    link.send([reject_out(err, plain=True)])
             log.warning("%s: refused: %s", peer, err)
             return
         with self._lock:
