@@ -77,6 +77,22 @@ def test_send_with_load_and_rollback_human_output(tmp_path, runner, robot_dir, m
     assert r.exit_code == 0 and "is now a.map" in r.stdout and "previous: b.map" in r.stdout
 
 
+def test_cli_over_tls(tmp_path, runner, robot_dir, make_server, secret_file, cert) -> None:
+    from mapkit.transfer import server_tls_context
+
+    crt, key = cert
+    srv = make_server(tls=server_tls_context(str(crt), str(key)))
+    m = tmp_path / "office.map"
+    m.write_bytes(make_map(200))
+    sf = ["--secret-file", str(secret_file)]
+    r = runner.invoke(cli, ["send", str(m), addr(srv), "--tls-ca", str(crt), *sf])
+    assert r.exit_code == 0, r.output
+    r = runner.invoke(cli, ["maps", addr(srv), "--tls-no-verify", "--json", *sf])
+    assert json.loads(r.stdout)["maps"][0]["name"] == "office.map"
+    r = runner.invoke(cli, ["maps", addr(srv), *sf])  # plain TCP to a TLS server
+    assert r.exit_code == 1
+
+
 def test_cli_default_port_is_the_protocol_default() -> None:
     import mapkit.cli.transfer as cli_transfer
     from mapkit.transfer import DEFAULT_PORT

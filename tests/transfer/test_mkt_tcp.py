@@ -7,7 +7,6 @@ import errno
 import hashlib
 import json
 import os
-import shutil
 import subprocess
 import threading
 from concurrent.futures import ThreadPoolExecutor
@@ -420,18 +419,6 @@ def test_twenty_clients_push_and_pull_at_once(tmp_path, robot_dir, make_server) 
 
 
 # -- TLS ---------------------------------------------------------------------------------------------------------
-
-
-@pytest.fixture(scope="module")
-def cert(tmp_path_factory):
-    if shutil.which("openssl") is None:
-        pytest.skip("openssl is needed to make a test certificate")
-    d = tmp_path_factory.mktemp("tls")
-    subprocess.run(["openssl", "req", "-x509", "-newkey", "ec", "-pkeyopt", "ec_paramgen_curve:P-256",
-                    "-nodes", "-days", "2", "-subj", "/CN=robot", "-addext", "subjectAltName=IP:127.0.0.1",
-                    "-keyout", str(d / "key.pem"), "-out", str(d / "cert.pem")],
-                   check=True, capture_output=True, timeout=30)
-    return d / "cert.pem", d / "key.pem"
 
 
 def test_tls_push_and_pull(tmp_path, robot_dir, make_server, cert) -> None:
