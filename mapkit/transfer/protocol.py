@@ -26,6 +26,21 @@ return the :class:`Out` frames to send (encode them with :meth:`Channel.encode`,
 ``deadline()`` says when ``poll`` wants to run next; ``finished`` and ``error`` say how it ended.
 Time is whatever monotonic clock the driver passes in (seconds), so tests can simulate it.
 
+Writing a binding for another transport (what :mod:`mapkit.transfer.tcp` does for TCP):
+
+1. Make a :class:`Channel` per session: ``Channel(initiator=True, session=random 64 bits)`` on
+   the side that starts, ``Channel(initiator=False)`` on the other; ``ordered=False`` when the
+   transport may lose, duplicate or reorder (ROS topics), and then feed each received message
+   with :meth:`Channel.receive_message` (one frame per message) instead of ``receive_data``.
+2. Run :class:`ClientHandshake` / :class:`ServerHandshake`, then :class:`Request` machines for
+   GET/LIST/LOAD/BYE and :class:`Sender` / :class:`Receiver` for files: loop ``poll`` → send →
+   wait for a message until ``deadline()`` → ``handle`` → send, until ``finished``.
+3. For a receiver, store chunks and finish the file with
+   :meth:`mapkit.transfer.store.PartialFile.take` (resume journal, SHA-256, atomic rename); on the
+   robot side :class:`mapkit.transfer.server.MapFolder` does names, listings and LOAD.
+4. Send :class:`Damaged` events to the machine too (``handle`` accepts them): the receiver asks
+   for a damaged chunk again at once.
+
 Examples:
     A whole push over an in-memory link, insecure, with 4-byte chunks:
 
