@@ -450,6 +450,9 @@ class MapServer:
             if ev.type == FrameType.BYE:
                 link.send([Out(FrameType.BYE, b"{}", ref=ev.ref)])
                 return
+            if ev.type == FrameType.AUTH:
+                link.send(hs.resend(ev))  # the client missed AUTH_OK
+                continue
             if last is not None and (ev.type == FrameType.DATA or (ev.ref == last.ref and ev.type in (
                     FrameType.DONE, FrameType.ACK, FrameType.OFFER))):
                 link.send(last.handle(ev, time.monotonic()))  # late frames of the last transfer
@@ -465,8 +468,6 @@ class MapServer:
 
     def _request(self, link: FrameLink, f: Frame, peer: str, features: list[str]) -> Any:
         t = f.type
-        if t == FrameType.AUTH:
-            return None  # a repeated AUTH: the answer was sent; TCP does not lose it
         if t == FrameType.PING:
             link.send([Out(FrameType.PONG, f.payload, ref=f.ref)])
         elif t == FrameType.OFFER:

@@ -90,6 +90,26 @@ def test_stream_resyncs_after_garbage_and_split_reads() -> None:
     assert rx.stats["garbage"] == len(b"junk") + len(b"MKT1garbage")
 
 
+@given(st.lists(st.tuples(st.binary(max_size=300), st.binary(max_size=20)), min_size=1, max_size=8),
+       st.lists(st.integers(1, 200), min_size=1, max_size=10))
+def test_stream_decoder_any_split_any_garbage(frames, splits) -> None:
+    tx, rx = Channel(initiator=True, session=3), Channel(initiator=False)
+    tx.install_keys(b"k" * 32, b"s" * 32)
+    rx.install_keys(b"k" * 32, b"s" * 32)
+    wire = b""
+    for payload, junk in frames:
+        wire += junk.replace(b"M", b"m") + tx.encode(Out(FrameType.DATA, payload, ref=len(payload)))
+    got, pos, k = [], 0, 0
+    while pos < len(wire):
+        step = splits[k % len(splits)]
+        rx.receive_data(wire[pos:pos + step])
+        pos, k = pos + step, k + 1
+        while (ev := rx.next_event()) is not None:
+            got.append(ev)
+    assert [f.payload for f in got] == [p for p, _ in frames]
+    assert rx.stats["garbage"] == sum(len(j) for _, j in frames)
+
+
 def test_replayed_frame_is_refused_on_a_stream() -> None:
     tx, rx = Channel(initiator=True, session=1), Channel(initiator=False)
     tx.install_keys(b"k" * 32, b"s" * 32)
