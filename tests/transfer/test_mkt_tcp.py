@@ -463,3 +463,25 @@ def test_concurrent_threads_do_not_share_sessions(robot_dir, make_server) -> Non
         t.join()
     assert not errors
     assert srv.sessions == 40
+
+
+def test_a_pushed_map_is_parsed_once_even_when_loaded(tmp_path, robot_dir, make_server,
+                                                      monkeypatch) -> None:
+    import mapkit.transfer.server as server_mod
+
+    calls: list[str] = []
+    real = server_mod.parse_map
+
+    def counting(data, *, source="<string>"):
+        calls.append(source)
+        return real(data, source=source)
+
+    monkeypatch.setattr(server_mod, "parse_map", counting)
+    srv = make_server()
+    src = tmp_path / "a.map"
+    src.write_bytes(make_map(100))
+    send_file(src, *srv.address, load=True, **client_options())
+    assert calls == ["a.map"]  # parsed on arrival; LOAD knew that content
+    (robot_dir / "b.map").write_bytes(make_map(50, 7))  # put there by hand: parsed at LOAD
+    load_map(*srv.address[:1], "b.map", srv.address[1], **client_options())
+    assert calls == ["a.map", "b.map"]
