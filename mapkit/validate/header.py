@@ -131,7 +131,7 @@ def resolution(ctx: Context) -> None:
         kw = h.prefix + "Resolution:"
         step = lattice_step(h.scan.points)
         hint = f" (the points lie on a {step} mm lattice)" if 1 < step <= 1000 else ""
-        if h.resolution is None or (not ctx.file_view and h.resolution == 0):
+        if h.resolution is None:
             ctx.add(C.RESOLUTION_MISSING,
                     f"{n} points but no {kw} line; ARIA assumes 0 and writes 'Resolution: 0'; "
                     f"localisation grids and ROS exports need the grid size{hint}",
