@@ -179,7 +179,7 @@ def validate(
         ctx = Context(m, file_view=True, source=name, raw_lines=raw_lines)
     ctx.robot_radius = float(robot_radius)
     ctx.navigation = navigation
-    for fn, _codes in RULES:
+    for fn, _codes in sorted(RULES, key=lambda r: min(r[1])):  # by range: 2xx first ... 6xx
         fn(ctx)
     replaced = ctx.cache.get("misspelt_lines", set())
     syntax = [i for i in syntax

@@ -163,9 +163,9 @@ def sorted_flags(ctx: Context) -> None:
                             "(binary searches, map-change diffs) goes wrong",
                             line=h.line(key))
                 continue
-            # A hand-drawn map (lines only, no flag) is normal: report lines only when the flag
-            # is written as false, points whenever they are not marked sorted.
-            if kind == "lines" and flag is None:
+            # Hand-drawn maps (lines only) are never sorted and ARIA writes them with
+            # "LinesAreSorted: false": normal. Lines count only in scanned maps (with points).
+            if kind == "lines" and (flag is None or h.scan.num_points == 0):
                 continue
             actually = is_sorted(arr)
             state = "false" if flag is False else "absent"

@@ -1,3 +1,393 @@
-"""5xx: can a robot of the given radius reach every goal and dock? (rasterised check)"""
+"""5xx: can a robot of the given radius reach every goal and dock?
+
+The map is rasterised with :mod:`mapkit.raster` (walls of every scan, forbidden areas and
+forbidden lines burnt in as walls). One Euclidean distance transform gives each cell's
+*clearance* (distance from its centre to the nearest wall cell's centre); the robot's centre may
+be in a cell whose clearance exceeds the robot radius, exactly the cells
+:func:`mapkit.raster.inflate` leaves free. Connected regions (4-connected, so the robot cannot
+slip between two diagonal wall cells) decide reachability from the first ``RobotHome`` (or,
+without one, between the goals).
+
+For a goal that is not reachable, the same regions at smaller clearances say whether a narrower
+robot would get there and where the widest gap on the way is; for a reachable goal, regions at
+clearances a little above the radius find the goals reached only through a tight passage, and a
+breadth-first path at that clearance locates the passage.
+"""
 
 from __future__ import annotations
+
+import math
+from collections import defaultdict
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from mapkit.diagnostics import IssueCode as C
+from mapkit.model import MapObject
+from mapkit.raster import grid_for_bounds, wall_mask
+from mapkit.raster.grid import OccupancyGrid
+from mapkit.validate._context import Context, rule
+
+__all__ = ["NAV_MAX_CELLS", "TIGHT_MARGIN_MM", "Clearance", "clearance_grid"]
+
+#: The largest grid the reachability check makes (cells); larger maps get coarser cells.
+NAV_MAX_CELLS = 3_000_000
+#: A passage is tight when its clearance is less than the robot radius plus this (mm on each side).
+TIGHT_MARGIN_MM = 100.0
+#: Cells per robot radius wanted (cell size = radius / this, at least the map's resolution).
+CELLS_PER_RADIUS = 4.0
+#: The check is skipped when the cells would have to be coarser than radius / this.
+MIN_CELLS_PER_RADIUS = 2.0
+
+
+class Clearance:
+    """A map's clearance grid: distance (in cells) from each cell to the nearest wall cell.
+
+    Attributes:
+        grid: The grid's geometry (values unused).
+        cell: Cell size in mm.
+        dist: ``(height, width)`` float array of clearances in cells.
+    """
+
+    def __init__(self, grid: OccupancyGrid, walls: NDArray[np.bool_]) -> None:
+        from scipy import ndimage
+
+        self.grid = grid
+        self.cell = grid.resolution_mm
+        self.dist = np.asarray(ndimage.distance_transform_edt(~walls), dtype=np.float32)
+        self._labels: dict[float, NDArray[np.int32]] = {}
+        self._nearest: dict[tuple[float, float, float, float], tuple[int, int] | None] = {}
+
+    def free(self, clearance_mm: float) -> NDArray[np.bool_]:
+        """Cells where the robot's centre may be: clearance greater than ``clearance_mm``.
+
+        Equal to ``~inflate(walls, clearance_mm, resolution)`` (:func:`mapkit.raster.inflate`).
+        """
+        return np.asarray(self.dist > clearance_mm / self.cell + 1e-9)
+
+    def labels(self, clearance_mm: float) -> NDArray[np.int32]:
+        """4-connected regions of :meth:`free` (0 = not free), cached per clearance."""
+        key = round(clearance_mm, 6)
+        if key not in self._labels:
+            from scipy import ndimage
+
+            lab, _ = ndimage.label(self.free(clearance_mm))
+            self._labels[key] = np.asarray(lab, dtype=np.int32)
+        return self._labels[key]
+
+    def cell_of(self, x: float, y: float) -> tuple[int, int]:
+        """``(row, col)`` of a world point in mm."""
+        rc = self.grid.world_to_cell([x, y])
+        return int(rc[0]), int(rc[1])
+
+    def nearest_free(self, x: float, y: float, clearance_mm: float, reach_mm: float) -> tuple[int, int] | None:
+        """The free cell (at ``clearance_mm``) nearest to (x, y) within ``reach_mm``, if any."""
+        key = (float(x), float(y), round(clearance_mm, 6), round(reach_mm, 6))
+        if key not in self._nearest:
+            self._nearest[key] = self._nearest_free(x, y, clearance_mm, reach_mm)
+        return self._nearest[key]
+
+    def _nearest_free(self, x: float, y: float, clearance_mm: float, reach_mm: float) -> tuple[int, int] | None:
+        labels = self.labels(clearance_mm)
+        r0, c0 = self.cell_of(x, y)
+        k = int(math.ceil(reach_mm / self.cell)) + 1
+        h, w = labels.shape
+        rows = np.arange(max(r0 - k, 0), min(r0 + k + 1, h))
+        cols = np.arange(max(c0 - k, 0), min(c0 + k + 1, w))
+        if not len(rows) or not len(cols):
+            return None
+        win = labels[np.ix_(rows, cols)] > 0
+        if not win.any():
+            return None
+        rr, cc = np.nonzero(win)
+        centres = self.grid.cell_to_world(np.stack([rows[rr], cols[cc]], axis=1))
+        d = np.hypot(centres[:, 0] - x, centres[:, 1] - y)
+        j = int(np.argmin(d))
+        if d[j] > reach_mm + self.cell:
+            return None
+        return int(rows[rr[j]]), int(cols[cc[j]])
+
+    def connected(self, a: tuple[float, float], b: tuple[float, float], clearance_mm: float,
+                  reach_mm: float) -> tuple[tuple[int, int], tuple[int, int]] | None:
+        """Free cells near world points ``a`` and ``b`` in one region at ``clearance_mm``, if any."""
+        ca = self.nearest_free(a[0], a[1], clearance_mm, reach_mm)
+        cb = self.nearest_free(b[0], b[1], clearance_mm, reach_mm)
+        if ca is None or cb is None:
+            return None
+        lab = self.labels(clearance_mm)
+        return (ca, cb) if lab[ca] == lab[cb] else None
+
+    def passages(
+        self, start: tuple[int, int], goals: list[tuple[int, int]], clearance_mm: float
+    ) -> list[tuple[float, tuple[float, float]] | None]:
+        """The narrowest passage on the way from ``start`` to each goal, at ``clearance_mm``.
+
+        A breadth-first path through the cells free at ``clearance_mm`` is split into stretches
+        inside and outside the regions free at one cell more. Stretches outside that join two
+        different regions are passages (a stretch that leaves a region and comes back into it is
+        the path cutting a corner); the passage with the least clearance is the answer, as
+        ``(clearance in mm, (x, y) in mm)``. ``None`` where there is no path.
+        """
+        from scipy.sparse import coo_matrix
+        from scipy.sparse.csgraph import breadth_first_order
+
+        labels = self.labels(clearance_mm)
+        upper = self.labels(clearance_mm + self.cell)
+        lab = labels[start]
+        if lab == 0:
+            return [None] * len(goals)
+        region = labels == lab
+        index = np.full(region.shape, -1, dtype=np.int64)
+        cells = np.flatnonzero(region.ravel())
+        index.ravel()[cells] = np.arange(len(cells))
+        pairs = []
+        for a, b in ((index[:, :-1], index[:, 1:]), (index[:-1, :], index[1:, :])):
+            both = (a >= 0) & (b >= 0)
+            pairs.append((a[both], b[both]))
+        i = np.concatenate([p[0] for p in pairs])
+        j = np.concatenate([p[1] for p in pairs])
+        n = len(cells)
+        graph = coo_matrix((np.ones(len(i), dtype=np.int8), (i, j)), shape=(n, n)).tocsr()
+        root = int(index[start])
+        _, pred = breadth_first_order(graph, root, directed=False, return_predecessors=True)
+        flat_dist = self.dist.ravel()
+        flat_upper = upper.ravel()
+        out: list[tuple[float, tuple[float, float]] | None] = []
+        for g in goals:
+            node = int(index[g]) if region[g] else -1
+            if node < 0 or (node != root and pred[node] < 0):
+                out.append(None)
+                continue
+            path = [node]
+            while path[-1] != root:
+                path.append(int(pred[path[-1]]))
+            flat = cells[np.array(path[::-1])]
+            up = flat_upper[flat]
+            best = _narrowest_crossing(up, flat_dist[flat])
+            k = int(flat[best])
+            rc = np.unravel_index(k, self.dist.shape)
+            xy = self.grid.cell_to_world([int(rc[0]), int(rc[1])])
+            out.append((float(flat_dist[k]) * self.cell, (float(xy[0]), float(xy[1]))))
+        return out
+
+
+def _narrowest_crossing(up: NDArray[Any], clear: NDArray[Any]) -> int:
+    """Index of the least-clear cell in the stretches of a path that join different regions.
+
+    ``up`` holds each path cell's region label at the higher clearance (0 outside every region).
+    The path's ends count as regions of their own when they lie outside one.
+
+    Examples:
+        >>> _narrowest_crossing(np.array([1, 0, 1, 1, 0, 0, 2]), np.array([9, 2, 9, 9, 4, 3, 9]))
+        5
+    """
+    lab = up.astype(np.int64).copy()
+    if lab[0] == 0:
+        lab[0] = -1
+    if lab[-1] == 0:
+        lab[-1] = -2
+    inside = np.flatnonzero(lab != 0)
+    best, best_c = -1, np.inf
+    for a, b in zip(inside[:-1], inside[1:]):
+        if b - a > 1 and lab[a] != lab[b]:
+            k = a + 1 + int(np.argmin(clear[a + 1 : b]))
+            if clear[k] < best_c:
+                best, best_c = k, clear[k]
+    if best < 0:  # no crossing found (snapping at the ends): the least-clear cell of the path
+        best = int(np.argmin(clear))
+    return best
+
+
+def nav_cell_mm(ctx: Context, span_mm: float) -> float | None:
+    """The cell size (mm) for the reachability grid, or ``None`` when the map is too large."""
+    r = ctx.robot_radius
+    cell = max(float(ctx.resolution), r / CELLS_PER_RADIUS if r > 0 else 0.0)
+    cells = (span_mm / cell) ** 2
+    if cells > NAV_MAX_CELLS:
+        cell = math.ceil(span_mm / math.sqrt(NAV_MAX_CELLS))
+    if r > 0 and cell > r / MIN_CELLS_PER_RADIUS:
+        return None
+    return float(math.ceil(cell))
+
+
+def clearance_grid(ctx: Context, bounds: tuple[tuple[float, float], tuple[float, float]], cell_mm: float) -> Clearance:
+    """Rasterise the map's walls, forbidden areas and forbidden lines and measure clearances."""
+    grid = grid_for_bounds(bounds, cell_mm / 1000.0, margin_m=0.0)
+    m = ctx.map if ctx.file_view else ctx.map.replace(objects=ctx.objects)
+    walls = wall_mask(m, grid, forbidden_as_walls=True)
+    return Clearance(grid, walls)
+
+
+def _name(o: MapObject) -> str:
+    return f'{o.type} "{o.name}"' if o.name else f"the unnamed {o.type}"
+
+
+@rule(C.UNREACHABLE, C.NARROW_PASSAGE, C.NAVIGATION_SKIPPED)
+def reachability(ctx: Context) -> None:
+    """Every goal and dock reachable from RobotHome (or from each other), and how tight the way is."""
+    if not ctx.navigation:
+        return
+    # Goals inside a forbidden area are reported as such (MK411), not again as unreachable.
+    forbidden = ctx.cache.get("forbidden_targets", set())
+    targets = [(i, o) for i, o in ctx.destinations()
+               if math.isfinite(o.x) and math.isfinite(o.y) and i not in forbidden]
+    box = ctx.data_box()
+    r = ctx.robot_radius
+    stats: dict[str, Any] = {"targets": len(targets), "robot_radius": r,
+                             "in_forbidden_areas": len(forbidden)}
+    ctx.stats["navigation"] = stats
+    if not targets or box is None:
+        return
+    homes = [o for _, o in ctx.homes() if math.isfinite(o.x) and math.isfinite(o.y)]
+    margin = r + 1000.0
+    (x0, y0), (x1, y1) = box
+    inside = [(i, o) for i, o in targets
+              if x0 - margin <= o.x <= x1 + margin and y0 - margin <= o.y <= y1 + margin]
+    homes = [h for h in homes if x0 - margin <= h.x <= x1 + margin and y0 - margin <= h.y <= y1 + margin]
+    bounds = ((x0 - margin, y0 - margin), (x1 + margin, y1 + margin))
+    span = max(x1 - x0, y1 - y0) + 2 * margin
+    cell = nav_cell_mm(ctx, span)
+    if cell is None:
+        ctx.add(C.NAVIGATION_SKIPPED,
+                f"reachability not checked: the map spans {span / 1000:.0f} m, too large for a grid "
+                f"of at most {NAV_MAX_CELLS:,} cells fine enough for a {r:.0f} mm robot radius "
+                f"(cells of at most {r / MIN_CELLS_PER_RADIUS:.0f} mm)")
+        stats["skipped"] = "too large"
+        return
+    cl = clearance_grid(ctx, bounds, cell)
+    stats.update(cell_mm=cell, grid=[cl.grid.width, cl.grid.height])
+    reach = r + cell  # how far from a goal its free cell may be (goals near walls still count)
+
+    # The start: the first usable RobotHome, else the goals' biggest connected group.
+    start_cell, start_label = None, None
+    start_name = ""
+    for h in homes:
+        c = cl.nearest_free(h.x, h.y, r, reach)
+        if c is not None:
+            start_cell, start_label, start_name = c, int(cl.labels(r)[c]), _name(h)
+            break
+    free_cells = {i: cl.nearest_free(o.x, o.y, r, reach) for i, o in inside}
+    labels = cl.labels(r)
+    if start_cell is None:
+        groups: dict[int, list[int]] = defaultdict(list)
+        for i, c in free_cells.items():
+            if c is not None:
+                groups[int(labels[c])].append(i)
+        if not groups:
+            start_label = None
+        else:
+            start_label = max(groups, key=lambda k: (len(groups[k]), -min(groups[k])))
+            first = min(groups[start_label])
+            start_cell = free_cells[first]
+            start_name = "the other goals"
+        stats["start"] = start_name or None
+    else:
+        stats["start"] = start_name
+    reachable, unreachable = [], []
+    for i, o in inside:
+        c = free_cells[i]
+        ok = c is not None and start_label is not None and int(labels[c]) == start_label
+        (reachable if ok else unreachable).append((i, o))
+    stats["reachable"] = len(reachable)
+    stats["not_checked"] = len(targets) - len(inside)
+    if start_cell is None:
+        stats["start"] = None
+    _report_unreachable(ctx, cl, start_cell, start_name, unreachable, free_cells)
+    if start_cell is not None:
+        _report_tight(ctx, cl, start_cell, start_name, reachable, free_cells)
+
+
+def _levels(low: float, high: float, step: float) -> list[float]:
+    """Clearances from ``high`` down to ``low`` in steps, both ends included, descending.
+
+    Examples:
+        >>> _levels(250, 350, 63)
+        [350, 287, 250]
+    """
+    out = []
+    v = high
+    while v > low + 1e-9:
+        out.append(v)
+        v -= step
+    return [*out, low]
+
+
+def _report_unreachable(
+    ctx: Context, cl: Clearance, start: tuple[int, int] | None, start_name: str,
+    unreachable: list[tuple[int, MapObject]], free_cells: dict[int, tuple[int, int] | None],
+) -> None:
+    r = ctx.robot_radius
+    start_xy = None if start is None else tuple(cl.grid.cell_to_world(list(start)))
+    # For a narrower robot: the largest clearance below r at which the goal joins the start.
+    levels = [v for v in _levels(0.0, r, cl.cell) if v < r]
+    for i, o in unreachable:
+        where = dict(line=ctx.object_line(i), object=o.name or None, xy=(o.x, o.y))
+        who = f"{_name(o)} at ({o.x:.0f}, {o.y:.0f})"
+        if start_xy is None:
+            ctx.add(C.UNREACHABLE,
+                    f"{who}: no goal, dock or home has room for a robot of radius {r:.0f} mm, so "
+                    "none can be reached", **where)
+            continue
+        frm = f"from {start_name}" if start_name != "the other goals" else \
+            "from the other goals (they share one connected area; this one is cut off)"
+        if free_cells.get(i) is None:
+            ctx.add(C.UNREACHABLE,
+                    f"{who} cannot be reached {frm}: there is no room for a robot of radius "
+                    f"{r:.0f} mm anywhere within {r:.0f} mm of it", **where)
+            continue
+        gap = None
+        # Connected at all (at the smallest clearance)? Only then look for the widest way.
+        if levels and cl.connected(start_xy, (o.x, o.y), levels[-1], r + cl.cell) is not None:  # type: ignore[arg-type]
+            for level in levels:
+                pair = cl.connected(start_xy, (o.x, o.y), level, r + cl.cell)  # type: ignore[arg-type]
+                if pair is not None:
+                    gap = cl.passages(pair[0], [pair[1]], level)[0]
+                    break
+        if gap is None:
+            ctx.add(C.UNREACHABLE,
+                    f"{who} cannot be reached {frm}: walls, forbidden areas or forbidden lines "
+                    "close it off completely", **where)
+        else:
+            c_mm, (gx, gy) = gap
+            ctx.add(C.UNREACHABLE,
+                    f"{who} cannot be reached {frm} by a robot of radius {r:.0f} mm: the widest "
+                    f"way passes a gap about {2 * c_mm:.0f} mm wide at ({gx:.0f}, {gy:.0f})",
+                    **where)
+
+
+def _report_tight(
+    ctx: Context, cl: Clearance, start: tuple[int, int], start_name: str,
+    reachable: list[tuple[int, MapObject]], free_cells: dict[int, tuple[int, int] | None],
+) -> None:
+    r = ctx.robot_radius
+    start_xy: tuple[float, float] = tuple(cl.grid.cell_to_world(list(start)))  # type: ignore[assignment]
+    levels = _levels(r, r + TIGHT_MARGIN_MM, cl.cell)  # descending, the last one is r
+    by_level: dict[float, list[tuple[int, MapObject]]] = defaultdict(list)
+    for i, o in reachable:
+        for level in levels:
+            if cl.connected(start_xy, (o.x, o.y), level, r + cl.cell) is not None:
+                break
+        if level < levels[0]:
+            by_level[level].append((i, o))
+    passages: dict[tuple[int, int], list[tuple[int, MapObject, float]]] = defaultdict(list)
+    for level, group in by_level.items():
+        pairs = [cl.connected(start_xy, (o.x, o.y), level, r + cl.cell) for _, o in group]
+        s = pairs[0][0]  # type: ignore[index]
+        found = cl.passages(s, [p[1] for p in pairs], level)  # type: ignore[index]
+        for (i, o), f in zip(group, found):
+            if f is None:
+                continue
+            c_mm, (x, y) = f
+            key = (int(round(x / cl.cell)), int(round(y / cl.cell)))
+            passages[key].append((i, o, c_mm))
+    for key, group in passages.items():
+        i, o, c_mm = group[0]
+        x, y = key[0] * cl.cell, key[1] * cl.cell
+        names = ", ".join(_name(g[1]) for g in group[:5]) + (" ..." if len(group) > 5 else "")
+        spare = max(0.0, c_mm - r)
+        ctx.add(C.NARROW_PASSAGE,
+                f"the way from {start_name} to {names} passes a gap about {2 * c_mm:.0f} mm wide "
+                f"at ({x:.0f}, {y:.0f}): a robot of radius {r:.0f} mm has about {spare:.0f} mm "
+                "to spare on each side",
+                line=ctx.object_line(i), object=o.name or None, xy=(x, y))

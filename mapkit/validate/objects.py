@@ -264,11 +264,13 @@ def clearance(ctx: Context) -> None:
     areas = [o for o in ctx.objects if o.type == "ForbiddenArea" and o.from_to is not None]
     flines = [o for o in ctx.objects if o.type == "ForbiddenLine" and o.from_to is not None]
     fseg = np.array([o.from_to for o in flines], dtype=np.float64).reshape(-1, 4)
-    aseg = [_edges(a) for a in areas]
+    # All forbidden-area edges in one array; area k owns rows 4k..4k+3.
+    aseg = np.concatenate([_edges(a) for a in areas]) if areas else np.zeros((0, 4))
     for k, (i, o) in enumerate(targets):
         line, name, xy = ctx.object_line(i), o.name or None, (o.x, o.y)
         inside = [a for a in areas if in_rectangle(a, o.x, o.y)]
         if inside:
+            ctx.cache.setdefault("forbidden_targets", set()).add(i)
             a = inside[0]
             label = f' "{a.name}"' if a.name else ""
             ctx.add(C.GOAL_IN_FORBIDDEN_AREA,
@@ -297,10 +299,12 @@ def clearance(ctx: Context) -> None:
         if len(fseg):
             d = point_segment_distance(q[k], fseg)
             near.append((float(d.min()), "a ForbiddenLine"))
-        if not inside:
-            for a, seg in zip(areas, aseg):
-                near.append((float(point_segment_distance(q[k], seg).min()),
-                             f'ForbiddenArea "{a.name}"' if a.name else "a ForbiddenArea"))
+        if not inside and len(aseg):
+            per_area = point_segment_distance(q[k], aseg).reshape(len(areas), 4).min(axis=1)
+            j = int(np.argmin(per_area))
+            a = areas[j]
+            near.append((float(per_area[j]),
+                         f'ForbiddenArea "{a.name}"' if a.name else "a ForbiddenArea"))
         if near:
             d, what = min(near)
             if d < r:
