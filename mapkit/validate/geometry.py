@@ -51,7 +51,7 @@ def points_on_grid(ctx: Context) -> None:
     for s in ctx.map.scans:
         r = s.resolution
         p = s.points
-        if r <= 1 or len(p) < 2:
+        if not 1 < r <= 1000 or len(p) < 2:  # an implausible Resolution: is MK207
             continue
         key = (p[:, 0] % r) * r + (p[:, 1] % r)
         off = key != np.argmax(np.bincount(key, minlength=r * r))

@@ -57,7 +57,7 @@ class Clearance:
         self.cell = grid.resolution_mm
         self.dist = np.asarray(ndimage.distance_transform_edt(~walls), dtype=np.float32)
         self._labels: dict[float, NDArray[np.int32]] = {}
-        self._nearest: dict[tuple[float, float, float, float], tuple[int, int] | None] = {}
+        self._near: dict[tuple[float, float, float, float], dict[int, tuple[int, int]]] = {}
 
     def free(self, clearance_mm: float) -> NDArray[np.bool_]:
         """Cells where the robot's centre may be: clearance greater than ``clearance_mm``.
@@ -81,14 +81,15 @@ class Clearance:
         rc = self.grid.world_to_cell([x, y])
         return int(rc[0]), int(rc[1])
 
-    def nearest_free(self, x: float, y: float, clearance_mm: float, reach_mm: float) -> tuple[int, int] | None:
-        """The free cell (at ``clearance_mm``) nearest to (x, y) within ``reach_mm``, if any."""
+    def near_cells(self, x: float, y: float, clearance_mm: float, reach_mm: float) -> dict[int, tuple[int, int]]:
+        """Free cells (at ``clearance_mm``) within ``reach_mm`` of (x, y): the nearest one of each
+        region, by region label, nearest region first."""
         key = (float(x), float(y), round(clearance_mm, 6), round(reach_mm, 6))
-        if key not in self._nearest:
-            self._nearest[key] = self._nearest_free(x, y, clearance_mm, reach_mm)
-        return self._nearest[key]
+        if key not in self._near:
+            self._near[key] = self._near_cells(x, y, clearance_mm, reach_mm)
+        return self._near[key]
 
-    def _nearest_free(self, x: float, y: float, clearance_mm: float, reach_mm: float) -> tuple[int, int] | None:
+    def _near_cells(self, x: float, y: float, clearance_mm: float, reach_mm: float) -> dict[int, tuple[int, int]]:
         labels = self.labels(clearance_mm)
         r0, c0 = self.cell_of(x, y)
         k = int(math.ceil(reach_mm / self.cell)) + 1
@@ -96,27 +97,30 @@ class Clearance:
         rows = np.arange(max(r0 - k, 0), min(r0 + k + 1, h))
         cols = np.arange(max(c0 - k, 0), min(c0 + k + 1, w))
         if not len(rows) or not len(cols):
-            return None
-        win = labels[np.ix_(rows, cols)] > 0
-        if not win.any():
-            return None
-        rr, cc = np.nonzero(win)
+            return {}
+        win = labels[np.ix_(rows, cols)]
+        rr, cc = np.nonzero(win > 0)
+        if not len(rr):
+            return {}
         centres = self.grid.cell_to_world(np.stack([rows[rr], cols[cc]], axis=1))
         d = np.hypot(centres[:, 0] - x, centres[:, 1] - y)
-        j = int(np.argmin(d))
-        if d[j] > reach_mm + self.cell:
-            return None
-        return int(rows[rr[j]]), int(cols[cc[j]])
+        ok = d <= reach_mm + self.cell / 2
+        out: dict[int, tuple[int, int]] = {}
+        for j in np.flatnonzero(ok)[np.argsort(d[ok], kind="stable")]:
+            lab = int(win[rr[j], cc[j]])
+            if lab not in out:
+                out[lab] = (int(rows[rr[j]]), int(cols[cc[j]]))
+        return out
 
     def connected(self, a: tuple[float, float], b: tuple[float, float], clearance_mm: float,
                   reach_mm: float) -> tuple[tuple[int, int], tuple[int, int]] | None:
         """Free cells near world points ``a`` and ``b`` in one region at ``clearance_mm``, if any."""
-        ca = self.nearest_free(a[0], a[1], clearance_mm, reach_mm)
-        cb = self.nearest_free(b[0], b[1], clearance_mm, reach_mm)
-        if ca is None or cb is None:
-            return None
-        lab = self.labels(clearance_mm)
-        return (ca, cb) if lab[ca] == lab[cb] else None
+        na = self.near_cells(a[0], a[1], clearance_mm, reach_mm)
+        nb = self.near_cells(b[0], b[1], clearance_mm, reach_mm)
+        for lab, ca in na.items():
+            if lab in nb:
+                return ca, nb[lab]
+        return None
 
     def passages(
         self, start: tuple[int, int], goals: list[tuple[int, int]], clearance_mm: float
@@ -199,6 +203,11 @@ def _narrowest_crossing(up: NDArray[Any], clear: NDArray[Any]) -> int:
     return best
 
 
+def reach_mm(radius: float, cell: float) -> float:
+    """How far (mm) from a goal a free cell may be for the goal to count as reached."""
+    return radius + 2 * cell
+
+
 def nav_cell_mm(ctx: Context, span_mm: float) -> float | None:
     """The cell size (mm) for the reachability grid, or ``None`` when the map is too large."""
     r = ctx.robot_radius
@@ -257,45 +266,49 @@ def reachability(ctx: Context) -> None:
         return
     cl = clearance_grid(ctx, bounds, cell)
     stats.update(cell_mm=cell, grid=[cl.grid.width, cl.grid.height])
-    reach = r + cell  # how far from a goal its free cell may be (goals near walls still count)
+    # How far from a goal its free cell may be: the radius and two cells of discretisation (a
+    # goal near or on a wall still counts as reached from the free side).
+    reach = reach_mm(r, cell)
 
     # The start: the first usable RobotHome, else the goals' biggest connected group.
-    start_cell, start_label = None, None
+    start_cell: tuple[int, int] | None = None
     start_name = ""
     for h in homes:
-        c = cl.nearest_free(h.x, h.y, r, reach)
-        if c is not None:
-            start_cell, start_label, start_name = c, int(cl.labels(r)[c]), _name(h)
+        near = cl.near_cells(h.x, h.y, r, reach)
+        if near:
+            start_cell, start_name = next(iter(near.values())), _name(h)
+            stats["start"] = start_name
             break
-    free_cells = {i: cl.nearest_free(o.x, o.y, r, reach) for i, o in inside}
-    labels = cl.labels(r)
+    near_goal = {i: cl.near_cells(o.x, o.y, r, reach) for i, o in inside}
     if start_cell is None:
         groups: dict[int, list[int]] = defaultdict(list)
-        for i, c in free_cells.items():
-            if c is not None:
-                groups[int(labels[c])].append(i)
-        if not groups:
-            start_label = None
-        else:
-            start_label = max(groups, key=lambda k: (len(groups[k]), -min(groups[k])))
-            first = min(groups[start_label])
-            start_cell = free_cells[first]
+        for i, near in near_goal.items():
+            for lab in near:
+                groups[lab].append(i)
+        if groups:
+            best = max(groups, key=lambda k: (len(groups[k]), -min(groups[k])))
+            first = min(groups[best])
+            start_cell = near_goal[first][best]
             start_name = "the other goals"
-        stats["start"] = start_name or None
-    else:
-        stats["start"] = start_name
+            stats["start"] = f"{_name(dict(inside)[first])} (no usable RobotHome)"
+        else:
+            stats["start"] = None
+    start_label = None if start_cell is None else int(cl.labels(r)[start_cell])
     reachable, unreachable = [], []
+    free_cells: dict[int, tuple[int, int] | None] = {}
     for i, o in inside:
-        c = free_cells[i]
-        ok = c is not None and start_label is not None and int(labels[c]) == start_label
-        (reachable if ok else unreachable).append((i, o))
+        near = near_goal[i]
+        free_cells[i] = near.get(start_label) if start_label is not None else None  # type: ignore[arg-type]
+        if free_cells[i] is not None:
+            reachable.append((i, o))
+        else:
+            unreachable.append((i, o))
+            free_cells[i] = next(iter(near.values()), None)
     stats["reachable"] = len(reachable)
     stats["not_checked"] = len(targets) - len(inside)
-    if start_cell is None:
-        stats["start"] = None
     _report_unreachable(ctx, cl, start_cell, start_name, unreachable, free_cells)
     if start_cell is not None:
-        _report_tight(ctx, cl, start_cell, start_name, reachable, free_cells)
+        _report_tight(ctx, cl, start_cell, stats["start"], reachable, free_cells)
 
 
 def _levels(low: float, high: float, step: float) -> list[float]:
@@ -338,9 +351,9 @@ def _report_unreachable(
             continue
         gap = None
         # Connected at all (at the smallest clearance)? Only then look for the widest way.
-        if levels and cl.connected(start_xy, (o.x, o.y), levels[-1], r + cl.cell) is not None:  # type: ignore[arg-type]
+        if levels and cl.connected(start_xy, (o.x, o.y), levels[-1], reach_mm(r, cl.cell)) is not None:  # type: ignore[arg-type]
             for level in levels:
-                pair = cl.connected(start_xy, (o.x, o.y), level, r + cl.cell)  # type: ignore[arg-type]
+                pair = cl.connected(start_xy, (o.x, o.y), level, reach_mm(r, cl.cell))  # type: ignore[arg-type]
                 if pair is not None:
                     gap = cl.passages(pair[0], [pair[1]], level)[0]
                     break
@@ -352,7 +365,7 @@ def _report_unreachable(
             c_mm, (gx, gy) = gap
             ctx.add(C.UNREACHABLE,
                     f"{who} cannot be reached {frm} by a robot of radius {r:.0f} mm: the widest "
-                    f"way passes a gap about {2 * c_mm:.0f} mm wide at ({gx:.0f}, {gy:.0f})",
+                    f"way passes a gap about {_width(c_mm)} mm wide at ({gx:.0f}, {gy:.0f})",
                     **where)
 
 
@@ -365,14 +378,16 @@ def _report_tight(
     levels = _levels(r, r + TIGHT_MARGIN_MM, cl.cell)  # descending, the last one is r
     by_level: dict[float, list[tuple[int, MapObject]]] = defaultdict(list)
     for i, o in reachable:
+        # At each clearance a goal may sit as far from its free cell as that clearance (plus
+        # discretisation): a goal close to a wall is MK410's business, not a passage.
         for level in levels:
-            if cl.connected(start_xy, (o.x, o.y), level, r + cl.cell) is not None:
+            if cl.connected(start_xy, (o.x, o.y), level, reach_mm(level, cl.cell)) is not None:
                 break
         if level < levels[0]:
             by_level[level].append((i, o))
     passages: dict[tuple[int, int], list[tuple[int, MapObject, float]]] = defaultdict(list)
     for level, group in by_level.items():
-        pairs = [cl.connected(start_xy, (o.x, o.y), level, r + cl.cell) for _, o in group]
+        pairs = [cl.connected(start_xy, (o.x, o.y), level, reach_mm(level, cl.cell)) for _, o in group]
         s = pairs[0][0]  # type: ignore[index]
         found = cl.passages(s, [p[1] for p in pairs], level)  # type: ignore[index]
         for (i, o), f in zip(group, found):
@@ -384,10 +399,16 @@ def _report_tight(
     for key, group in passages.items():
         i, o, c_mm = group[0]
         x, y = key[0] * cl.cell, key[1] * cl.cell
-        names = ", ".join(_name(g[1]) for g in group[:5]) + (" ..." if len(group) > 5 else "")
-        spare = max(0.0, c_mm - r)
+        names = ", ".join(_name(g[1]) for g in group[:5]) + (
+            f" and {len(group) - 5} more" if len(group) > 5 else "")
         ctx.add(C.NARROW_PASSAGE,
-                f"the way from {start_name} to {names} passes a gap about {2 * c_mm:.0f} mm wide "
-                f"at ({x:.0f}, {y:.0f}): a robot of radius {r:.0f} mm has about {spare:.0f} mm "
-                "to spare on each side",
+                f"the way from {start_name} to {names} passes a gap about {_width(c_mm)} mm wide "
+                f"at ({x:.0f}, {y:.0f}) (measured on a {cl.cell:.0f} mm grid): the robot is "
+                f"{2 * r:.0f} mm wide and needs about {2 * (r + TIGHT_MARGIN_MM):.0f} mm to pass "
+                "with ease",
                 line=ctx.object_line(i), object=o.name or None, xy=(x, y))
+
+
+def _width(clearance_mm: float) -> int:
+    """A passage's width from its clearance, rounded to 10 mm (the grid is not finer than that)."""
+    return int(round(2 * clearance_mm / 10.0)) * 10

@@ -106,7 +106,7 @@ def test_without_home_goals_are_checked_against_each_other() -> None:
     found = only(report, C.UNREACHABLE)
     assert [f.location.object for f in found] == ["D"]
     assert "from the other goals" in found[0].message
-    assert report.checked["navigation"]["start"] == "the other goals"
+    assert report.checked["navigation"]["start"] == 'Goal "A" (no usable RobotHome)'
 
 
 def test_goal_near_a_wall_still_counts_as_reached() -> None:
