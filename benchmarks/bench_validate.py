@@ -18,8 +18,9 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
-import mapkit  # noqa: E402
 from bigmap import write_big_map  # noqa: E402
+
+import mapkit  # noqa: E402
 from mapkit.validate import validate  # noqa: E402
 
 RADIUS = 300.0
@@ -44,17 +45,27 @@ def main() -> None:
         m = mapkit.load(path)
         report = validate(m, robot_radius=RADIUS)
         nav = report.checked["navigation"]
-        print(f"map: {m.scan.num_points:,} points, {m.scan.num_lines:,} lines, {len(m.objects)} objects; "
-              f"findings {report.counts()}; navigation grid {nav['grid'][0]} x {nav['grid'][1]} cells "
-              f"of {nav['cell_mm']:.0f} mm, {nav['reachable']} of {nav['targets']} goals reachable")
+        print(
+            f"map: {m.scan.num_points:,} points, {m.scan.num_lines:,} lines, "
+            f"{len(m.objects)} objects; findings {report.counts()}; "
+            f"navigation grid {nav['grid'][0]} x {nav['grid'][1]} cells "
+            f"of {nav['cell_mm']:.0f} mm, {nav['reachable']} of {nav['targets']} goals reachable"
+        )
         t_load = best(lambda: mapkit.load(path), args.repeat)
         rows = [
             ("read (mapkit.load), the baseline", t_load),
-            ("validate(map) without navigation", best(lambda: validate(m, navigation=False), args.repeat)),
-            (f"validate(map), reachability at {RADIUS:.0f} mm",
-             best(lambda: validate(m, robot_radius=RADIUS), args.repeat)),
-            (f"validate(path): read + all checks at {RADIUS:.0f} mm",
-             best(lambda: validate(path, robot_radius=RADIUS), args.repeat)),
+            (
+                "validate(map) without navigation",
+                best(lambda: validate(m, navigation=False), args.repeat),
+            ),
+            (
+                f"validate(map), reachability at {RADIUS:.0f} mm",
+                best(lambda: validate(m, robot_radius=RADIUS), args.repeat),
+            ),
+            (
+                f"validate(path): read + all checks at {RADIUS:.0f} mm",
+                best(lambda: validate(path, robot_radius=RADIUS), args.repeat),
+            ),
         ]
     width = max(len(name) for name, _ in rows)
     for name, t in rows:

@@ -74,14 +74,23 @@ def render_text(report: ValidationReport) -> list[str]:
 @click.command()
 @click.argument("map_file", type=click.Path(dir_okay=False))
 @json_option
-@click.option("--robot-radius", type=click.FloatRange(min=0, max=100_000), default=DEFAULT_ROBOT_RADIUS,
-              show_default=True, metavar="MM",
-              help="Robot radius for the clearance and reachability checks (0: connectivity only).")
+@click.option(
+    "--robot-radius",
+    type=click.FloatRange(min=0, max=100_000),
+    default=DEFAULT_ROBOT_RADIUS,
+    show_default=True,
+    metavar="MM",
+    help="Robot radius for the clearance and reachability checks (0: connectivity only).",
+)
 @click.option("--strict", is_flag=True, help="Exit 1 on warnings too.")
 @click.option("--no-navigation", is_flag=True, help="Skip the reachability checks (5xx).")
 @click.pass_context
 def validate(
-    ctx: click.Context, map_file: str, as_json: bool, robot_radius: float, strict: bool,
+    ctx: click.Context,
+    map_file: str,
+    as_json: bool,
+    robot_radius: float,
+    strict: bool,
     no_navigation: bool,
 ) -> None:
     """Check MAP_FILE and list every finding with a stable code (mapkit codes lists them).
@@ -104,8 +113,12 @@ def validate(
             message = str(err)
         if as_json:
             echo_json({"file": map_file, "readable": False, "error": message})
-        click.echo(f"Error: cannot read {map_file}: {message}" if map_file not in message
-                   else f"Error: {message}", file=sys.stderr)
+        click.echo(
+            f"Error: cannot read {map_file}: {message}"
+            if map_file not in message
+            else f"Error: {message}",
+            file=sys.stderr,
+        )
         ctx.exit(EXIT_UNREADABLE)
     code = report.exit_code(strict)
     if as_json:

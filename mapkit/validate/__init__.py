@@ -42,7 +42,11 @@ from mapkit._typing import PathLike
 from mapkit.diagnostics import Issue, IssueCode, Report, Severity
 from mapkit.formats.map import recover
 from mapkit.model import MapData
-from mapkit.validate import geometry, header, info, navigation, objects  # noqa: F401  (rules)
+from mapkit.validate import geometry as _geometry  # noqa: F401  (importing registers the rules)
+from mapkit.validate import header as _header  # noqa: F401
+from mapkit.validate import info as _info  # noqa: F401
+from mapkit.validate import navigation as _navigation  # noqa: F401
+from mapkit.validate import objects as _objects  # noqa: F401
 from mapkit.validate._context import RULES, Context
 
 __all__ = [
@@ -123,8 +127,14 @@ def _group_syntax(issues: list[Issue], limit: int) -> list[Issue]:
         lines = [r.location.line for r in rest if r.location.line is not None]
         span = f" (lines {min(lines)} .. {max(lines)})" if lines else ""
         first = rest[0]
-        out.append(Issue(first.code, first.severity,
-                         f"{len(rest)} more like this{span}: {first.message}", first.location))
+        out.append(
+            Issue(
+                first.code,
+                first.severity,
+                f"{len(rest)} more like this{span}: {first.message}",
+                first.location,
+            )
+        )
     return out
 
 
@@ -160,9 +170,15 @@ def validate(
     raw: bytes | None = None
     if isinstance(map_or_file, MapData):
         m = map_or_file
-        name = source if source is not None else (
-            m.provenance.source if m.provenance is not None and m.provenance.source != "<string>"
-            else None)
+        name = (
+            source
+            if source is not None
+            else (
+                m.provenance.source
+                if m.provenance is not None and m.provenance.source != "<string>"
+                else None
+            )
+        )
         ctx = Context(m, file_view=False, source=name)
     else:
         if isinstance(map_or_file, (bytes, bytearray, memoryview)):
@@ -182,8 +198,10 @@ def validate(
     for fn, _codes in sorted(RULES, key=lambda r: min(r[1])):  # by range: 2xx first ... 6xx
         fn(ctx)
     replaced = ctx.cache.get("misspelt_lines", set())
-    syntax = [i for i in syntax
-              if not (i.code is IssueCode.UNKNOWN_LINE and i.location.line in replaced)]
+    syntax = [
+        i for i in syntax if not (i.code is IssueCode.UNKNOWN_LINE and i.location.line in replaced)
+    ]
     issues = _group_syntax(syntax, SYNTAX_GROUP_LIMIT) + ctx.issues
-    return ValidationReport(tuple(issues), source=ctx.source, robot_radius=ctx.robot_radius,
-                            checked=dict(ctx.stats))
+    return ValidationReport(
+        tuple(issues), source=ctx.source, robot_radius=ctx.robot_radius, checked=dict(ctx.stats)
+    )

@@ -1,4 +1,4 @@
-"""What every rule sees: the map, how it will be (or was) written, line numbers, the findings so far."""
+"""What every rule sees: the map as read or as it will be written, line numbers, the findings."""
 
 from __future__ import annotations
 
@@ -47,11 +47,12 @@ def key_values(tokens: Sequence[str]) -> dict[str, str]:
 
 def _as_written(o: MapObject) -> MapObject:
     """The object as ARIA's writer prints it and reads it back (``%.0f`` and ``%f``)."""
+
     def f0(v: float) -> float:
-        return float("%.0f" % v) if np.isfinite(v) else v
+        return float(format(v, ".0f")) if np.isfinite(v) else v
 
     ft = None if o.from_to is None else tuple(f0(v) for v in o.from_to)
-    th = float("%f" % o.theta) if np.isfinite(o.theta) else o.theta
+    th = float(format(o.theta, "f")) if np.isfinite(o.theta) else o.theta
     return replace(o, x=f0(o.x), y=f0(o.y), theta=th, from_to=ft)  # type: ignore[arg-type]
 
 
@@ -174,18 +175,34 @@ class Context:
             prefix = "" if s.is_default else s.name
             if self.file_view:
                 h = s.header
-                yield HeaderView(s, prefix, h.num_points, h.num_lines, h.min_pos, h.max_pos,
-                                 h.line_min_pos, h.line_max_pos, h.resolution, h.points_sorted,
-                                 h.lines_sorted, lines)
+                yield HeaderView(
+                    s,
+                    prefix,
+                    h.num_points,
+                    h.num_lines,
+                    h.min_pos,
+                    h.max_pos,
+                    h.line_min_pos,
+                    h.line_max_pos,
+                    h.resolution,
+                    h.points_sorted,
+                    h.lines_sorted,
+                    lines,
+                )
             else:
                 has_p, has_l = s.num_points > 0, s.num_lines > 0
                 yield HeaderView(
-                    s, prefix,
-                    s.num_points if has_p else None, s.num_lines if has_l else None,
-                    s.min_pos if has_p else None, s.max_pos if has_p else None,
-                    s.line_min_pos if has_l else None, s.line_max_pos if has_l else None,
+                    s,
+                    prefix,
+                    s.num_points if has_p else None,
+                    s.num_lines if has_l else None,
+                    s.min_pos if has_p else None,
+                    s.max_pos if has_p else None,
+                    s.line_min_pos if has_l else None,
+                    s.line_max_pos if has_l else None,
                     None if s.resolution == -1 else s.resolution,
-                    s.points_sorted if has_p else None, s.lines_sorted if has_l else None,
+                    s.points_sorted if has_p else None,
+                    s.lines_sorted if has_l else None,
                 )
 
     # -- types ---------------------------------------------------------------------------------
@@ -216,11 +233,15 @@ class Context:
 
     def is_goal(self, obj: MapObject) -> bool:
         """A point goal: built-in ``Goal``/``GoalWithHeading`` or a declared ``GoalType``."""
-        return obj.is_point and (obj.base_type in BUILTIN_GOALS or self.type_class(obj) == "GoalType")
+        return obj.is_point and (
+            obj.base_type in BUILTIN_GOALS or self.type_class(obj) == "GoalType"
+        )
 
     def is_dock(self, obj: MapObject) -> bool:
         """A point dock: built-in ``Dock`` or a declared ``DockType``."""
-        return obj.is_point and (obj.base_type in BUILTIN_DOCKS or self.type_class(obj) == "DockType")
+        return obj.is_point and (
+            obj.base_type in BUILTIN_DOCKS or self.type_class(obj) == "DockType"
+        )
 
     def is_home(self, obj: MapObject) -> bool:
         """A ``RobotHome`` in point form."""
@@ -259,9 +280,13 @@ class Context:
         """Extents of all data (points and line ends of every scan)."""
         if "data_box" not in self.cache:
             boxes = [b for b in (s.data_bounds() for s in self.map.scans) if b is not None]
-            self.cache["data_box"] = None if not boxes else (
-                (min(b[0][0] for b in boxes), min(b[0][1] for b in boxes)),
-                (max(b[1][0] for b in boxes), max(b[1][1] for b in boxes)),
+            self.cache["data_box"] = (
+                None
+                if not boxes
+                else (
+                    (min(b[0][0] for b in boxes), min(b[0][1] for b in boxes)),
+                    (max(b[1][0] for b in boxes), max(b[1][1] for b in boxes)),
+                )
             )
         box: tuple[tuple[int, int], tuple[int, int]] | None = self.cache["data_box"]
         return box
@@ -281,9 +306,11 @@ RULES: list[tuple[Rule, tuple[IssueCode, ...]]] = []
 
 def rule(*codes: IssueCode) -> Callable[[Rule], Rule]:
     """Register a rule and the codes it reports."""
+
     def deco(fn: Rule) -> Rule:
         RULES.append((fn, codes))
         return fn
+
     return deco
 
 

@@ -12,7 +12,9 @@ __all__ = ["nearest_points", "nearest_segments", "point_segment_distance"]
 _F = NDArray[np.float64]
 
 
-def nearest_points(points: NDArray[Any], queries: NDArray[Any], radius: float) -> tuple[_F, NDArray[np.int64]]:
+def nearest_points(
+    points: NDArray[Any], queries: NDArray[Any], radius: float
+) -> tuple[_F, NDArray[np.int64]]:
     """For each query, the distance to and index of the nearest point within ``radius``.
 
     Points are bucketed once in cells of ``radius`` (one vectorised pass); each query then looks
@@ -56,7 +58,9 @@ def nearest_points(points: NDArray[Any], queries: NDArray[Any], radius: float) -
     starts = np.searchsorted(ckey, nkey, side="left")
     ends = np.searchsorted(ckey, nkey, side="right")
     for k in range(len(q)):
-        sel = np.concatenate([cand[s:e] for s, e in zip(starts[k], ends[k]) if e > s] or [cand[:0]])
+        sel = np.concatenate(
+            [cand[s:e] for s, e in zip(starts[k], ends[k], strict=True) if e > s] or [cand[:0]]
+        )
         if len(sel) == 0:
             continue
         d = np.hypot(points[sel, 0] - q[k, 0], points[sel, 1] - q[k, 1])
@@ -78,7 +82,9 @@ def point_segment_distance(q: NDArray[Any], seg: NDArray[Any]) -> _F:
     return np.asarray(np.hypot(ax + t * dx - q[0], ay + t * dy - q[1]), dtype=np.float64)
 
 
-def nearest_segments(segments: NDArray[Any], queries: NDArray[Any], radius: float) -> tuple[_F, NDArray[np.int64]]:
+def nearest_segments(
+    segments: NDArray[Any], queries: NDArray[Any], radius: float
+) -> tuple[_F, NDArray[np.int64]]:
     """For each query, the distance to and index of the nearest segment within ``radius``.
 
     Examples:
@@ -96,8 +102,12 @@ def nearest_segments(segments: NDArray[Any], queries: NDArray[Any], radius: floa
     ymin, ymax = np.minimum(s[:, 1], s[:, 3]), np.maximum(s[:, 1], s[:, 3])
     for k in range(len(q)):
         x, y = q[k]
-        near = np.flatnonzero((xmin <= x + radius) & (xmax >= x - radius)
-                              & (ymin <= y + radius) & (ymax >= y - radius))
+        near = np.flatnonzero(
+            (xmin <= x + radius)
+            & (xmax >= x - radius)
+            & (ymin <= y + radius)
+            & (ymax >= y - radius)
+        )
         if len(near) == 0:
             continue
         d = point_segment_distance(q[k], s[near])

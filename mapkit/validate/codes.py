@@ -34,8 +34,15 @@ def code_rows() -> list[dict[str, Any]]:
     rows = []
     for code in sorted(IssueCode):
         severity, summary = CODE_SUMMARY[code]
-        rows.append({"code": f"MK{int(code)}", "number": int(code), "name": code.name,
-                     "severity": severity.value, "summary": summary})
+        rows.append(
+            {
+                "code": f"MK{int(code)}",
+                "number": int(code),
+                "name": code.name,
+                "severity": severity.value,
+                "summary": summary,
+            }
+        )
     return rows
 
 

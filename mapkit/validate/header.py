@@ -56,21 +56,29 @@ def counts(ctx: Context) -> None:
                 continue
             kw = h.prefix + key
             if claimed <= 0:
-                ctx.add(C.COUNT_NOT_POSITIVE,
-                        f"{kw} {claimed}: AriaCoda refuses the file (ARIA 2.9.4 and older accept it)"
-                        + (f"; the file has {actual} {what} rows" if actual else ""),
-                        line=h.line(key))
+                ctx.add(
+                    C.COUNT_NOT_POSITIVE,
+                    f"{kw} {claimed}: AriaCoda refuses the file (ARIA 2.9.4 and older accept it)"
+                    + (f"; the file has {actual} {what} rows" if actual else ""),
+                    line=h.line(key),
+                )
             elif claimed != actual:
-                ctx.add(code,
-                        f"{kw} {claimed} but the file has {actual} {what} rows ARIA keeps: ARIA's "
-                        f"ArMap uses {actual}, code that loads with ArMapSimple (e.g. the map "
-                        f"server) trusts {claimed}",
-                        line=h.line(key))
+                ctx.add(
+                    code,
+                    f"{kw} {claimed} but the file has {actual} {what} rows ARIA keeps: ARIA's "
+                    f"ArMap uses {actual}, code that loads with ArMapSimple (e.g. the map "
+                    f"server) trusts {claimed}",
+                    line=h.line(key),
+                )
 
 
 def _check_box(
-    ctx: Context, h: HeaderView, kind: str, data: np.ndarray[Any, Any],
-    lo: tuple[int, int] | None, hi: tuple[int, int] | None,
+    ctx: Context,
+    h: HeaderView,
+    kind: str,
+    data: np.ndarray[Any, Any],
+    lo: tuple[int, int] | None,
+    hi: tuple[int, int] | None,
 ) -> None:
     kmin, kmax = ("MinPos:", "MaxPos:") if kind == "points" else ("LineMinPos:", "LineMaxPos:")
     box = _box_of(data)
@@ -80,24 +88,30 @@ def _check_box(
     if lo is None or hi is None:
         if ctx.file_view:
             missing = " and ".join(h.prefix + k for k, v in ((kmin, lo), (kmax, hi)) if v is None)
-            ctx.add(C.BOX_MISSING,
-                    f"{len(data)} {kind} but no {missing}: ARIA then starts the box at (0, 0), so "
-                    f"it includes the origin; the {kind} span ({dx0}, {dy0}) .. ({dx1}, {dy1})",
-                    line=h.line(kmin if lo is None else kmax))
+            ctx.add(
+                C.BOX_MISSING,
+                f"{len(data)} {kind} but no {missing}: ARIA then starts the box at (0, 0), so "
+                f"it includes the origin; the {kind} span ({dx0}, {dy0}) .. ({dx1}, {dy1})",
+                line=h.line(kmin if lo is None else kmax),
+            )
         return
     (x0, y0), (x1, y1) = lo, hi
     if x0 > dx0 or y0 > dy0 or x1 < dx1 or y1 < dy1:
-        ctx.add(C.BOX_EXCLUDES_DATA,
-                f"{h.prefix}{kmin} {x0} {y0} / {h.prefix}{kmax} {x1} {y1} do not enclose the "
-                f"{kind}, which span ({dx0}, {dy0}) .. ({dx1}, {dy1}); ARIA widens the box on load, "
-                "code that trusts the header clips the map",
-                line=h.line(kmin if (x0 > dx0 or y0 > dy0) else kmax))
+        ctx.add(
+            C.BOX_EXCLUDES_DATA,
+            f"{h.prefix}{kmin} {x0} {y0} / {h.prefix}{kmax} {x1} {y1} do not enclose the "
+            f"{kind}, which span ({dx0}, {dy0}) .. ({dx1}, {dy1}); ARIA widens the box on load, "
+            "code that trusts the header clips the map",
+            line=h.line(kmin if (x0 > dx0 or y0 > dy0) else kmax),
+        )
     elif (x0, y0, x1, y1) != (dx0, dy0, dx1, dy1):
-        ctx.add(C.BOX_LARGER_THAN_DATA,
-                f"{h.prefix}{kmin} {x0} {y0} / {h.prefix}{kmax} {x1} {y1} are wider than the "
-                f"{kind} ({dx0}, {dy0}) .. ({dx1}, {dy1}); ARIA keeps the wider box (grids and "
-                "exports made from it get empty margins)",
-                line=h.line(kmin if (x0, y0) != (dx0, dy0) else kmax))
+        ctx.add(
+            C.BOX_LARGER_THAN_DATA,
+            f"{h.prefix}{kmin} {x0} {y0} / {h.prefix}{kmax} {x1} {y1} are wider than the "
+            f"{kind} ({dx0}, {dy0}) .. ({dx1}, {dy1}); ARIA keeps the wider box (grids and "
+            "exports made from it get empty margins)",
+            line=h.line(kmin if (x0, y0) != (dx0, dy0) else kmax),
+        )
 
 
 @rule(C.BOX_EXCLUDES_DATA, C.BOX_LARGER_THAN_DATA, C.BOX_MISSING)
@@ -132,16 +146,20 @@ def resolution(ctx: Context) -> None:
         step = lattice_step(h.scan.points)
         hint = f" (the points lie on a {step} mm lattice)" if 1 < step <= 1000 else ""
         if h.resolution is None:
-            ctx.add(C.RESOLUTION_MISSING,
-                    f"{n} points but no {kw} line; ARIA assumes 0 and writes 'Resolution: 0'; "
-                    f"localisation grids and ROS exports need the grid size{hint}",
-                    line=None)
+            ctx.add(
+                C.RESOLUTION_MISSING,
+                f"{n} points but no {kw} line; ARIA assumes 0 and writes 'Resolution: 0'; "
+                f"localisation grids and ROS exports need the grid size{hint}",
+                line=None,
+            )
         elif not (_PLAUSIBLE_RESOLUTION[0] <= h.resolution <= _PLAUSIBLE_RESOLUTION[1]):
-            ctx.add(C.RESOLUTION_IMPLAUSIBLE,
-                    f"{kw} {h.resolution} is not a plausible grid size for {n} points "
-                    f"(expected {_PLAUSIBLE_RESOLUTION[0]} to {_PLAUSIBLE_RESOLUTION[1]} mm, "
-                    f"usually 20){hint}",
-                    line=h.line("Resolution:"))
+            ctx.add(
+                C.RESOLUTION_IMPLAUSIBLE,
+                f"{kw} {h.resolution} is not a plausible grid size for {n} points "
+                f"(expected {_PLAUSIBLE_RESOLUTION[0]} to {_PLAUSIBLE_RESOLUTION[1]} mm, "
+                f"usually 20){hint}",
+                line=h.line("Resolution:"),
+            )
 
 
 @rule(C.NOT_MARKED_SORTED, C.SORTED_FLAG_WRONG)
@@ -157,11 +175,13 @@ def sorted_flags(ctx: Context) -> None:
             kw = h.prefix + key
             if flag:
                 if not is_sorted(arr):
-                    ctx.add(C.SORTED_FLAG_WRONG,
-                            f"{kw} true but the {len(arr)} {kind} are not in sorted order (x, then "
-                            "y); ARIA copies the flag without checking, code that trusts it "
-                            "(binary searches, map-change diffs) goes wrong",
-                            line=h.line(key))
+                    ctx.add(
+                        C.SORTED_FLAG_WRONG,
+                        f"{kw} true but the {len(arr)} {kind} are not in sorted order (x, then "
+                        "y); ARIA copies the flag without checking, code that trusts it "
+                        "(binary searches, map-change diffs) goes wrong",
+                        line=h.line(key),
+                    )
                 continue
             # Hand-drawn maps (lines only) are never sorted and ARIA writes them with
             # "LinesAreSorted: false": normal. Lines count only in scanned maps (with points).
@@ -169,12 +189,17 @@ def sorted_flags(ctx: Context) -> None:
                 continue
             actually = is_sorted(arr)
             state = "false" if flag is False else "absent"
-            what = (f"the {len(arr)} {kind} are in fact sorted; setting the flag is free"
-                    if actually else
-                    f"the {len(arr)} {kind} are in file order; ARIA keeps that order and never "
-                    "sorts on load (mapkit can sort them)")
-            ctx.add(C.NOT_MARKED_SORTED, f"{kw} {state}: {what}",
-                    line=h.line(key) if flag is False else None)
+            what = (
+                f"the {len(arr)} {kind} are in fact sorted; setting the flag is free"
+                if actually
+                else f"the {len(arr)} {kind} are in file order; ARIA keeps that order and never "
+                "sorts on load (mapkit can sort them)"
+            )
+            ctx.add(
+                C.NOT_MARKED_SORTED,
+                f"{kw} {state}: {what}",
+                line=h.line(key) if flag is False else None,
+            )
 
 
 # -- the intro line against the content ----------------------------------------------------------
@@ -183,7 +208,12 @@ def sorted_flags(ctx: Context) -> None:
 def _features(ctx: Context) -> dict[str, list[str]]:
     """What the map uses, by the category that introduced it."""
     m = ctx.map
-    out: dict[str, list[str]] = {"2D-Map-Ex": [], "2D-Map-Ex2": [], "2D-Map-Ex3": [], "2D-Map-Ex4": []}
+    out: dict[str, list[str]] = {
+        "2D-Map-Ex": [],
+        "2D-Map-Ex2": [],
+        "2D-Map-Ex3": [],
+        "2D-Map-Ex4": [],
+    }
     if len(m.scans) > 1 or not m.scans[0].is_default:
         out["2D-Map-Ex"].append(f"scan sources ({', '.join(s.name for s in m.scans)})")
     if m.info.get("CairnInfo"):
@@ -201,8 +231,10 @@ def _features(ctx: Context) -> dict[str, list[str]]:
         out["2D-Map-Ex4"].append("MacroInfo:")
     if any(line and line[0] == "MacroTemplate" for line in m.info.get("RouteInfo", ())):
         out["2D-Map-Ex4"].append("RouteInfo: MacroTemplate")
-    if any(line and line[0] == "Feature" and any(unquote(t) == "Name=templates" for t in line[1:])
-           for line in m.info.get("MetaInfo", ())):
+    if any(
+        line and line[0] == "Feature" and any(unquote(t) == "Name=templates" for t in line[1:])
+        for line in m.info.get("MetaInfo", ())
+    ):
         out["2D-Map-Ex4"].append("MetaInfo: Feature Name=templates")
     if m.child_objects:
         out["2D-Map-Ex4"].append("ChildCairn:")
@@ -217,33 +249,60 @@ def category(ctx: Context) -> None:
     line = ctx.map.provenance.intro_line if (ctx.file_view and ctx.map.provenance) else None
     feats = _features(ctx)
     if feats["2D-Map-Ex4"] and level < CATEGORIES.index("2D-Map-Ex4"):
-        ctx.add(C.TEMPLATES_NEED_EX4,
-                f"{cat} uses template content ({', '.join(feats['2D-Map-Ex4'])}), a 2D-Map-Ex4 "
-                "feature: ARIA 2.9.4 upgrades the intro on load, ARIA 2.9.1 and older load the map "
-                "without understanding the templates",
-                line=line)
-    older = [(c, f) for c in ("2D-Map-Ex", "2D-Map-Ex2", "2D-Map-Ex3") for f in feats[c]
-             if CATEGORIES.index(c) > level]
+        ctx.add(
+            C.TEMPLATES_NEED_EX4,
+            f"{cat} uses template content ({', '.join(feats['2D-Map-Ex4'])}), a 2D-Map-Ex4 "
+            "feature: ARIA 2.9.4 upgrades the intro on load, ARIA 2.9.1 and older load the map "
+            "without understanding the templates",
+            line=line,
+        )
+    older = [
+        (c, f)
+        for c in ("2D-Map-Ex", "2D-Map-Ex2", "2D-Map-Ex3")
+        for f in feats[c]
+        if CATEGORIES.index(c) > level
+    ]
     if older:
         need = max((c for c, _ in older), key=CATEGORIES.index)
-        ctx.add(C.CATEGORY_OLDER_THAN_CONTENT,
-                f"{cat} uses {', '.join(f for _, f in older)} ({need} content): every ARIA reads "
-                f"it, but ARIA 2.9.1 rewrites the intro as {need} when it saves the map "
-                "(ARIA 2.9.4 keeps it)",
-                line=line)
+        ctx.add(
+            C.CATEGORY_OLDER_THAN_CONTENT,
+            f"{cat} uses {', '.join(f for _, f in older)} ({need} content): every ARIA reads "
+            f"it, but ARIA 2.9.1 rewrites the intro as {need} when it saves the map "
+            "(ARIA 2.9.4 keeps it)",
+            line=line,
+        )
     if level >= CATEGORIES.index("2D-Map-Ex4"):
-        ctx.add(C.CATEGORY_NEWER_THAN_ARIA_291,
-                f"{cat}: ARIA 2.9.1 and older refuse the file ('supports up to 2D-Map-Ex3'); "
-                "robots with ARIA 2.9.4 or later, and Omron ARAM, read it",
-                line=line)
+        ctx.add(
+            C.CATEGORY_NEWER_THAN_ARIA_291,
+            f"{cat}: ARIA 2.9.1 and older refuse the file ('supports up to 2D-Map-Ex3'); "
+            "robots with ARIA 2.9.4 or later, and Omron ARAM, read it",
+            line=line,
+        )
 
 
 # -- unknown keywords that look like known ones -------------------------------------------------
 
-_SCAN_KEYWORDS = ("MinPos:", "MaxPos:", "NumPoints:", "PointsAreSorted:", "Resolution:",
-                  "LineMinPos:", "LineMaxPos:", "NumLines:", "LinesAreSorted:", "Display:")
-_OTHER_KEYWORDS = ("Sources:", "OriginLatLongAlt:", "Cairn:", "_Cairn:", "ChildCairn:", "DATA",
-                   "LINES")
+_SCAN_KEYWORDS = (
+    "MinPos:",
+    "MaxPos:",
+    "NumPoints:",
+    "PointsAreSorted:",
+    "Resolution:",
+    "LineMinPos:",
+    "LineMaxPos:",
+    "NumLines:",
+    "LinesAreSorted:",
+    "Display:",
+)
+_OTHER_KEYWORDS = (
+    "Sources:",
+    "OriginLatLongAlt:",
+    "Cairn:",
+    "_Cairn:",
+    "ChildCairn:",
+    "DATA",
+    "LINES",
+)
 
 
 def known_keywords(ctx: Context) -> list[str]:
@@ -277,8 +336,10 @@ def misspelt(ctx: Context) -> None:
             continue
         right = lower[close[0]]
         line = rem_lines[i] if i < len(rem_lines) else None
-        ctx.add(C.MISSPELT_KEYWORD,
-                f"{kw} is not an ARIA keyword (did you mean {right}?): ARIA keeps the line as "
-                "unknown text and ignores its value",
-                line=line)
+        ctx.add(
+            C.MISSPELT_KEYWORD,
+            f"{kw} is not an ARIA keyword (did you mean {right}?): ARIA keeps the line as "
+            "unknown text and ignores its value",
+            line=line,
+        )
         ctx.cache.setdefault("misspelt_lines", set()).add(line)

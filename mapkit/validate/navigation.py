@@ -16,6 +16,7 @@ breadth-first path at that clearance locates the passage.
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections import defaultdict
 from typing import Any
@@ -81,7 +82,9 @@ class Clearance:
         rc = self.grid.world_to_cell([x, y])
         return int(rc[0]), int(rc[1])
 
-    def near_cells(self, x: float, y: float, clearance_mm: float, reach_mm: float) -> dict[int, tuple[int, int]]:
+    def near_cells(
+        self, x: float, y: float, clearance_mm: float, reach_mm: float
+    ) -> dict[int, tuple[int, int]]:
         """Free cells (at ``clearance_mm``) within ``reach_mm`` of (x, y): the nearest one of each
         region, by region label, nearest region first."""
         key = (float(x), float(y), round(clearance_mm, 6), round(reach_mm, 6))
@@ -89,10 +92,12 @@ class Clearance:
             self._near[key] = self._near_cells(x, y, clearance_mm, reach_mm)
         return self._near[key]
 
-    def _near_cells(self, x: float, y: float, clearance_mm: float, reach_mm: float) -> dict[int, tuple[int, int]]:
+    def _near_cells(
+        self, x: float, y: float, clearance_mm: float, reach_mm: float
+    ) -> dict[int, tuple[int, int]]:
         labels = self.labels(clearance_mm)
         r0, c0 = self.cell_of(x, y)
-        k = int(math.ceil(reach_mm / self.cell)) + 1
+        k = math.ceil(reach_mm / self.cell) + 1
         h, w = labels.shape
         rows = np.arange(max(r0 - k, 0), min(r0 + k + 1, h))
         cols = np.arange(max(c0 - k, 0), min(c0 + k + 1, w))
@@ -112,9 +117,10 @@ class Clearance:
                 out[lab] = (int(rows[rr[j]]), int(cols[cc[j]]))
         return out
 
-    def connected(self, a: tuple[float, float], b: tuple[float, float], clearance_mm: float,
-                  reach_mm: float) -> tuple[tuple[int, int], tuple[int, int]] | None:
-        """Free cells near world points ``a`` and ``b`` in one region at ``clearance_mm``, if any."""
+    def connected(
+        self, a: tuple[float, float], b: tuple[float, float], clearance_mm: float, reach_mm: float
+    ) -> tuple[tuple[int, int], tuple[int, int]] | None:
+        """Free cells near world points ``a`` and ``b`` in one region at ``clearance_mm``."""
         na = self.near_cells(a[0], a[1], clearance_mm, reach_mm)
         nb = self.near_cells(b[0], b[1], clearance_mm, reach_mm)
         for lab, ca in na.items():
@@ -193,11 +199,11 @@ def _narrowest_crossing(up: NDArray[Any], clear: NDArray[Any]) -> int:
         lab[-1] = -2
     inside = np.flatnonzero(lab != 0)
     best, best_c = -1, np.inf
-    for a, b in zip(inside[:-1], inside[1:]):
+    for a, b in itertools.pairwise(inside):
         if b - a > 1 and lab[a] != lab[b]:
             k = a + 1 + int(np.argmin(clear[a + 1 : b]))
             if clear[k] < best_c:
-                best, best_c = k, clear[k]
+                best, best_c = int(k), clear[k]
     if best < 0:  # no crossing found (snapping at the ends): the least-clear cell of the path
         best = int(np.argmin(clear))
     return best
@@ -220,7 +226,9 @@ def nav_cell_mm(ctx: Context, span_mm: float) -> float | None:
     return float(math.ceil(cell))
 
 
-def clearance_grid(ctx: Context, bounds: tuple[tuple[float, float], tuple[float, float]], cell_mm: float) -> Clearance:
+def clearance_grid(
+    ctx: Context, bounds: tuple[tuple[float, float], tuple[float, float]], cell_mm: float
+) -> Clearance:
     """Rasterise the map's walls, forbidden areas and forbidden lines and measure clearances."""
     grid = grid_for_bounds(bounds, cell_mm / 1000.0, margin_m=0.0)
     m = ctx.map if ctx.file_view else ctx.map.replace(objects=ctx.objects)
@@ -234,34 +242,47 @@ def _name(o: MapObject) -> str:
 
 @rule(C.UNREACHABLE, C.NARROW_PASSAGE, C.NAVIGATION_SKIPPED)
 def reachability(ctx: Context) -> None:
-    """Every goal and dock reachable from RobotHome (or from each other), and how tight the way is."""
+    """Every goal and dock reachable from RobotHome (or from each other); how tight the way is."""
     if not ctx.navigation:
         return
     # Goals inside a forbidden area are reported as such (MK411), not again as unreachable.
     forbidden = ctx.cache.get("forbidden_targets", set())
-    targets = [(i, o) for i, o in ctx.destinations()
-               if math.isfinite(o.x) and math.isfinite(o.y) and i not in forbidden]
+    targets = [
+        (i, o)
+        for i, o in ctx.destinations()
+        if math.isfinite(o.x) and math.isfinite(o.y) and i not in forbidden
+    ]
     box = ctx.data_box()
     r = ctx.robot_radius
-    stats: dict[str, Any] = {"targets": len(targets), "robot_radius": r,
-                             "in_forbidden_areas": len(forbidden)}
+    stats: dict[str, Any] = {
+        "targets": len(targets),
+        "robot_radius": r,
+        "in_forbidden_areas": len(forbidden),
+    }
     ctx.stats["navigation"] = stats
     if not targets or box is None:
         return
     homes = [o for _, o in ctx.homes() if math.isfinite(o.x) and math.isfinite(o.y)]
     margin = r + 1000.0
     (x0, y0), (x1, y1) = box
-    inside = [(i, o) for i, o in targets
-              if x0 - margin <= o.x <= x1 + margin and y0 - margin <= o.y <= y1 + margin]
-    homes = [h for h in homes if x0 - margin <= h.x <= x1 + margin and y0 - margin <= h.y <= y1 + margin]
+    inside = [
+        (i, o)
+        for i, o in targets
+        if x0 - margin <= o.x <= x1 + margin and y0 - margin <= o.y <= y1 + margin
+    ]
+    homes = [
+        h for h in homes if x0 - margin <= h.x <= x1 + margin and y0 - margin <= h.y <= y1 + margin
+    ]
     bounds = ((x0 - margin, y0 - margin), (x1 + margin, y1 + margin))
     span = max(x1 - x0, y1 - y0) + 2 * margin
     cell = nav_cell_mm(ctx, span)
     if cell is None:
-        ctx.add(C.NAVIGATION_SKIPPED,
-                f"reachability not checked: the map spans {span / 1000:.0f} m, too large for a grid "
-                f"of at most {NAV_MAX_CELLS:,} cells fine enough for a {r:.0f} mm robot radius "
-                f"(cells of at most {r / MIN_CELLS_PER_RADIUS:.0f} mm)")
+        ctx.add(
+            C.NAVIGATION_SKIPPED,
+            f"reachability not checked: the map spans {span / 1000:.0f} m, too large for a grid "
+            f"of at most {NAV_MAX_CELLS:,} cells fine enough for a {r:.0f} mm robot radius "
+            f"(cells of at most {r / MIN_CELLS_PER_RADIUS:.0f} mm)",
+        )
         stats["skipped"] = "too large"
         return
     cl = clearance_grid(ctx, bounds, cell)
@@ -298,7 +319,7 @@ def reachability(ctx: Context) -> None:
     free_cells: dict[int, tuple[int, int] | None] = {}
     for i, o in inside:
         near = near_goal[i]
-        free_cells[i] = near.get(start_label) if start_label is not None else None  # type: ignore[arg-type]
+        free_cells[i] = near.get(start_label) if start_label is not None else None
         if free_cells[i] is not None:
             reachable.append((i, o))
         else:
@@ -308,7 +329,7 @@ def reachability(ctx: Context) -> None:
     stats["not_checked"] = len(targets) - len(inside)
     _report_unreachable(ctx, cl, start_cell, start_name, unreachable, free_cells)
     if start_cell is not None:
-        _report_tight(ctx, cl, start_cell, stats["start"], reachable, free_cells)
+        _report_tight(ctx, cl, start_cell, stats["start"], reachable)
 
 
 def _levels(low: float, high: float, step: float) -> list[float]:
@@ -326,89 +347,110 @@ def _levels(low: float, high: float, step: float) -> list[float]:
     return [*out, low]
 
 
+def _cell_xy(cl: Clearance, cell: tuple[int, int]) -> tuple[float, float]:
+    xy = cl.grid.cell_to_world([cell[0], cell[1]])
+    return float(xy[0]), float(xy[1])
+
+
 def _report_unreachable(
-    ctx: Context, cl: Clearance, start: tuple[int, int] | None, start_name: str,
-    unreachable: list[tuple[int, MapObject]], free_cells: dict[int, tuple[int, int] | None],
+    ctx: Context,
+    cl: Clearance,
+    start: tuple[int, int] | None,
+    start_name: str,
+    unreachable: list[tuple[int, MapObject]],
+    free_cells: dict[int, tuple[int, int] | None],
 ) -> None:
     r = ctx.robot_radius
-    start_xy = None if start is None else tuple(cl.grid.cell_to_world(list(start)))
+    reach = reach_mm(r, cl.cell)
     # For a narrower robot: the largest clearance below r at which the goal joins the start.
     levels = [v for v in _levels(0.0, r, cl.cell) if v < r]
+    frm = (
+        f"from {start_name}"
+        if start_name != "the other goals"
+        else "from the other goals (they share one connected area; this one is cut off)"
+    )
     for i, o in unreachable:
-        where = dict(line=ctx.object_line(i), object=o.name or None, xy=(o.x, o.y))
         who = f"{_name(o)} at ({o.x:.0f}, {o.y:.0f})"
-        if start_xy is None:
-            ctx.add(C.UNREACHABLE,
-                    f"{who}: no goal, dock or home has room for a robot of radius {r:.0f} mm, so "
-                    "none can be reached", **where)
-            continue
-        frm = f"from {start_name}" if start_name != "the other goals" else \
-            "from the other goals (they share one connected area; this one is cut off)"
-        if free_cells.get(i) is None:
-            ctx.add(C.UNREACHABLE,
-                    f"{who} cannot be reached {frm}: there is no room for a robot of radius "
-                    f"{r:.0f} mm anywhere within {r:.0f} mm of it", **where)
-            continue
-        gap = None
-        # Connected at all (at the smallest clearance)? Only then look for the widest way.
-        if levels and cl.connected(start_xy, (o.x, o.y), levels[-1], reach_mm(r, cl.cell)) is not None:  # type: ignore[arg-type]
-            for level in levels:
-                pair = cl.connected(start_xy, (o.x, o.y), level, reach_mm(r, cl.cell))  # type: ignore[arg-type]
-                if pair is not None:
-                    gap = cl.passages(pair[0], [pair[1]], level)[0]
-                    break
-        if gap is None:
-            ctx.add(C.UNREACHABLE,
-                    f"{who} cannot be reached {frm}: walls, forbidden areas or forbidden lines "
-                    "close it off completely", **where)
+        if start is None:
+            why = f": no goal, dock or home has room for a robot of radius {r:.0f} mm"
+        elif free_cells.get(i) is None:
+            why = (
+                f" cannot be reached {frm}: there is no room for a robot of radius {r:.0f} mm "
+                f"anywhere within {r:.0f} mm of it"
+            )
         else:
-            c_mm, (gx, gy) = gap
-            ctx.add(C.UNREACHABLE,
-                    f"{who} cannot be reached {frm} by a robot of radius {r:.0f} mm: the widest "
-                    f"way passes a gap about {_width(c_mm)} mm wide at ({gx:.0f}, {gy:.0f})",
-                    **where)
+            start_xy = _cell_xy(cl, start)
+            gap = None
+            # Connected at all (at the smallest clearance)? Only then look for the widest way.
+            if levels and cl.connected(start_xy, (o.x, o.y), levels[-1], reach) is not None:
+                for level in levels:
+                    pair = cl.connected(start_xy, (o.x, o.y), level, reach)
+                    if pair is not None:
+                        gap = cl.passages(pair[0], [pair[1]], level)[0]
+                        break
+            if gap is None:
+                why = (
+                    f" cannot be reached {frm}: walls, forbidden areas or forbidden lines close "
+                    "it off completely"
+                )
+            else:
+                c_mm, (gx, gy) = gap
+                why = (
+                    f" cannot be reached {frm} by a robot of radius {r:.0f} mm: the widest way "
+                    f"passes a gap about {_width(c_mm)} mm wide at ({gx:.0f}, {gy:.0f})"
+                )
+        ctx.add(
+            C.UNREACHABLE, who + why, line=ctx.object_line(i), object=o.name or None, xy=(o.x, o.y)
+        )
 
 
 def _report_tight(
-    ctx: Context, cl: Clearance, start: tuple[int, int], start_name: str,
-    reachable: list[tuple[int, MapObject]], free_cells: dict[int, tuple[int, int] | None],
+    ctx: Context,
+    cl: Clearance,
+    start: tuple[int, int],
+    start_name: str,
+    reachable: list[tuple[int, MapObject]],
 ) -> None:
     r = ctx.robot_radius
-    start_xy: tuple[float, float] = tuple(cl.grid.cell_to_world(list(start)))  # type: ignore[assignment]
+    start_xy = _cell_xy(cl, start)
     levels = _levels(r, r + TIGHT_MARGIN_MM, cl.cell)  # descending, the last one is r
-    by_level: dict[float, list[tuple[int, MapObject]]] = defaultdict(list)
+    # Each tight goal with its free cells (start side, goal side) at the largest clearance at
+    # which it is still connected. At each clearance a goal may sit as far from its free cell as
+    # that clearance (plus discretisation): a goal close to a wall is MK410's business.
+    by_level: dict[float, list[tuple[int, MapObject, tuple[int, int], tuple[int, int]]]]
+    by_level = defaultdict(list)
     for i, o in reachable:
-        # At each clearance a goal may sit as far from its free cell as that clearance (plus
-        # discretisation): a goal close to a wall is MK410's business, not a passage.
         for level in levels:
-            if cl.connected(start_xy, (o.x, o.y), level, reach_mm(level, cl.cell)) is not None:
+            pair = cl.connected(start_xy, (o.x, o.y), level, reach_mm(level, cl.cell))
+            if pair is not None:
+                if level < levels[0]:
+                    by_level[level].append((i, o, pair[0], pair[1]))
                 break
-        if level < levels[0]:
-            by_level[level].append((i, o))
-    passages: dict[tuple[int, int], list[tuple[int, MapObject, float]]] = defaultdict(list)
-    for level, group in by_level.items():
-        pairs = [cl.connected(start_xy, (o.x, o.y), level, reach_mm(level, cl.cell)) for _, o in group]
-        s = pairs[0][0]  # type: ignore[index]
-        found = cl.passages(s, [p[1] for p in pairs], level)  # type: ignore[index]
-        for (i, o), f in zip(group, found):
-            if f is None:
-                continue
-            c_mm, (x, y) = f
-            key = (int(round(x / cl.cell)), int(round(y / cl.cell)))
-            passages[key].append((i, o, c_mm))
-    for key, group in passages.items():
-        i, o, c_mm = group[0]
-        x, y = key[0] * cl.cell, key[1] * cl.cell
+    passages: dict[tuple[int, int], list[tuple[int, MapObject, float, tuple[float, float]]]]
+    passages = defaultdict(list)
+    for level, goals in by_level.items():
+        found = cl.passages(goals[0][2], [g[3] for g in goals], level)
+        for (i, o, _, _), f in zip(goals, found, strict=True):
+            if f is not None:
+                c_mm, (x, y) = f
+                passages[(round(x / cl.cell), round(y / cl.cell))].append((i, o, c_mm, (x, y)))
+    for group in passages.values():
+        i, o, c_mm, (x, y) = group[0]
         names = ", ".join(_name(g[1]) for g in group[:5]) + (
-            f" and {len(group) - 5} more" if len(group) > 5 else "")
-        ctx.add(C.NARROW_PASSAGE,
-                f"the way from {start_name} to {names} passes a gap about {_width(c_mm)} mm wide "
-                f"at ({x:.0f}, {y:.0f}) (measured on a {cl.cell:.0f} mm grid): the robot is "
-                f"{2 * r:.0f} mm wide and needs about {2 * (r + TIGHT_MARGIN_MM):.0f} mm to pass "
-                "with ease",
-                line=ctx.object_line(i), object=o.name or None, xy=(x, y))
+            f" and {len(group) - 5} more" if len(group) > 5 else ""
+        )
+        ctx.add(
+            C.NARROW_PASSAGE,
+            f"the way from {start_name} to {names} passes a gap about {_width(c_mm)} mm wide "
+            f"at ({x:.0f}, {y:.0f}) (measured on a {cl.cell:.0f} mm grid): the robot is "
+            f"{2 * r:.0f} mm wide and needs about {2 * (r + TIGHT_MARGIN_MM):.0f} mm to pass "
+            "with ease",
+            line=ctx.object_line(i),
+            object=o.name or None,
+            xy=(x, y),
+        )
 
 
 def _width(clearance_mm: float) -> int:
     """A passage's width from its clearance, rounded to 10 mm (the grid is not finer than that)."""
-    return int(round(2 * clearance_mm / 10.0)) * 10
+    return round(2 * clearance_mm / 10.0) * 10

@@ -31,20 +31,26 @@ def test_clean_map_exits_0(runner: CliRunner, tmp_path: Path) -> None:
 
 
 def test_errors_exit_1_grouped_by_severity(runner: CliRunner, tmp_path: Path) -> None:
-    text = edit(CLEAN, (GOAL_A, 'Cairn: Goal 4300 700 0.000000 "" ICON "A"'),
-               ("PointsAreSorted: true", "PointsAreSorted: false"),
-               ("Resolution: 20", "Resolution: 5000"))
+    text = edit(
+        CLEAN,
+        (GOAL_A, 'Cairn: Goal 4300 700 0.000000 "" ICON "A"'),
+        ("PointsAreSorted: true", "PointsAreSorted: false"),
+        ("Resolution: 20", "Resolution: 5000"),
+    )
     path = write(tmp_path, text)
     code, out, _ = run(runner, "validate", str(path))
     assert code == 1
     lines = out.splitlines()
     assert lines[0] == "errors (1):"
-    assert lines[1].startswith(f"  {path}:{LINE['A']}: MK411 Goal \"A\" at (4300, 700) is inside")
+    assert lines[1].startswith(f'  {path}:{LINE["A"]}: MK411 Goal "A" at (4300, 700) is inside')
     assert lines[2] == "warnings (1):"
     assert lines[3].startswith(f"  {path}:{LINE['Resolution']}: MK207 Resolution: 5000")
     assert lines[4] == "info (1):"
     assert lines[5].startswith(f"  {path}:{LINE['PointsAreSorted']}: MK208")
-    assert lines[6] == f"{path}: 1 error, 1 warning, 1 info (robot radius 250 mm, 2 of 2 goals/docks reachable)"
+    assert (
+        lines[6]
+        == f"{path}: 1 error, 1 warning, 1 info (robot radius 250 mm, 2 of 2 goals/docks reachable)"
+    )
 
 
 def test_warnings_exit_0_or_1_with_strict(runner: CliRunner, tmp_path: Path) -> None:
@@ -59,13 +65,18 @@ def test_info_only_passes_strict(runner: CliRunner, tmp_path: Path) -> None:
     assert run(runner, "validate", "--strict", str(path))[0] == 0
 
 
-@pytest.mark.parametrize("content, why", [
-    (None, "No such file"),
-    (b"", "empty"),
-    (b"hello\nworld\n", "not an ARIA map"),
-    (b"\xef\xbb\xbf2D-Map\nDATA\n", "byte-order mark"),
-])
-def test_unreadable_exits_2(runner: CliRunner, tmp_path: Path, content: bytes | None, why: str) -> None:
+@pytest.mark.parametrize(
+    "content, why",
+    [
+        (None, "No such file"),
+        (b"", "empty"),
+        (b"hello\nworld\n", "not an ARIA map"),
+        (b"\xef\xbb\xbf2D-Map\nDATA\n", "byte-order mark"),
+    ],
+)
+def test_unreadable_exits_2(
+    runner: CliRunner, tmp_path: Path, content: bytes | None, why: str
+) -> None:
     path = tmp_path / "x.map"
     if content is not None:
         path.write_bytes(content)
@@ -91,7 +102,12 @@ def test_json_report(runner: CliRunner, tmp_path: Path) -> None:
     assert data["summary"] == {"error": 1, "warning": 0, "info": 0}
     (issue,) = data["issues"]
     assert issue["code"] == int(IssueCode.GOAL_IN_WALL) and issue["name"] == "GOAL_IN_WALL"
-    assert issue["location"] == {"source": str(path), "line": LINE["A"], "object": "A", "xy": [0.0, 2000.0]}
+    assert issue["location"] == {
+        "source": str(path),
+        "line": LINE["A"],
+        "object": "A",
+        "xy": [0.0, 2000.0],
+    }
     assert data["checked"]["navigation"]["cell_mm"] == 75
 
 
@@ -105,7 +121,9 @@ def test_robot_radius_changes_the_checks(runner: CliRunner, tmp_path: Path) -> N
 
 def test_no_navigation(runner: CliRunner, tmp_path: Path) -> None:
     closed = insert_after(CLEAN, LINE["LINES"], "2500 0 2500 4000")
-    closed = edit(closed, ("NumLines: 4", "NumLines: 5"), ("LinesAreSorted: true", "LinesAreSorted: false"))
+    closed = edit(
+        closed, ("NumLines: 4", "NumLines: 5"), ("LinesAreSorted: true", "LinesAreSorted: false")
+    )
     path = write(tmp_path, closed)
     code, out, _ = run(runner, "validate", str(path))
     assert code == 1 and "MK501" in out
@@ -137,11 +155,12 @@ def test_codes_table(runner: CliRunner) -> None:
 
 
 def test_docs_codes_md_is_up_to_date(runner: CliRunner) -> None:
-    """docs/codes.md is generated: run `mapkit codes --markdown > docs/codes.md` after adding codes."""
+    """docs/codes.md is generated: `mapkit codes --markdown > docs/codes.md` after adding codes."""
     out = run(runner, "codes", "--markdown")[1]
     assert out == codes_markdown()
     assert (ROOT / "docs" / "codes.md").read_text(encoding="utf-8") == out, (
-        "docs/codes.md is stale: run `mapkit codes --markdown > docs/codes.md`")
+        "docs/codes.md is stale: run `mapkit codes --markdown > docs/codes.md`"
+    )
 
 
 def test_every_real_sample(runner: CliRunner, real_sample: Path) -> None:
@@ -157,7 +176,12 @@ def test_every_real_sample(runner: CliRunner, real_sample: Path) -> None:
     assert max(per_code.values(), default=0) <= 3, per_code
     name = real_sample.name
     codes = [i["code"] for i in data["issues"]]
-    if name in ("aria-office.map", "aria-triangle.map", "aria-ActivMediaLab.map", "aria275-columbia.map"):
+    if name in (
+        "aria-office.map",
+        "aria-triangle.map",
+        "aria-ActivMediaLab.map",
+        "aria275-columbia.map",
+    ):
         assert codes == []  # hand-drawn, lines only: nothing abnormal for such maps
     if "columbia" in name and name != "aria275-columbia.map":
         objs = {(i["code"], i["location"].get("object")) for i in data["issues"]}

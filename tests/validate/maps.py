@@ -44,10 +44,30 @@ DATA
 
 #: Line numbers of the clean map's lines, by a short name.
 LINE = {
-    "intro": 1, "MinPos": 2, "MaxPos": 3, "NumPoints": 4, "PointsAreSorted": 5, "Resolution": 6,
-    "LineMinPos": 7, "LineMaxPos": 8, "NumLines": 9, "LinesAreSorted": 10, "Params": 11,
-    "GoalType": 12, "DockType": 13, "SectorType": 14, "ArgDesc": 15, "Home": 16, "A": 17,
-    "B": 18, "D": 19, "FA": 20, "FL": 21, "Zone1": 22, "LINES": 23, "DATA": 28,
+    "intro": 1,
+    "MinPos": 2,
+    "MaxPos": 3,
+    "NumPoints": 4,
+    "PointsAreSorted": 5,
+    "Resolution": 6,
+    "LineMinPos": 7,
+    "LineMaxPos": 8,
+    "NumLines": 9,
+    "LinesAreSorted": 10,
+    "Params": 11,
+    "GoalType": 12,
+    "DockType": 13,
+    "SectorType": 14,
+    "ArgDesc": 15,
+    "Home": 16,
+    "A": 17,
+    "B": 18,
+    "D": 19,
+    "FA": 20,
+    "FL": 21,
+    "Zone1": 22,
+    "LINES": 23,
+    "DATA": 28,
 }
 
 

@@ -19,7 +19,9 @@ C = IssueCode
 NAV_CODES = {C.UNREACHABLE, C.NARROW_PASSAGE, C.NAVIGATION_SKIPPED}
 
 
-def two_rooms(door: float | None, *objects: MapObject, extra_lines: list[list[int]] | None = None) -> MapData:
+def two_rooms(
+    door: float | None, *objects: MapObject, extra_lines: list[list[int]] | None = None
+) -> MapData:
     """Two 4 x 4 m rooms side by side; the wall between them at x = 4000 has a door of width
     ``door`` centred on y = 2000 (``None``: no door)."""
     walls = [[0, 0, 8000, 0], [8000, 0, 8000, 4000], [8000, 4000, 0, 4000], [0, 4000, 0, 0]]
@@ -144,12 +146,14 @@ def test_locations_in_file_view(tmp_path: Path) -> None:
     found = only(report, C.UNREACHABLE)
     assert len(found) == 1
     lines = path.read_text().splitlines()
-    assert lines[found[0].location.line - 1].startswith('Cairn: Goal 6000 2000')  # type: ignore[operator]
+    assert lines[found[0].location.line - 1].startswith("Cairn: Goal 6000 2000")  # type: ignore[operator]
 
 
 @pytest.mark.parametrize("radius", [0.0, 120.0, 250.0, 333.0])
 def test_free_space_is_the_rasterisers_inflation(radius: float) -> None:
-    m = two_rooms(700, HOME, GOAL, MapObject("ForbiddenLine", 5000, 500, from_to=(5000, 500, 7000, 1500)))
+    m = two_rooms(
+        700, HOME, GOAL, MapObject("ForbiddenLine", 5000, 500, from_to=(5000, 500, 7000, 1500))
+    )
     ctx = Context(m, file_view=False)
     cl = clearance_grid(ctx, ((-500, -500), (8500, 4500)), 50.0)
     walls = cl.dist == 0
