@@ -188,7 +188,7 @@ def sorted_flags(ctx: Context) -> None:
             if kind == "lines" and (flag is None or h.scan.num_points == 0):
                 continue
             actually = is_sorted(arr)
-            state = "false" if flag is False else "absent"
+            state = f"{kw} false" if flag is False else f"no {kw} line"
             what = (
                 f"the {len(arr)} {kind} are in fact sorted; setting the flag is free"
                 if actually
@@ -197,7 +197,7 @@ def sorted_flags(ctx: Context) -> None:
             )
             ctx.add(
                 C.NOT_MARKED_SORTED,
-                f"{kw} {state}: {what}",
+                f"{state}: {what}",
                 line=h.line(key) if flag is False else None,
             )
 

@@ -247,17 +247,14 @@ def reachability(ctx: Context) -> None:
         return
     # Goals inside a forbidden area are reported as such (MK411), not again as unreachable.
     forbidden = ctx.cache.get("forbidden_targets", set())
-    targets = [
-        (i, o)
-        for i, o in ctx.destinations()
-        if math.isfinite(o.x) and math.isfinite(o.y) and i not in forbidden
-    ]
+    finite = [(i, o) for i, o in ctx.destinations() if math.isfinite(o.x) and math.isfinite(o.y)]
+    targets = [(i, o) for i, o in finite if i not in forbidden]
     box = ctx.data_box()
     r = ctx.robot_radius
     stats: dict[str, Any] = {
-        "targets": len(targets),
+        "targets": len(finite),
         "robot_radius": r,
-        "in_forbidden_areas": len(forbidden),
+        "in_forbidden_areas": len(finite) - len(targets),
     }
     ctx.stats["navigation"] = stats
     if not targets or box is None:
@@ -326,7 +323,7 @@ def reachability(ctx: Context) -> None:
             unreachable.append((i, o))
             free_cells[i] = next(iter(near.values()), None)
     stats["reachable"] = len(reachable)
-    stats["not_checked"] = len(targets) - len(inside)
+    stats["not_checked"] = len(targets) - len(inside)  # too far outside the map
     _report_unreachable(ctx, cl, start_cell, start_name, unreachable, free_cells)
     if start_cell is not None:
         _report_tight(ctx, cl, start_cell, stats["start"], reachable)

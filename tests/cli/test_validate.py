@@ -49,7 +49,7 @@ def test_errors_exit_1_grouped_by_severity(runner: CliRunner, tmp_path: Path) ->
     assert lines[5].startswith(f"  {path}:{LINE['PointsAreSorted']}: MK208")
     assert (
         lines[6]
-        == f"{path}: 1 error, 1 warning, 1 info (robot radius 250 mm, 2 of 2 goals/docks reachable)"
+        == f"{path}: 1 error, 1 warning, 1 info (robot radius 250 mm, 2 of 3 goals/docks reachable)"
     )
 
 
