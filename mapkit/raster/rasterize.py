@@ -208,8 +208,11 @@ def burn_points(
 def segment_cells(grid: OccupancyGrid, segments_mm: ArrayLike) -> NDArray[np.int64]:
     """Every cell ``(row, col)`` each segment passes through, both end cells included.
 
-    A supercover: the cells of the segment's crossings with the grid lines and of the pieces in
-    between, computed for all segments at once. Cells may repeat and may lie off the grid.
+    The segment is cut where it crosses grid lines; every piece of positive length marks its
+    cell, and both end points mark theirs (a point on a border belongs to the cell above/right).
+    Cells the segment only touches at a corner are not marked, so a diagonal line through cell
+    corners marks just the diagonal cells. Computed for all segments at once; cells may repeat
+    and may lie off the grid.
 
     Args:
         grid: Gives the geometry.
@@ -250,14 +253,17 @@ def segment_cells(grid: OccupancyGrid, segments_mm: ArrayLike) -> NDArray[np.int
     t = np.clip(np.concatenate(parts_t), 0.0, 1.0)
     order = np.argsort(sid * 2.0 + t, kind="stable")
     sid, t = sid[order], t[order]
-    same = sid[1:] == sid[:-1]
-    mid_id = sid[1:][same]
-    mid_t = 0.5 * (t[1:][same] + t[:-1][same])
-    sid = np.concatenate([sid, mid_id])
-    t = np.concatenate([t, mid_t])
-    u = np.floor(a[sid, 0] + t * d[sid, 0]).astype(np.int64)
-    v = np.floor(a[sid, 1] + t * d[sid, 1]).astype(np.int64)
-    # Keep every cell within [lo, hi] (rounding at a crossing may step one cell outside).
+    # One sample inside every piece of positive length (a piece that is only a shared corner
+    # touches its cells at a point: it crosses none of them), plus both end points.
+    keep = (sid[1:] == sid[:-1]) & (t[1:] - t[:-1] > _EPS)
+    mid_id = sid[1:][keep]
+    mid_t = 0.5 * (t[1:][keep] + t[:-1][keep])
+    u = np.concatenate([a[:, 0], b[:, 0], a[mid_id, 0] + mid_t * d[mid_id, 0]])
+    v = np.concatenate([a[:, 1], b[:, 1], a[mid_id, 1] + mid_t * d[mid_id, 1]])
+    sid = np.concatenate([ids, ids, mid_id])
+    u = np.floor(u).astype(np.int64)
+    v = np.floor(v).astype(np.int64)
+    # Keep every cell within [lo, hi] (rounding near a crossing may step one cell outside).
     u = np.clip(u, lo[sid, 0].astype(np.int64), hi[sid, 0].astype(np.int64))
     v = np.clip(v, lo[sid, 1].astype(np.int64), hi[sid, 1].astype(np.int64))
     return np.stack([v, u], axis=1)
@@ -540,6 +546,7 @@ def rasterize(
     inflate_mm: float = 0,
     forbidden_as_walls: bool = False,
     log: Any = None,
+    like: OccupancyGrid | None = None,
 ) -> OccupancyGrid:
     """A map as an occupancy grid: walls occupied, reachable space free, the rest unknown.
 
@@ -564,6 +571,9 @@ def rasterize(
         forbidden_as_walls: Also mark forbidden areas and lines occupied.
         log: Reserved for ray-casting free space from a ``.2d`` laser log (not available yet;
             anything but ``None`` raises :class:`RasterError`).
+        like: Use this grid's geometry (shape, resolution, origin) instead of one fitted to the
+            map (``resolution`` and ``margin_m`` are then ignored); e.g. to compare two maps
+            cell by cell, or to draw a mask on the same grid as a map.
 
     Returns:
         The grid (see :func:`grid_for` for its geometry).
@@ -577,7 +587,10 @@ def rasterize(
         raise RasterError("ray-casting free space from a .2d log is not available yet")
     if not (math.isfinite(inflate_mm) and inflate_mm >= 0):
         raise RasterError(f"inflation must be zero or more millimetres, got {inflate_mm!r}")
-    grid = grid_for(m, resolution, margin_m)
+    if like is not None:
+        grid = like.with_data(np.full(like.data.shape, UNKNOWN, dtype=np.int8))
+    else:
+        grid = grid_for(m, resolution, margin_m)
     walls = wall_mask(m, grid, forbidden_as_walls=forbidden_as_walls)
     open_ = ~walls
     if free == "flood":

@@ -335,7 +335,14 @@ def write_image(
 
 
 def _fmt_float(v: float) -> str:
-    return repr(float(v) + 0.0)
+    """Shortest round-trip text that both YAML 1.1 (PyYAML) and yaml-cpp read as a float."""
+    text = repr(float(v) + 0.0)
+    if "e" in text and "." not in text:
+        mant, exp = text.split("e")
+        text = f"{mant}.0e{exp}"
+    elif "." not in text and "e" not in text and text not in ("inf", "-inf", "nan"):
+        text += ".0"
+    return text
 
 
 _PLAIN = re.compile(r"^[A-Za-z0-9_./][A-Za-z0-9_./+@-]*$")

@@ -27,19 +27,14 @@ from mapkit.raster import (
     seed_points,
 )
 
+from .helpers import dense, off_corners
+
 R = importlib.import_module("mapkit.raster.rasterize")
 
 resolutions = st.sampled_from([0.02, 0.05, 0.1, 0.25])
 mm = st.integers(-5_000, 5_000)
 points = st.lists(st.tuples(mm, mm), min_size=1, max_size=60)
 segments = st.lists(st.tuples(mm, mm, mm, mm), min_size=1, max_size=15)
-
-
-def _dense(seg: np.ndarray, n: int = 4001) -> np.ndarray:
-    """Points along each segment, including both ends."""
-    t = np.linspace(0.0, 1.0, n)[None, :, None]
-    a, b = seg[:, None, 0:2], seg[:, None, 2:4]
-    return (a + t * (b - a)).reshape(-1, 2)
 
 
 def _seg_dist(p: np.ndarray, seg: np.ndarray) -> np.ndarray:
@@ -65,7 +60,7 @@ def test_every_cell_a_line_crosses_is_occupied(segs, res) -> None:
     seg = np.array(segs, dtype=np.float64)
     g = grid_for_bounds(((-5000, -5000), (5000, 5000)), res, 0.1)
     mask = burn_segments(g, seg)
-    rc = g.world_to_cell(_dense(seg))
+    rc = g.world_to_cell(off_corners(g, dense(seg)))
     assert mask[rc[:, 0], rc[:, 1]].all()
     # No stray cells: every marked cell's square touches a segment.
     cells = np.argwhere(mask)
@@ -79,7 +74,7 @@ def test_lines_have_no_gaps_at_any_angle(angle) -> None:
     a = math.radians(angle)
     seg = np.array([[13.0, -7.0, 13 + 2900 * math.cos(a), -7 + 2900 * math.sin(a)]])
     mask = burn_segments(g, seg)
-    rc = g.world_to_cell(_dense(seg, 20001))
+    rc = g.world_to_cell(dense(seg, 20001))
     assert mask[rc[:, 0], rc[:, 1]].all()
     # The cells form one 4-connected chain.
     from scipy import ndimage
@@ -129,7 +124,7 @@ def test_rotated_rectangles_cover_their_cells(ft, theta, res) -> None:
         picked = np.argwhere(np.ones_like(mask))[:: max(1, len(centres) // 4000)]
         assert mask[picked[inside, 0], picked[inside, 1]].all()
     edges = np.concatenate([poly, np.roll(poly, -1, axis=0)], axis=1)
-    rc = g.world_to_cell(_dense(edges, 2001))
+    rc = g.world_to_cell(dense(edges, 2001))
     ok = g.inside(rc)
     assert mask[rc[ok, 0], rc[ok, 1]].all()
     # Nothing farther than a cell's half-diagonal from the rectangle is marked.

@@ -1,0 +1,21 @@
+"""Small helpers shared by the raster tests."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def off_corners(g, xy: np.ndarray) -> np.ndarray:
+    """Drop samples that sit exactly on a cell corner: a segment through a corner only touches
+    the cells beside it at a point, it crosses none of them."""
+    (ox, oy), r = g.origin_mm, g.resolution_mm
+    u, v = (xy[:, 0] - ox) / r, (xy[:, 1] - oy) / r
+    return xy[~((u == np.round(u)) & (v == np.round(v)))]
+
+
+def dense(seg: np.ndarray, n: int = 4001) -> np.ndarray:
+    """Points along each segment ``(M, 4)``, including both ends."""
+    t = np.linspace(0.0, 1.0, n)[None, :, None]
+    seg = np.asarray(seg, dtype=np.float64)
+    a, b = seg[:, None, 0:2], seg[:, None, 2:4]
+    return (a + t * (b - a)).reshape(-1, 2)
