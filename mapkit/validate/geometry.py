@@ -2,12 +2,40 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from mapkit.diagnostics import IssueCode as C
+from mapkit.model import Scan
 from mapkit.validate._context import Context, rule
 
 _INT32 = 2**31 - 1
+
+
+def _rows(
+    ctx: Context,
+    code: C,
+    scan: Scan,
+    rows: np.ndarray[Any, Any],
+    bad: np.ndarray[Any, Any],
+    what: str,
+    why: str,
+    *,
+    at_first: bool = True,
+) -> None:
+    """One finding for the rows of a scan selected by the mask ``bad`` (none when it is empty)."""
+    n = int(np.count_nonzero(bad))
+    if not n:
+        return
+    label = f"source {scan.name!r}: " if scan.name else ""
+    first = rows[int(np.argmax(bad))]
+    where = f" (first at ({first[0]}, {first[1]}))" if at_first else ""
+    ctx.add(
+        code,
+        f"{label}{n} of {len(rows)} {what}{where}: {why}",
+        xy=(first[0], first[1]) if at_first else None,
+    )
 
 
 @rule(C.EMPTY_MAP, C.COORDINATE_OVERFLOW)
@@ -23,12 +51,16 @@ def data_present(ctx: Context) -> None:
     for s in ctx.map.scans:
         for kind, arr in (("points", s.points), ("lines", s.lines)):
             if len(arr) and (arr.max() > _INT32 or arr.min() < -_INT32 - 1):
-                bad = int(np.count_nonzero(np.any((arr > _INT32) | (arr < -_INT32 - 1), axis=1)))
-                label = f"source {s.name!r}: " if s.name else ""
-                ctx.add(
+                bad = np.any((arr > _INT32) | (arr < -_INT32 - 1), axis=1)
+                _rows(
+                    ctx,
                     C.COORDINATE_OVERFLOW,
-                    f"{label}{bad} {kind} rows have coordinates beyond +-2147483647 mm: ARIA "
-                    "reads rows with 32-bit atoi and gets other numbers",
+                    s,
+                    arr,
+                    bad,
+                    f"{kind} rows have coordinates beyond +-2147483647 mm",
+                    "ARIA reads rows with 32-bit atoi and gets other numbers",
+                    at_first=False,
                 )
 
 
@@ -37,24 +69,22 @@ def zero_length_lines(ctx: Context) -> None:
     """LINES rows whose ends coincide (one finding per source)."""
     for s in ctx.map.scans:
         ln = s.lines
-        if not len(ln):
-            continue
-        zero = (ln[:, 0] == ln[:, 2]) & (ln[:, 1] == ln[:, 3])
-        n = int(np.count_nonzero(zero))
-        if n:
-            first = ln[int(np.argmax(zero))]
-            label = f"source {s.name!r}: " if s.name else ""
-            ctx.add(
+        if len(ln):
+            zero = (ln[:, 0] == ln[:, 2]) & (ln[:, 1] == ln[:, 3])
+            _rows(
+                ctx,
                 C.ZERO_LENGTH_LINES,
-                f"{label}{n} of {len(ln)} line segments have no length (first at "
-                f"({first[0]}, {first[1]})); they draw nothing and can be removed",
-                xy=(first[0], first[1]),
+                s,
+                ln,
+                zero,
+                "line segments have no length",
+                "they draw nothing and can be removed",
             )
 
 
 @rule(C.POINTS_OFF_GRID)
 def points_on_grid(ctx: Context) -> None:
-    """Points of a scan with a Resolution: should share that lattice."""
+    """Points of a scan with a Resolution: should share one lattice (the most common offset)."""
     for s in ctx.map.scans:
         r = s.resolution
         p = s.points
@@ -62,14 +92,12 @@ def points_on_grid(ctx: Context) -> None:
             continue
         key = (p[:, 0] % r) * r + (p[:, 1] % r)
         off = key != np.argmax(np.bincount(key, minlength=r * r))
-        n = int(np.count_nonzero(off))
-        if n:
-            first = p[int(np.argmax(off))]
-            label = f"source {s.name!r}: " if s.name else ""
-            ctx.add(
-                C.POINTS_OFF_GRID,
-                f"{label}{n} of {len(p)} points are off the {r} mm lattice of the others "
-                f"(first at ({first[0]}, {first[1]})): the data was edited or merged at "
-                "another resolution",
-                xy=(first[0], first[1]),
-            )
+        _rows(
+            ctx,
+            C.POINTS_OFF_GRID,
+            s,
+            p,
+            off,
+            f"points are off the {r} mm lattice of the others",
+            "the data was edited or merged at another resolution",
+        )
