@@ -87,11 +87,13 @@ def _check_box(
     (dx0, dy0), (dx1, dy1) = box
     if lo is None or hi is None:
         if ctx.file_view:
-            missing = " and ".join(h.prefix + k for k, v in ((kmin, lo), (kmax, hi)) if v is None)
+            missing = " or ".join(h.prefix + k for k, v in ((kmin, lo), (kmax, hi)) if v is None)
+            n = len(data) if kind == "points" else len(data) // 2
             ctx.add(
                 C.BOX_MISSING,
-                f"{len(data)} {kind} but no {missing}: ARIA then starts the box at (0, 0), so "
-                f"it includes the origin; the {kind} span ({dx0}, {dy0}) .. ({dx1}, {dy1})",
+                f"{n} {kind if n != 1 else kind[:-1]} but no {missing} line; ARIA then starts "
+                f"the box at (0, 0), so it includes the origin; the {kind} span "
+                f"({dx0}, {dy0}) .. ({dx1}, {dy1})",
                 line=h.line(kmin if lo is None else kmax),
             )
         return

@@ -231,7 +231,13 @@ def clearance_grid(
 ) -> Clearance:
     """Rasterise the map's walls, forbidden areas and forbidden lines and measure clearances."""
     grid = grid_for_bounds(bounds, cell_mm / 1000.0, margin_m=0.0)
-    m = ctx.map if ctx.file_view else ctx.map.replace(objects=ctx.objects)
+    # Objects with NaN or infinite numbers (MK405) cannot be drawn: leave them out.
+    objects = tuple(
+        o
+        for o in ctx.objects
+        if all(math.isfinite(v) for v in (o.x, o.y, o.theta, *(o.from_to or ())))
+    )
+    m = ctx.map.replace(objects=objects)
     walls = wall_mask(m, grid, forbidden_as_walls=True)
     return Clearance(grid, walls)
 

@@ -425,3 +425,43 @@ def test_many_bad_rows_are_summarised(tmp_path: Path) -> None:
     assert len(rows) == 10
     assert rows[-1].message.startswith("41 more like this (lines 42 .. 82)")
     assert [i.location.line for i in rows[:9]] == list(range(33, 42))
+
+
+def test_non_finite_objects_are_left_out_of_navigation() -> None:
+    m = mapkit.loads(CLEAN)
+    bad = MapObject("ForbiddenArea", 0, 0, 0, name="NaN area", from_to=(0, 0, math.nan, 5))
+    report = validate(m.replace(objects=(*m.objects, bad)))
+    assert report.codes() == [int(C.NON_FINITE_OBJECT)]
+    assert report.checked["navigation"]["reachable"] == 3
+
+
+MULTI = b"""2D-Map-Ex
+Sources: SickLaser Sonar
+MinPos: 0 0
+MaxPos: 20 20
+NumPoints: 2
+PointsAreSorted: true
+Resolution: 20
+SonarMinPos: 100 100
+SonarMaxPos: 200 200
+SonarNumPoints: 3
+SonarPointsAreSorted: true
+SonarResolution: 20
+Sonar_LINES
+100 100 200 200
+DATA
+0 0
+20 20
+Sonar_DATA
+100 100
+200 200
+"""
+
+
+def test_named_source_keywords_have_their_lines(tmp_path: Path) -> None:
+    report = validate(write(tmp_path, MULTI), navigation=False)
+    by_code = {i.code: i for i in report.issues}
+    assert by_code[C.NUM_POINTS_MISMATCH].location.line == 10
+    assert by_code[C.NUM_POINTS_MISMATCH].message.startswith("SonarNumPoints: 3 but the file has 2")
+    missing = by_code[C.BOX_MISSING]
+    assert missing.message.startswith("1 line but no SonarLineMinPos: or SonarLineMaxPos: line")
