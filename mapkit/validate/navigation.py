@@ -266,7 +266,7 @@ def reachability(ctx: Context) -> None:
     if not targets or box is None:
         return
     homes = [o for _, o in ctx.homes() if math.isfinite(o.x) and math.isfinite(o.y)]
-    margin = r + 1000.0
+    margin = max(r + 1000.0, 2 * r)  # as far out as MK408 lets objects be, and room to pass
     (x0, y0), (x1, y1) = box
     inside = [
         (i, o)

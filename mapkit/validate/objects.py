@@ -404,8 +404,9 @@ def homes(ctx: Context) -> None:
         start = f"the first dock ({docks[0].name or 'unnamed'})" if docks else "(0, 0)"
         ctx.add(
             C.NO_ROBOT_HOME,
-            f"no RobotHome: MobileSim starts the robot at {start} and ARNL cannot localise "
-            "at a home on start-up; reachability is checked between the goals instead",
+            f"no RobotHome: MobileSim starts the robot at {start} and ARNL's start-up "
+            "localisation has no home pose to try; reachability is checked between the goals "
+            "instead",
         )
     elif len(homes) > 1:
         names = ", ".join(
