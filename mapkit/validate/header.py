@@ -166,8 +166,12 @@ def resolution(ctx: Context) -> None:
 
 @rule(C.NOT_MARKED_SORTED, C.SORTED_FLAG_WRONG)
 def sorted_flags(ctx: Context) -> None:
-    """PointsAreSorted:/LinesAreSorted: false (or absent with points), or true but wrong."""
+    """PointsAreSorted:/LinesAreSorted: false (or absent with points), or true but wrong.
+
+    Unmarked points and lines of one scan make one finding.
+    """
     for h in ctx.headers():
+        unmarked: list[tuple[str, str, int | None]] = []  # (state, what, line)
         for kind, arr, flag, key in (
             ("points", h.scan.points, h.points_sorted, "PointsAreSorted:"),
             ("lines", h.scan.lines, h.lines_sorted, "LinesAreSorted:"),
@@ -189,18 +193,23 @@ def sorted_flags(ctx: Context) -> None:
             # "LinesAreSorted: false": normal. Lines count only in scanned maps (with points).
             if kind == "lines" and (flag is None or h.scan.num_points == 0):
                 continue
-            actually = is_sorted(arr)
             state = f"{kw} false" if flag is False else f"no {kw} line"
-            what = (
-                f"the {len(arr)} {kind} are in fact sorted; setting the flag is free"
-                if actually
-                else f"the {len(arr)} {kind} are in file order; ARIA keeps that order and never "
-                "sorts on load (mapkit can sort them)"
+            order = "in fact sorted" if is_sorted(arr) else "in file order"
+            unmarked.append((state, f"the {len(arr)} {kind} are {order}", h.line(key)))
+        if unmarked:
+            ordered = all("in file order" in u[1] for u in unmarked)
+            advice = (
+                "ARIA keeps that order and never sorts on load (mapkit can sort them)"
+                if ordered
+                else "setting the flag is free"
+                if all("in fact sorted" in u[1] for u in unmarked)
+                else "ARIA never sorts on load (mapkit can sort them)"
             )
             ctx.add(
                 C.NOT_MARKED_SORTED,
-                f"{state}: {what}",
-                line=h.line(key) if flag is False else None,
+                f"{', '.join(u[0] for u in unmarked)}: {' and '.join(u[1] for u in unmarked)}; "
+                + advice,
+                line=next((u[2] for u in unmarked if u[2] is not None), None),
             )
 
 
