@@ -85,10 +85,10 @@ def map_bounds(m: MapData, *, objects: bool = True) -> _Bounds | None:
     lo = np.array([np.inf, np.inf])
     hi = -lo
     for scan in m.scans:
-        for arr in (scan.points, scan.lines.reshape(-1, 2)):
+        for arr, xs, ys in ((scan.points, [0], [1]), (scan.lines, [0, 2], [1, 3])):
             if len(arr):
-                lo = np.minimum(lo, arr.min(axis=0))
-                hi = np.maximum(hi, arr.max(axis=0))
+                lo = np.minimum(lo, [min(arr[:, i].min() for i in xs), min(arr[:, i].min() for i in ys)])
+                hi = np.maximum(hi, [max(arr[:, i].max() for i in xs), max(arr[:, i].max() for i in ys)])
     if objects and m.objects:
         xy = np.array([c for o in m.objects for c in o.corners()], dtype=np.float64)
         xy = xy[np.all(np.isfinite(xy), axis=1)]
@@ -172,8 +172,12 @@ def _mask_for(grid: OccupancyGrid, out: NDArray[np.bool_] | None) -> NDArray[np.
 
 def _set(mask: NDArray[np.bool_], rows: NDArray[np.int64], cols: NDArray[np.int64]) -> None:
     h, w = mask.shape
-    ok = (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
-    mask[rows[ok], cols[ok]] = True
+    if not len(rows):
+        return
+    if rows.min() < 0 or rows.max() >= h or cols.min() < 0 or cols.max() >= w:
+        ok = (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
+        rows, cols = rows[ok], cols[ok]
+    mask.reshape(-1)[rows * w + cols] = True
 
 
 # -- primitives --------------------------------------------------------------------------------
@@ -235,15 +239,48 @@ def segment_cells(grid: OccupancyGrid, segments_mm: ArrayLike) -> NDArray[np.int
     lo = np.floor(np.minimum(a, b))
     hi = np.floor(np.maximum(a, b))
     n = (hi - lo).astype(np.int64)  # grid lines crossed along u and along v
-    m = len(seg)
+    ilo, ihi = lo.astype(np.int64), hi.astype(np.int64)
+    # Fast path: a segment inside one column (or one row) of cells covers the whole span of
+    # rows (or columns) between its ends - most walls in real maps.
+    simple = (n[:, 0] == 0) | (n[:, 1] == 0)
+    out = [_straight_cells(ilo[simple], ihi[simple], n[simple])]
+    general = ~simple
+    if general.any():
+        out.append(_crossing_cells(a[general], b[general], d[general], lo[general],
+                                   ilo[general], ihi[general], n[general]))
+    return np.concatenate(out)
+
+
+def _straight_cells(
+    ilo: NDArray[np.int64], ihi: NDArray[np.int64], n: NDArray[np.int64]
+) -> NDArray[np.int64]:
+    """Cells of segments that stay in one column or one row: the span between their ends."""
+    cnt = n.max(axis=1) + 1
+    sid = np.repeat(np.arange(len(n)), cnt)
+    step = np.arange(len(sid)) - np.repeat(np.cumsum(cnt) - cnt, cnt)
+    along_u = n[sid, 0] > 0
+    u = ilo[sid, 0] + np.where(along_u, step, 0)
+    v = ilo[sid, 1] + np.where(along_u, 0, step)
+    return np.stack([v, u], axis=1)
+
+
+def _crossing_cells(
+    a: NDArray[np.float64],
+    b: NDArray[np.float64],
+    d: NDArray[np.float64],
+    lo: NDArray[np.float64],
+    ilo: NDArray[np.int64],
+    ihi: NDArray[np.int64],
+    n: NDArray[np.int64],
+) -> NDArray[np.int64]:
+    """Cells of general segments: cut at every grid line, one sample per piece."""
+    m = len(a)
     ids = np.arange(m)
     parts_id = [ids, ids]
     parts_t = [np.zeros(m), np.ones(m)]
     for axis in (0, 1):
         cnt = n[:, axis]
         total = int(cnt.sum())
-        if not total:
-            continue
         sid = np.repeat(ids, cnt)
         start = np.cumsum(cnt) - cnt
         k = lo[sid, axis] + 1 + (np.arange(total) - np.repeat(start, cnt))
@@ -261,12 +298,10 @@ def segment_cells(grid: OccupancyGrid, segments_mm: ArrayLike) -> NDArray[np.int
     u = np.concatenate([a[:, 0], b[:, 0], a[mid_id, 0] + mid_t * d[mid_id, 0]])
     v = np.concatenate([a[:, 1], b[:, 1], a[mid_id, 1] + mid_t * d[mid_id, 1]])
     sid = np.concatenate([ids, ids, mid_id])
-    u = np.floor(u).astype(np.int64)
-    v = np.floor(v).astype(np.int64)
     # Keep every cell within [lo, hi] (rounding near a crossing may step one cell outside).
-    u = np.clip(u, lo[sid, 0].astype(np.int64), hi[sid, 0].astype(np.int64))
-    v = np.clip(v, lo[sid, 1].astype(np.int64), hi[sid, 1].astype(np.int64))
-    return np.stack([v, u], axis=1)
+    iu = np.clip(np.floor(u).astype(np.int64), ilo[sid, 0], ihi[sid, 0])
+    iv = np.clip(np.floor(v).astype(np.int64), ilo[sid, 1], ihi[sid, 1])
+    return np.stack([iv, iu], axis=1)
 
 
 def burn_segments(

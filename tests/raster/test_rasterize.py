@@ -27,7 +27,7 @@ from mapkit.raster import (
     seed_points,
 )
 
-from .helpers import dense, off_corners
+from .helpers import covered, dense, off_corners
 
 R = importlib.import_module("mapkit.raster.rasterize")
 
@@ -60,8 +60,7 @@ def test_every_cell_a_line_crosses_is_occupied(segs, res) -> None:
     seg = np.array(segs, dtype=np.float64)
     g = grid_for_bounds(((-5000, -5000), (5000, 5000)), res, 0.1)
     mask = burn_segments(g, seg)
-    rc = g.world_to_cell(off_corners(g, dense(seg)))
-    assert mask[rc[:, 0], rc[:, 1]].all()
+    assert covered(g, mask, off_corners(g, dense(seg))).all()
     # No stray cells: every marked cell's square touches a segment.
     cells = np.argwhere(mask)
     centres = g.cell_to_world(cells)
@@ -124,9 +123,7 @@ def test_rotated_rectangles_cover_their_cells(ft, theta, res) -> None:
         picked = np.argwhere(np.ones_like(mask))[:: max(1, len(centres) // 4000)]
         assert mask[picked[inside, 0], picked[inside, 1]].all()
     edges = np.concatenate([poly, np.roll(poly, -1, axis=0)], axis=1)
-    rc = g.world_to_cell(dense(edges, 2001))
-    ok = g.inside(rc)
-    assert mask[rc[ok, 0], rc[ok, 1]].all()
+    assert covered(g, mask, off_corners(g, dense(edges, 2001))).all()
     # Nothing farther than a cell's half-diagonal from the rectangle is marked.
     marked = g.cell_to_world(np.argwhere(mask))
     if shape is not None and len(marked):
