@@ -202,9 +202,17 @@ def burn_points(
         [[1, 0, 0, 0], [0, 0, 1, 0]]
     """
     mask = _mask_for(grid, out)
-    pts = np.asarray(points_mm, dtype=np.float64).reshape(-1, 2)
-    if len(pts):
-        uv = np.floor(_cell_units(grid, pts))
+    pts = np.asarray(points_mm).reshape(-1, 2)
+    if not len(pts):
+        return mask
+    (ox, oy), r = grid.origin_mm, grid.resolution_mm
+    if pts.dtype.kind in "iu" and all(float(v).is_integer() for v in (ox, oy, r)):
+        # Integer millimetres on an integer grid: exact floor division, no floats.
+        col = (pts[:, 0] - int(ox)) // int(r)
+        row = (pts[:, 1] - int(oy)) // int(r)
+        _set(mask, row.astype(np.int64), col.astype(np.int64))
+    else:
+        uv = np.floor(_cell_units(grid, pts.astype(np.float64)))
         _set(mask, uv[:, 1].astype(np.int64), uv[:, 0].astype(np.int64))
     return mask
 
@@ -372,10 +380,15 @@ def _convex_fill(
     rows, c0, c1 = rows[keep], c0[keep], c1[keep]
     if not len(rows):
         return
-    diff = np.zeros((h, w + 1), dtype=np.int32)
-    np.add.at(diff, (rows, c0), 1)
-    np.add.at(diff, (rows, c1 + 1), -1)
-    mask |= np.cumsum(diff[:, :w], axis=1) > 0
+    r0, r1 = int(rows.min()), int(rows.max()) + 1
+    cols = np.arange(w)
+    if len(np.unique(rows)) == len(rows):  # one span per row (e.g. a hull): compare directly
+        mask[rows] |= (cols >= c0[:, None]) & (cols <= c1[:, None])
+        return
+    diff = np.zeros((r1 - r0, w + 1), dtype=np.int32)
+    np.add.at(diff, (rows - r0, c0), 1)
+    np.add.at(diff, (rows - r0, c1 + 1), -1)
+    mask[r0:r1] |= np.cumsum(diff[:, :w], axis=1) > 0
 
 
 def burn_polygons(
