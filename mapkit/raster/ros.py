@@ -413,8 +413,8 @@ def write_ros_map(
         grid: The grid.
         yaml_path: The YAML file (``NAME.yaml``).
         mode: ``trinary`` (default), ``scale`` or ``raw``.
-        image_format: ``pgm`` (default) or ``png``. ``scale`` mode with unknown cells needs PNG
-            (transparent pixels) and defaults to it.
+        image_format: ``pgm`` (default) or ``png``. ``scale`` mode defaults to PNG, as Nav2's
+            map_saver does: its unknown cells need transparent pixels.
         image_path: The image file; default ``NAME.pgm``/``NAME.png`` beside the YAML. The YAML
             names it relative to its own folder when it is inside it, else by absolute path.
         negate: Write inverted grey levels and ``negate: 1``.
@@ -434,7 +434,7 @@ def write_ros_map(
         img_p = Path(os.fspath(image_path))
         fmt = image_format or ("png" if img_p.suffix.lower() == ".png" else "pgm")
     else:
-        fmt = image_format or ("png" if alpha is not None else "pgm")
+        fmt = image_format or ("png" if mode == "scale" else "pgm")
         img_p = yaml_p.with_suffix("." + fmt.lower())
     fmt = fmt.lower()
     if fmt not in ("pgm", "png"):
