@@ -49,6 +49,7 @@ __all__ = [
     "burn_polygons",
     "burn_segments",
     "flood_fill",
+    "free_from_rays",
     "grid_for",
     "grid_for_bounds",
     "hull_mask",
@@ -64,7 +65,7 @@ __all__ = [
 log_ = logging.getLogger(__name__)
 
 #: How to decide which cells are free (see :func:`rasterize`).
-FreeMode = Literal["flood", "hull", "all", "none"]
+FreeMode = Literal["flood", "hull", "all", "none", "rays"]
 
 #: The largest grid mapkit makes (cells); a larger one is refused with a clear error.
 MAX_CELLS = 400_000_000
@@ -466,6 +467,47 @@ def inflate(mask: NDArray[np.bool_], radius_mm: float, resolution: float) -> NDA
     return out
 
 
+def free_from_rays(
+    grid: OccupancyGrid,
+    rays_mm: ArrayLike,
+    hits: ArrayLike | None = None,
+    out: NDArray[np.bool_] | None = None,
+    *,
+    chunk: int = 20_000,
+) -> NDArray[np.bool_]:
+    """Cells laser beams pass through: every cell a ray crosses, except the cells it hit.
+
+    Args:
+        grid: Gives the geometry.
+        rays_mm: ``(K, 4)`` sensor x, y and beam end x, y in mm (world frame).
+        hits: ``(K,)`` bool, whether each beam ended on an obstacle (default: all did); the end
+            cell of a hit is not free, the end of a max-range reading is.
+        out: A bool mask to draw into (in place); a new one when ``None``.
+        chunk: Rays per vectorised batch (bounds the memory: a batch holds every crossed cell).
+
+    Returns:
+        The mask of cells some beam passed through.
+
+    Examples:
+        >>> g = grid_for_bounds(((0, 0), (500, 0)), 0.1, 0)
+        >>> free_from_rays(g, [[50, 50, 450, 50]]).astype(int).tolist()
+        [[1, 1, 1, 1, 0, 0]]
+    """
+    mask = _mask_for(grid, out)
+    rays = np.asarray(rays_mm, dtype=np.float64).reshape(-1, 4)
+    hit = np.ones(len(rays), dtype=bool) if hits is None else np.asarray(hits, dtype=bool)
+    if hit.shape != (len(rays),):
+        raise RasterError(f"hits must have one flag per ray ({len(rays)}), got shape {hit.shape}")
+    ended = np.zeros_like(mask)
+    for i in range(0, len(rays), max(1, chunk)):  # one step per batch of rays
+        part = rays[i:i + chunk]
+        cells = segment_cells(grid, part)
+        _set(mask, cells[:, 0], cells[:, 1])
+        burn_points(grid, part[hit[i:i + chunk], 2:4], out=ended)
+    mask &= ~ended
+    return mask
+
+
 def flood_fill(open_mask: NDArray[np.bool_], seeds_rc: ArrayLike) -> NDArray[np.bool_]:
     """The 4-connected regions of ``open_mask`` that contain a seed cell.
 
@@ -595,6 +637,7 @@ def rasterize(
     forbidden_as_walls: bool = False,
     log: Any = None,
     like: OccupancyGrid | None = None,
+    rays_mm: ArrayLike | None = None,
 ) -> OccupancyGrid:
     """A map as an occupancy grid: walls occupied, reachable space free, the rest unknown.
 
@@ -609,6 +652,7 @@ def rasterize(
     * ``"hull"``: everything inside the convex hull of the walls.
     * ``"all"``: every cell that is not a wall.
     * ``"none"``: nothing (only walls and unknown).
+    * ``"rays"``: the cells laser beams ``rays_mm`` pass through (see :func:`free_from_rays`).
 
     Args:
         m: The map.
@@ -619,6 +663,8 @@ def rasterize(
         forbidden_as_walls: Also mark forbidden areas and lines occupied.
         log: Reserved for ray-casting free space from a ``.2d`` laser log (not available yet;
             anything but ``None`` raises :class:`RasterError`).
+        rays_mm: ``(K, 4)`` beams (sensor x, y, end x, y in mm) for ``free="rays"``, each ending
+            on an obstacle.
         like: Use this grid's geometry (shape, resolution, origin) instead of one fitted to the
             map (``resolution`` and ``margin_m`` are then ignored); e.g. to compare two maps
             cell by cell, or to draw a mask on the same grid as a map.
@@ -629,8 +675,10 @@ def rasterize(
     Raises:
         RasterError: For a bad option or a grid too large.
     """
-    if free not in ("flood", "hull", "all", "none"):
-        raise RasterError(f"free must be one of flood, hull, all, none; got {free!r}")
+    if free not in ("flood", "hull", "all", "none", "rays"):
+        raise RasterError(f"free must be one of flood, hull, all, none, rays; got {free!r}")
+    if (free == "rays") != (rays_mm is not None):
+        raise RasterError('free="rays" and rays_mm go together: give both or neither')
     if log is not None:
         raise RasterError("ray-casting free space from a .2d log is not available yet")
     if not (math.isfinite(inflate_mm) and inflate_mm >= 0):
@@ -653,6 +701,8 @@ def rasterize(
         space = hull_mask(walls) & open_
     elif free == "all":
         space = open_
+    elif free == "rays":
+        space = free_from_rays(grid, np.asarray(rays_mm)) & open_
     else:
         space = np.zeros_like(walls)
     occupied = inflate(walls, inflate_mm, grid.resolution) if inflate_mm else walls

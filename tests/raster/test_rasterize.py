@@ -278,3 +278,34 @@ def test_real_samples(real_sample) -> None:
     # Every seed that is not on a wall is free.
     vals = g.values_at(seeds)
     assert set(vals.tolist()) <= {0, 100}
+
+
+def test_free_from_rays_marks_beams_but_not_hits() -> None:
+    m = _room()
+    rng = np.random.default_rng(7)
+    angles = rng.uniform(0, 2 * np.pi, 500)
+    # A sensor at (2000, 1500) in the 4 x 3 m room: each beam ends on the wall it meets.
+    d = np.stack([np.cos(angles), np.sin(angles)], axis=1)
+    with np.errstate(divide="ignore"):
+        tx = np.where(d[:, 0] > 0, (4000 - 2000) / d[:, 0], (0 - 2000) / d[:, 0])
+        ty = np.where(d[:, 1] > 0, (3000 - 1500) / d[:, 1], (0 - 1500) / d[:, 1])
+    t = np.minimum(np.abs(tx), np.abs(ty))
+    ends = np.rint(np.array([2000, 1500]) + d * t[:, None])  # integer mm, as logs hold them
+    rays = np.concatenate([np.tile([2000, 1500], (500, 1)), ends], axis=1)
+    g = rasterize(m, 0.1, free="rays", rays_mm=rays)
+    assert g.values_at([[2000, 1500], [3500, 1500], [-300, 1500]]).tolist() == [0, 0, -1]
+    assert (g.values_at(ends) == 100).all()
+    free = g.data == 0
+    assert free.sum() > 0.8 * 39 * 29 and free.sum() <= 39 * 29
+    # Max-range readings (no hit) free their end cell too; chunking does not change the result.
+    base = grid_for(m, 0.1)
+    a = R.free_from_rays(base, [[500, 500, 1000, 500]], hits=[False])
+    b = R.free_from_rays(base, [[500, 500, 1000, 500]])
+    assert a.sum() == b.sum() + 1
+    assert np.array_equal(R.free_from_rays(base, rays, chunk=7), R.free_from_rays(base, rays))
+    with pytest.raises(RasterError, match="one flag per ray"):
+        R.free_from_rays(base, rays, hits=[True])
+    with pytest.raises(RasterError, match="go together"):
+        rasterize(m, free="rays")
+    with pytest.raises(RasterError, match="go together"):
+        rasterize(m, rays_mm=rays)
