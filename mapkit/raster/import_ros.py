@@ -72,19 +72,26 @@ def occupied_points(
     return np.rint(_to_world(grid, uv, yaw)).astype(np.int64)
 
 
-def _runs_1d(mask: NDArray[np.bool_]) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64]]:
-    """Maximal runs of True along axis 1: (row, first col, last col)."""
-    h, w = mask.shape
-    pad = np.zeros((h, w + 2), dtype=np.int8)
-    pad[:, 1:-1] = mask
-    d = np.diff(pad, axis=1)
-    sr, sc = np.nonzero(d == 1)
-    _, ec = np.nonzero(d == -1)
-    return sr.astype(np.int64), sc.astype(np.int64), ec.astype(np.int64) - 1
+def _runs(major: NDArray[np.int64], pos: NDArray[np.int64]) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+    """Maximal runs of consecutive ``pos`` values sharing a ``major`` value (vectorised).
+
+    Returns:
+        Indices (into the inputs) of each run's first and last element.
+    """
+    order = np.lexsort((pos, major))
+    mj, ps = major[order], pos[order]
+    brk = np.ones(len(order), dtype=bool)
+    brk[1:] = (mj[1:] != mj[:-1]) | (ps[1:] != ps[:-1] + 1)
+    first = np.flatnonzero(brk)
+    last = np.append(first[1:] - 1, len(order) - 1)
+    return order[first], order[last]
 
 
 def cell_runs(mask: NDArray[np.bool_], min_cells: int = 2) -> NDArray[np.int64]:
     """Maximal straight runs of marked cells along rows, columns and both diagonals.
+
+    Works on the marked cells only (sorting them by row, column and diagonal), so the cost
+    follows the number of marked cells, not the grid's size.
 
     Args:
         mask: Bool ``(height, width)``.
@@ -101,30 +108,26 @@ def cell_runs(mask: NDArray[np.bool_], min_cells: int = 2) -> NDArray[np.int64]:
         >>> cell_runs(np.eye(3, dtype=bool), 3).tolist()
         [[0, 0, 2, 2]]
     """
-    h, w = mask.shape
-    out = []
-    r, c0, c1 = _runs_1d(mask)
-    keep = c1 - c0 + 1 >= min_cells
-    out.append(np.stack([r[keep], c0[keep], r[keep], c1[keep]], axis=1))
-    c, r0, r1 = _runs_1d(mask.T)
-    keep = r1 - r0 + 1 >= min_cells
-    out.append(np.stack([r0[keep], c[keep], r1[keep], c[keep]], axis=1))
-    if h > 1 and w > 1:
-        rows = np.arange(h)[:, None]
-        cols = np.arange(w)[None, :]
-        for sign in (1, -1):
-            # Shear so each diagonal becomes a row: index k = c - r (+h-1) or c + r.
-            k = cols - rows + (h - 1) if sign == 1 else cols + rows
-            sheared = np.zeros((h + w - 1, h), dtype=bool)
-            rr = np.broadcast_to(rows, (h, w))
-            sheared[k.ravel(), rr.ravel()] = mask.ravel()
-            kk, s0, s1 = _runs_1d(sheared)
-            keep = s1 - s0 + 1 >= min_cells
-            kk, s0, s1 = kk[keep], s0[keep], s1[keep]
-            cc0 = kk + s0 - (h - 1) if sign == 1 else kk - s0
-            cc1 = kk + s1 - (h - 1) if sign == 1 else kk - s1
-            out.append(np.stack([s0, cc0, s1, cc1], axis=1))
-    return np.concatenate(out).astype(np.int64)
+    rc = np.argwhere(mask).astype(np.int64)
+    r, c = rc[:, 0], rc[:, 1]
+    out = [np.zeros((0, 4), dtype=np.int64)]
+    if len(rc):
+        for major, pos in ((r, c), (c, r), (c - r, r), (c + r, r)):
+            a, b = _runs(major, pos)
+            keep = pos[b] - pos[a] + 1 >= min_cells
+            a, b = a[keep], b[keep]
+            out.append(np.stack([r[a], c[a], r[b], c[b]], axis=1))
+    return np.concatenate(out)
+
+
+def _run_cells(runs: NDArray[np.int64]) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64]]:
+    """Every cell of straight or diagonal runs: (run index, row, col)."""
+    cnt = np.maximum(np.abs(runs[:, 2] - runs[:, 0]), np.abs(runs[:, 3] - runs[:, 1])) + 1
+    rid = np.repeat(np.arange(len(runs)), cnt)
+    step = np.arange(len(rid)) - np.repeat(np.cumsum(cnt) - cnt, cnt)
+    dr = np.sign(runs[:, 2] - runs[:, 0])[rid]
+    dc = np.sign(runs[:, 3] - runs[:, 1])[rid]
+    return rid, runs[rid, 0] + dr * step, runs[rid, 1] + dc * step
 
 
 def wall_lines(
@@ -136,12 +139,12 @@ def wall_lines(
     least ``min_line_m`` become lines; diagonal runs too, where most of their cells are not
     already on a row or column line. Each line joins its first and last cell centres.
     """
-    from scipy import ndimage
-
     occ = grid.data >= occupied_value
     if not occ.any():
         return np.zeros((0, 4), dtype=np.int64)
-    faces = occ & ~ndimage.binary_erosion(occ, border_value=0)
+    p = np.pad(occ, 1)
+    inner = p[:-2, 1:-1] & p[2:, 1:-1] & p[1:-1, :-2] & p[1:-1, 2:]
+    faces = occ & ~inner
     n = max(2, int(math.ceil(min_line_m / grid.resolution - 1e-9)))
     runs = cell_runs(faces, 2)
     axis = (runs[:, 0] == runs[:, 2]) | (runs[:, 1] == runs[:, 3])
@@ -149,35 +152,17 @@ def wall_lines(
     straight = runs[axis & (length >= n)]
     diag = runs[~axis & (length * math.sqrt(2) >= n)]
     if len(diag):
-        covered = np.zeros(faces.shape, dtype=np.int32)
-        _mark_runs(covered, straight)
-        cnt = np.abs(diag[:, 2] - diag[:, 0]) + 1
-        rid = np.repeat(np.arange(len(diag)), cnt)
-        step = np.arange(len(rid)) - np.repeat(np.cumsum(cnt) - cnt, cnt)
-        dr = np.sign(diag[:, 2] - diag[:, 0])[rid]
-        dc = np.sign(diag[:, 3] - diag[:, 1])[rid]
-        hit = covered[diag[rid, 0] + dr * step, diag[rid, 1] + dc * step] > 0
-        frac = np.bincount(rid, weights=hit, minlength=len(diag)) / cnt
-        diag = diag[frac < 0.5]
+        w = faces.shape[1]
+        covered = np.zeros(faces.size, dtype=bool)
+        _, rr, cc = _run_cells(straight)
+        covered[rr * w + cc] = True
+        rid, rr, cc = _run_cells(diag)
+        hits = np.bincount(rid, weights=covered[rr * w + cc], minlength=len(diag))
+        diag = diag[hits / np.bincount(rid, minlength=len(diag)) < 0.5]
     keep = np.concatenate([straight, diag])
     uv = np.stack([keep[:, [1, 0]], keep[:, [3, 2]]], axis=1).astype(np.float64) + 0.5
     xy = _to_world(grid, uv, yaw)
     return np.rint(xy.reshape(-1, 4)).astype(np.int64)
-
-
-def _mark_runs(out: NDArray[np.int32], runs: NDArray[np.int64]) -> None:
-    """Add 1 to every cell of axis-aligned runs (vectorised with cumulative sums)."""
-    h, w = out.shape
-    rows = runs[runs[:, 0] == runs[:, 2]]
-    cols = runs[(runs[:, 1] == runs[:, 3]) & (runs[:, 0] != runs[:, 2])]
-    d = np.zeros((h, w + 1), dtype=np.int32)
-    np.add.at(d, (rows[:, 0], rows[:, 1]), 1)
-    np.add.at(d, (rows[:, 0], rows[:, 3] + 1), -1)
-    out += np.cumsum(d[:, :w], axis=1)
-    d = np.zeros((h + 1, w), dtype=np.int32)
-    np.add.at(d, (cols[:, 0], cols[:, 1]), 1)
-    np.add.at(d, (cols[:, 2] + 1, cols[:, 1]), -1)
-    out += np.cumsum(d[:h], axis=0)
 
 
 def _rect_object(corners_xy: NDArray[np.float64], theta_deg: float) -> MapObject:
@@ -192,19 +177,15 @@ def _rect_object(corners_xy: NDArray[np.float64], theta_deg: float) -> MapObject
 
 
 def _axis_rects(cells: NDArray[np.int64]) -> NDArray[np.int64]:
-    """Axis-aligned rectangles (row0, col0, row1, col1) covering exactly a set of cells."""
-    h = int(cells[:, 0].max()) + 1
-    w = int(cells[:, 1].max()) + 1
-    m = np.zeros((h, w), dtype=bool)
-    m[cells[:, 0], cells[:, 1]] = True
-    r, c0, c1 = _runs_1d(m)
-    order = np.lexsort((r, c1, c0))
-    r, c0, c1 = r[order], c0[order], c1[order]
-    new = np.ones(len(r), dtype=bool)
-    new[1:] = (c0[1:] != c0[:-1]) | (c1[1:] != c1[:-1]) | (r[1:] != r[:-1] + 1)
-    first = np.flatnonzero(new)
-    last = np.append(first[1:] - 1, len(r) - 1)
-    return np.stack([r[first], c0[first], r[last], c1[last]], axis=1)
+    """Axis-aligned rectangles (row0, col0, row1, col1) covering exactly a set of cells.
+
+    Row runs with the same column span in consecutive rows merge into one rectangle.
+    """
+    r, c = cells[:, 0], cells[:, 1]
+    a, b = _runs(r, c)
+    runs = np.stack([r[a], c[a], c[b]], axis=1)  # row, first col, last col
+    a2, b2 = _runs(runs[:, 1] * (int(c.max()) + 2) + runs[:, 2], runs[:, 0])
+    return np.stack([runs[a2, 0], runs[a2, 1], runs[b2, 0], runs[b2, 2]], axis=1)
 
 
 def keepout_objects(

@@ -254,41 +254,25 @@ def filter_params_text(
         "#   nav2_lifecycle_manager lifecycle_manager (lifecycle_manager_costmap_filters).",
         "# Add this file to Nav2's params files so the costmaps load the filters.",
     ]
-    if keepout_yaml is not None:
-        ky = Path(os.fspath(keepout_yaml)).resolve()
-        nodes += ["keepout_filter_mask_server", "keepout_costmap_filter_info_server"]
-        filters.append("keepout_filter")
+    for kind, mask_yaml, ftype, mult in (("keepout", keepout_yaml, 0, 1.0),
+                                         ("speed", speed_yaml, 2, float(speed_multiplier))):
+        if mask_yaml is None:
+            continue
+        nodes += [f"{kind}_filter_mask_server", f"{kind}_costmap_filter_info_server"]
+        filters.append(f"{kind}_filter")
         out += [
-            "keepout_filter_mask_server:",
+            f"{kind}_filter_mask_server:",
             "  ros__parameters:",
-            f"    yaml_filename: {_q(str(ky))}",
-            '    topic_name: "/keepout_filter_mask"',
+            f"    yaml_filename: {_q(str(Path(os.fspath(mask_yaml)).resolve()))}",
+            f'    topic_name: "/{kind}_filter_mask"',
             f"    frame_id: {_q(frame_id)}",
-            "keepout_costmap_filter_info_server:",
+            f"{kind}_costmap_filter_info_server:",
             "  ros__parameters:",
-            "    type: 0",
-            '    filter_info_topic: "/keepout_costmap_filter_info"',
-            '    mask_topic: "/keepout_filter_mask"',
+            f"    type: {ftype}",
+            f'    filter_info_topic: "/{kind}_costmap_filter_info"',
+            f'    mask_topic: "/{kind}_filter_mask"',
             "    base: 0.0",
-            "    multiplier: 1.0",
-        ]
-    if speed_yaml is not None:
-        sy = Path(os.fspath(speed_yaml)).resolve()
-        nodes += ["speed_filter_mask_server", "speed_costmap_filter_info_server"]
-        filters.append("speed_filter")
-        out += [
-            "speed_filter_mask_server:",
-            "  ros__parameters:",
-            f"    yaml_filename: {_q(str(sy))}",
-            '    topic_name: "/speed_filter_mask"',
-            f"    frame_id: {_q(frame_id)}",
-            "speed_costmap_filter_info_server:",
-            "  ros__parameters:",
-            "    type: 2",
-            '    filter_info_topic: "/speed_costmap_filter_info"',
-            '    mask_topic: "/speed_filter_mask"',
-            "    base: 0.0",
-            f"    multiplier: {float(speed_multiplier)!r}",
+            f"    multiplier: {mult!r}",
         ]
     out += [
         "lifecycle_manager_costmap_filters:",
