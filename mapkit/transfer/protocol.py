@@ -940,6 +940,11 @@ class _Machine:
         self._last_heard = 0.0
         self._events: list[Any] = []
 
+    @property
+    def last_heard(self) -> float:
+        """When (on the driver's clock) the last frame from the peer arrived."""
+        return self._last_heard
+
     def pop_events(self) -> list[Any]:
         """Events for the application since the last call."""
         ev, self._events = self._events, []

@@ -322,6 +322,9 @@ class MapServer:
         idle_timeout: Seconds without a frame before a session is dropped.
         max_chunk: Largest chunk size accepted.
         name: This server's name in HELLO_ACK.
+        takeover_after: A push of a name whose current writer has sent nothing for this many
+            seconds ends that stale session and resumes its partial file (a terminal that lost
+            its Wi-Fi and reconnects); a writer active more recently makes the push ``busy``.
         on_received: Called with each VERIFIED info dict after a push was published.
 
     Examples:
@@ -335,7 +338,7 @@ class MapServer:
                  port: int = DEFAULT_PORT, secret: bytes | None = None, insecure: bool = False,
                  tls: ssl.SSLContext | None = None, push_only: bool = False, max_clients: int = 64,
                  idle_timeout: float = 30.0, max_chunk: int = MAX_CHUNK_SIZE, name: str = "",
-                 rto: float = 2.0, window: int = 16,
+                 rto: float = 2.0, window: int = 16, takeover_after: float = 5.0,
                  on_received: Callable[[dict[str, Any]], None] | None = None) -> None:
         if secret is None and not insecure:
             raise LocalTransferError("no shared secret: give --secret-file or MAPKIT_SECRET, or "
@@ -352,6 +355,8 @@ class MapServer:
         self.window = window
         self.name = name or socket.gethostname()
         self.on_received = on_received
+        self.takeover_after = takeover_after
+        self._writers: dict[str, tuple[FrameLink, Receiver]] = {}
         self._sock = listen(host, port)
         self.address: tuple[str, int] = self._sock.getsockname()[:2]
         self._threads: set[threading.Thread] = set()
@@ -514,10 +519,12 @@ class MapServer:
     def _push(self, link: FrameLink, f: Frame, peer: str) -> Receiver:
         d = f.json()
         offer = Offer.from_json(d, max_chunk=self.max_chunk)
-        dest = self.folder.begin_write(offer)
+        dest = self._begin_write(offer, peer)
         w = d.get("window")
         rx = Receiver(offer, ref=f.ref, have=dest.have, window=max(self.window * 4, 64),
                       idle_timeout=self.idle_timeout, sender_window=w if isinstance(w, int) else None)
+        with self._lock:
+            self._writers[dest.name] = (link, rx)
         ok = False
         try:
             def on_events() -> list[Out]:
@@ -544,8 +551,34 @@ class MapServer:
             dest.close(keep=not no_space)  # a full disk keeps no partial file
             raise _Ended(str(err)) from err
         finally:
+            with self._lock:
+                if self._writers.get(dest.name, (None,))[0] is link:
+                    del self._writers[dest.name]
             if not ok:
                 dest.close(keep=True)
+
+    def _begin_write(self, offer: Offer, peer: str) -> PartialFile:
+        """:meth:`MapFolder.begin_write`, taking over from a writer that went silent."""
+        try:
+            return self.folder.begin_write(offer)
+        except StoreError as err:
+            if err.status != Status.BUSY:
+                raise
+            with self._lock:
+                holder = self._writers.get(offer.name)
+            if holder is None or time.monotonic() - holder[1].last_heard < self.takeover_after:
+                raise
+            log.warning("%s: taking over %s from a session silent for %.1f s", peer, offer.name,
+                        time.monotonic() - holder[1].last_heard)
+            holder[0].close()  # its thread ends, keeps the partial file, releases the lock
+            end = time.monotonic() + 5.0
+            while True:
+                time.sleep(0.02)
+                try:
+                    return self.folder.begin_write(offer)
+                except StoreError as again:
+                    if again.status != Status.BUSY or time.monotonic() > end:
+                        raise
 
     def _pull(self, link: FrameLink, f: Frame, peer: str) -> Sender | None:
         d = f.json()
