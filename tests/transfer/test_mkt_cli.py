@@ -61,6 +61,9 @@ def test_send_maps_load_fetch_json(tmp_path, runner, robot_dir, make_server, sec
     assert out.read_bytes() == m.read_bytes() and "SHA-256 verified" in r.stdout
     r = runner.invoke(cli, ["fetch", addr(srv), "office.map", "-o", str(out), "--if-changed", "--json", *sf])
     assert json.loads(r.stdout)["modified"] is False
+    (tmp_path / "into").mkdir()
+    r = runner.invoke(cli, ["fetch", addr(srv), "office.map", "-o", str(tmp_path / "into"), *sf])
+    assert r.exit_code == 0 and (tmp_path / "into" / "office.map").read_bytes() == m.read_bytes()
 
 
 def test_send_with_load_and_rollback_human_output(tmp_path, runner, robot_dir, make_server, secret_file,
