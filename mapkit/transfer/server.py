@@ -33,7 +33,6 @@ from mapkit.formats.map import parse_map
 from mapkit.transfer.protocol import (
     DEFAULT_CHUNK_SIZE,
     DEFAULT_PORT,
-    MAX_CHUNK_SIZE,
     AuthenticationError,
     Channel,
     Frame,
@@ -337,7 +336,7 @@ class MapServer:
     def __init__(self, folder: str | os.PathLike[str] | MapFolder, *, host: str = "127.0.0.1",
                  port: int = DEFAULT_PORT, secret: bytes | None = None, insecure: bool = False,
                  tls: ssl.SSLContext | None = None, push_only: bool = False, max_clients: int = 64,
-                 idle_timeout: float = 30.0, max_chunk: int = MAX_CHUNK_SIZE, name: str = "",
+                 idle_timeout: float = 30.0, max_chunk: int = 1 << 20, name: str = "",
                  rto: float = 2.0, window: int = 16, takeover_after: float = 5.0,
                  on_received: Callable[[dict[str, Any]], None] | None = None) -> None:
         if secret is None and not insecure:
