@@ -189,7 +189,11 @@ def test_serve_process_killed_mid_transfer_then_resumed(tmp_path, robot_dir, sec
             time.sleep(0.8)  # the robot's next write saves a checkpoint of its journal
         elif state["phase"] == 1 and done > state["at"]:
             state["phase"] = 2
-            time.sleep(0.8)  # (it got new chunks after the pause: let the checkpoint finish)
+            journal = robot_dir / ".site.map.mkpart.json"
+            for _ in range(500):  # it got new chunks after the pause: wait for its checkpoint
+                if journal.exists():
+                    break
+                time.sleep(0.02)
             proc.send_signal(signal.SIGKILL)
             proc.wait()
 
