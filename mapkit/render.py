@@ -60,6 +60,8 @@ FORMATS = {".png": "png", ".svg": "svg", ".pdf": "pdf"}
 MAX_PIXELS = 20000
 #: Smallest picture side in pixels.
 MIN_PIXELS = 32
+#: Narrower pictures get no legend (it would leave too little room for the map).
+_LEGEND_MIN_WIDTH = 560
 
 
 class RenderError(MapkitError, ValueError):
@@ -384,8 +386,6 @@ def _place_names(
     Each name tries four spots (right/left, above/below); a name that fits nowhere is left out,
     so a crowded map stays readable. Returns how many names were left out.
     """
-    from matplotlib import patheffects
-
     renderer = fig.canvas.get_renderer()  # type: ignore[attr-defined]
     W, H = lay.width, lay.height
     taken = np.zeros((H + 1, W + 1), dtype=bool)
@@ -397,11 +397,12 @@ def _place_names(
         ok = np.isfinite(px).all(axis=1)
         for x, y in px[ok].astype(int):  # a few pixels around each marker
             taken[max(y - 4, 0):max(y + 5, 0), max(x - 4, 0):max(x + 5, 0)] = True
-    halo = [patheffects.withStroke(linewidth=2.2, foreground="white")]
+    # A light box rather than a stroked halo keeps names as text in SVG and PDF (searchable).
+    box = {"boxstyle": "square,pad=0.1", "facecolor": "white", "edgecolor": "none", "alpha": 0.7}
     hidden = 0
     for _, x, y, text, color in names:
         ann = ax.annotate(_text(text), (x, y), xytext=(5, 3), textcoords="offset points",
-                          fontsize=fontsize, color=color, zorder=8, path_effects=halo,
+                          fontsize=fontsize, color=color, zorder=8, bbox=box,
                           parse_math=False, gid="name", annotation_clip=True)
         for dx, dy, ha in _NAME_SPOTS:
             ann.set_position((dx, dy))
@@ -557,6 +558,8 @@ def _draw(
                 mew=0.8, zorder=6, gid=kind)
         if kind in ("goal_heading", "dock", "home"):
             th = np.radians([o.theta for o in group])
+            direction = np.column_stack([np.cos(th), np.sin(th)]) * arrow_len
+            markers.extend(xy + f * direction for f in (0.35, 0.7, 1.0))  # keep names off arrows
             ax.quiver(xy[:, 0], xy[:, 1], arrow_len * np.cos(th), arrow_len * np.sin(th),
                       angles="xy", scale_units="xy", scale=1, color=color, zorder=7,
                       units="dots", width=1.6 if thumbnail else 2.2, headwidth=4, headlength=4.5,
@@ -646,7 +649,7 @@ def make_figure(
         show_names: Write object names.
         show_points: Draw the scan points.
         show_lines: Draw the LINES.
-        legend: Draw a legend to the right of the map.
+        legend: Draw a legend to the right of the map (not in pictures under 560 px wide).
         thumbnail: A bare picture: no axes, grid, legend, title, names or scale bar.
         title: Title above the map (default: the file's name and category; ``""`` for none).
 
@@ -662,7 +665,7 @@ def make_figure(
     if not 10 <= dpi <= 1200:
         raise RenderError(f"dpi must be between 10 and 1200, got {dpi}")
     objects = _visible_objects(m)
-    legend = legend and not thumbnail
+    legend = legend and not thumbnail and width >= _LEGEND_MIN_WIDTH
     lay = _layout(_data_extent(m, objects), int(width), None if height is None else int(height),
                   thumbnail=thumbnail, legend_px=170 if legend else 0)
     if title is None:
