@@ -95,7 +95,8 @@ def test_walls_from_points_cover_every_point(pts: list[tuple[int, int]], res: fl
     import shapely
 
     assert shapely.covers(shape, shapely.points(np.asarray(pts) / 1000.0)).all()
-    cells = {(math.floor(x / 1000 / res + 1e-9), math.floor(y / 1000 / res + 1e-9)) for x, y in pts}
+    # Cell (i, j) covers [i * res, (i + 1) * res) x [j * res, (j + 1) * res).
+    cells = {(math.floor(x / (res * 1000)), math.floor(y / (res * 1000))) for x, y in pts}
     assert shape.area <= len(cells) * res * res + 2 * FUSE * shape.length + 1e-9
     check_closed(extrude(shape, 1.0))
 
