@@ -386,7 +386,12 @@ def _place_names(
     Each name tries four spots (right/left, above/below); a name that fits nowhere is left out,
     so a crowded map stays readable. Returns how many names were left out.
     """
+    from matplotlib.font_manager import FontProperties
+
     renderer = fig.canvas.get_renderer()  # type: ignore[attr-defined]
+    prop = FontProperties(size=fontsize)
+    px_per_pt = fig.dpi / 72.0
+    pad = 0.1 * fontsize * px_per_pt + 1  # the box's pad, plus a pixel of air
     W, H = lay.width, lay.height
     taken = np.zeros((H + 1, W + 1), dtype=bool)
     # The map area's pixel box; names must stay inside it.
@@ -394,29 +399,30 @@ def _place_names(
     ax1, ay1 = lay.left + lay.axes_w, lay.bottom + lay.axes_h
     if len(markers):
         px = ax.transData.transform(markers)
-        ok = np.isfinite(px).all(axis=1)
-        for x, y in px[ok].astype(int):  # a few pixels around each marker
+        for x, y in px[np.isfinite(px).all(axis=1)].astype(int):  # a few pixels around each
             taken[max(y - 4, 0):max(y + 5, 0), max(x - 4, 0):max(x + 5, 0)] = True
+    anchors = ax.transData.transform(np.asarray([(n[1], n[2]) for n in names], dtype=float))
     # A light box rather than a stroked halo keeps names as text in SVG and PDF (searchable).
     box = {"boxstyle": "square,pad=0.1", "facecolor": "white", "edgecolor": "none", "alpha": 0.7}
     hidden = 0
-    for _, x, y, text, color in names:
-        ann = ax.annotate(_text(text), (x, y), xytext=(5, 3), textcoords="offset points",
-                          fontsize=fontsize, color=color, zorder=8, bbox=box,
-                          parse_math=False, gid="name", annotation_clip=True)
+    for (_, x, y, text, color), (axp, ayp) in zip(names, anchors):
+        label = _text(text)
+        # Text metrics once per name; the spots' boxes follow arithmetically (baseline-aligned).
+        w, h, d = renderer.get_text_width_height_descent(label, prop, ismath=False)
         for dx, dy, ha in _NAME_SPOTS:
-            ann.set_position((dx, dy))
-            ann.set_horizontalalignment(ha)
-            bb = ann.get_window_extent(renderer)
-            x0, y0 = int(math.floor(bb.x0)) - 1, int(math.floor(bb.y0)) - 1
-            x1, y1 = int(math.ceil(bb.x1)) + 1, int(math.ceil(bb.y1)) + 1
+            left = axp + dx * px_per_pt - (w if ha == "right" else 0.0)
+            base = ayp + dy * px_per_pt
+            x0, y0 = math.floor(left - pad), math.floor(base - d - pad)
+            x1, y1 = math.ceil(left + w + pad), math.ceil(base - d + h + pad)
             if x0 < ax0 or y0 < ay0 or x1 > ax1 or y1 > ay1:
                 continue
             if not taken[y0:y1, x0:x1].any():
                 taken[y0:y1, x0:x1] = True
+                ax.annotate(label, (x, y), xytext=(dx, dy), textcoords="offset points", ha=ha,
+                            fontsize=fontsize, color=color, zorder=8, bbox=box, parse_math=False,
+                            gid="name", annotation_clip=True)
                 break
         else:
-            ann.remove()
             hidden += 1
     return hidden
 
