@@ -370,7 +370,8 @@ def _darker(color: str, f: float = 0.6) -> str:
 
 
 #: Where a name may go beside its anchor, in points: (dx, dy, horizontal alignment), tried in order.
-_NAME_SPOTS = ((5, 3, "left"), (5, -10, "left"), (-5, 3, "right"), (-5, -10, "right"))
+_NAME_SPOTS = ((5, 3, "left"), (5, -10, "left"), (-5, 3, "right"), (-5, -10, "right"),
+               (0, 7, "center"), (0, -14, "center"))
 
 
 def _place_names(
@@ -383,7 +384,8 @@ def _place_names(
 ) -> int:
     """Write names beside their anchors without overlapping each other or the object markers.
 
-    Each name tries four spots (right/left, above/below); a name that fits nowhere is left out,
+    Each name tries six spots (right/left and above/below, then centred above or below); a name
+    that fits nowhere is left out,
     so a crowded map stays readable. Returns how many names were left out.
     """
     from matplotlib.font_manager import FontProperties
@@ -410,7 +412,7 @@ def _place_names(
         # Text metrics once per name; the spots' boxes follow arithmetically (baseline-aligned).
         w, h, d = renderer.get_text_width_height_descent(label, prop, ismath=False)
         for dx, dy, ha in _NAME_SPOTS:
-            left = axp + dx * px_per_pt - (w if ha == "right" else 0.0)
+            left = axp + dx * px_per_pt - {"left": 0.0, "center": w / 2, "right": w}[ha]
             base = ayp + dy * px_per_pt
             x0, y0 = math.floor(left - pad), math.floor(base - d - pad)
             x1, y1 = math.ceil(left + w + pad), math.ceil(base - d + h + pad)
@@ -708,8 +710,9 @@ def _check_display() -> None:
     backend = plt.get_backend().lower()
     if backend in ("agg", "pdf", "svg", "ps", "pgf", "cairo", "template") or "inline" in backend:
         raise RenderError(f"cannot open a window: matplotlib has no interactive backend here "
-                          f"(it uses {matplotlib.get_backend()!r}; install a GUI toolkit such as "
-                          f"python3-tk); write a file with -o OUT.png instead")
+                          f"(it uses {matplotlib.get_backend()!r}; install a GUI toolkit, e.g. "
+                          f"Tk: apt install python3-tk python3-pil.imagetk); write a file with "
+                          f"-o OUT.png instead")
 
 
 def render(

@@ -248,3 +248,70 @@ def test_show_without_a_display(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
     with pytest.raises(RenderError, match="cannot open a window: no display"):
         render(small_map(), show=True)
+
+
+SHOW_SCRIPT = """
+import sys
+import matplotlib.pyplot as plt
+import mapkit
+from mapkit.render import render
+
+shown = []
+real_show = plt.show
+
+def show(*args, **kwargs):
+    fig = plt.gcf()
+    shown.append(plt.get_backend())
+    timer = fig.canvas.new_timer(interval=800)
+    timer.add_callback(lambda: plt.close(fig))
+    timer.start()
+    real_show(*args, **kwargs)
+
+plt.show = show
+r = render(mapkit.MapData(objects=(mapkit.MapObject("Goal", 0, 0, name="G"),)), show=True, width=500)
+print(shown[0], r.width, r.path)
+"""
+
+
+@pytest.fixture
+def x_display() -> Any:
+    """A real X server (Xvfb) on a free display number; skips where Xvfb or Tk is missing."""
+    import os
+    import shutil
+    import subprocess
+    import sys
+    import time
+
+    xvfb = shutil.which("Xvfb")
+    probe = subprocess.run([sys.executable, "-c", "import tkinter; from PIL import ImageTk"],
+                           capture_output=True)
+    if xvfb is None or probe.returncode != 0:
+        pytest.skip("needs Xvfb and Tk for matplotlib (apt install xvfb python3-tk python3-pil.imagetk)")
+    for number in range(90, 120):
+        if not os.path.exists(f"/tmp/.X11-unix/X{number}") and not os.path.exists(f"/tmp/.X{number}-lock"):
+            break
+    proc = subprocess.Popen([xvfb, f":{number}", "-screen", "0", "1280x1024x24", "-nolisten", "tcp"],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        for _ in range(100):
+            if os.path.exists(f"/tmp/.X11-unix/X{number}"):
+                break
+            time.sleep(0.05)
+        yield f":{number}"
+    finally:
+        proc.terminate()
+        proc.wait(timeout=10)
+
+
+def test_show_opens_a_window(x_display: str) -> None:
+    import os
+    import subprocess
+    import sys
+
+    env = {**os.environ, "DISPLAY": x_display}
+    env.pop("MPLBACKEND", None)
+    res = subprocess.run([sys.executable, "-c", SHOW_SCRIPT], env=env, capture_output=True,
+                         text=True, timeout=120)
+    assert res.returncode == 0, res.stderr
+    backend, width, path = res.stdout.split()
+    assert backend.lower() not in ("agg", "pdf", "svg") and width == "500" and path == "None"

@@ -61,5 +61,6 @@ def render(map_file: str, output: str | None, show: bool, width: int, height: in
         click.echo(f"wrote {r.path} ({r.format.upper() if r.format else ''}, {r.width}x{r.height} px, "
                    f"{r.metres_per_pixel * 1000:.1f} mm per pixel)")
     if r.names_hidden:
-        err(f"mapkit: {r.names_hidden} names left out where they would overlap others "
-            f"(a larger --width has room for more)")
+        n = r.names_hidden
+        err(f"mapkit: {n} name{'s' if n > 1 else ''} left out where {'they' if n > 1 else 'it'} "
+            f"would overlap others (a larger --width has room for more)")

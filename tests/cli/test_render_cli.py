@@ -85,7 +85,7 @@ def test_render_reports_hidden_names(runner: CliRunner, tmp_path: Path) -> None:
     mapkit.save(MapData(objects=goals), src)
     res = runner.invoke(cli, ["render", str(src), "-o", str(tmp_path / "c.png"), "--width", "400"])
     assert res.exit_code == 0
-    assert "names left out where they would overlap others" in res.stderr
+    assert "names left out where they would overlap others (a larger --width" in res.stderr
 
 
 def test_info_thumbnail(runner: CliRunner, office: Path, tmp_path: Path) -> None:
