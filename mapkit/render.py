@@ -434,7 +434,7 @@ def _draw(
     m: MapData,
     *,
     lay: _Layout,
-    objects: list[MapObject],
+    objects: list[tuple[int, MapObject]],
     show_points: bool,
     show_lines: bool,
     show_names: bool,
@@ -480,7 +480,7 @@ def _draw(
     decl = m.declared_types()
     params = type_params(m)
     by_kind: dict[str, list[tuple[int, MapObject]]] = {}
-    for i, o in enumerate(objects):
+    for i, o in objects:
         by_kind.setdefault(object_kind(m, o, decl), []).append((i, o))
 
     # Names to write, by priority (0 first): (priority, x, y, text, colour).
@@ -628,8 +628,9 @@ def _scale_bar(ax: Axes, lay: _Layout) -> None:
     ax.add_artist(anchored)
 
 
-def _visible_objects(m: MapData) -> list[MapObject]:
-    return [o for o in m.objects if _finite(o) and not _is_degenerate(o)]
+def _visible_objects(m: MapData) -> list[tuple[int, MapObject]]:
+    """The objects drawn, with their index in ``m.objects`` (the ``object:<i>`` gid)."""
+    return [(i, o) for i, o in enumerate(m.objects) if _finite(o) and not _is_degenerate(o)]
 
 
 def make_figure(
@@ -674,7 +675,7 @@ def make_figure(
         raise RenderError(f"dpi must be between 10 and 1200, got {dpi}")
     objects = _visible_objects(m)
     legend = legend and not thumbnail and width >= _LEGEND_MIN_WIDTH
-    lay = _layout(_data_extent(m, objects), int(width), None if height is None else int(height),
+    lay = _layout(_data_extent(m, [o for _, o in objects]), int(width), None if height is None else int(height),
                   thumbnail=thumbnail, legend_px=170 if legend else 0)
     if title is None:
         src = os.path.basename(m.provenance.source) if m.provenance else ""

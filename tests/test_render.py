@@ -97,10 +97,12 @@ def test_forbidden_area_outline_is_its_corners(fx: int, fy: int, tx: int, ty: in
                                                extra: int) -> None:
     """The drawn outline is exactly MapObject.corners() (ARIA's rotation about the origin)."""
     area = MapObject("ForbiddenArea", 0, 0, theta, from_to=(fx, fy, tx, ty))
-    objs = [MapObject("Goal", 100 * k, 0, name=f"g{k}") for k in range(extra)] + [area]
+    anchor = MapObject("FeedbackHandler", 0, 0, 0, from_to=(0, 0, 0, 0))  # not drawn
+    objs = [anchor] + [MapObject("Goal", 100 * k, 0, name=f"g{k}") for k in range(extra)] + [area]
     m = MapData(objects=tuple(objs))
     fig, _ = make_figure(m, width=300, legend=False)
-    drawn = artists_by_gid(fig).get(f"object:{extra}", [])
+    assert "object:0" not in artists_by_gid(fig)
+    drawn = artists_by_gid(fig).get(f"object:{extra + 1}", [])  # gid = index in m.objects
     if fx == tx and fy == ty:
         assert drawn == []  # a zero-size rectangle is not drawn
         return
