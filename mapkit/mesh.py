@@ -1,7 +1,8 @@
 """3D walls for simulators: the map's walls as a watertight mesh, and a Gazebo world that loads it.
 
 Walls come from the LINES (each segment a box ``thickness`` wide, with square ends) or, for maps
-with points only, from the occupied cells of a grid at ``resolution``. The boxes are merged in 2D
+with points only, from the occupied cells of the occupancy grid at ``resolution`` that
+:mod:`mapkit.raster` makes (the cells ``mapkit rasterize`` marks). The boxes are merged in 2D
 (shapely's union), triangulated (GEOS's constrained Delaunay triangulation, so no triangulation or
 boolean engine is needed) and extruded to ``height``. The mesh is closed (watertight), its
 outward normals point away from the wall material, and its units are metres, z up, with the
@@ -150,22 +151,25 @@ def _segment_boxes(lines_mm: np.ndarray[Any, Any], thickness: float) -> Any:
 
 
 def _cell_boxes(points_mm: np.ndarray[Any, Any], resolution: float) -> Any:
-    """The occupied cells of a grid at ``resolution`` (m), merged into one rectangle per run of
-    occupied cells along each row, as shapely polygons."""
+    """The occupied cells of the occupancy grid at ``resolution`` (m) that ``mapkit.raster``
+    makes from the points (the same cells ``mapkit rasterize`` marks), merged into one rectangle
+    per run of occupied cells along each row, as shapely polygons in metres."""
     import shapely
 
-    # One floor per point on absolute cell indices, so every point lies in its own cell. The
-    # occupied cells are found sparsely (sorted unique indices), so a huge map costs no dense grid.
-    cell = np.floor(points_mm / (resolution * 1000.0)).astype(np.int64)
-    cells = np.unique(cell[:, ::-1], axis=0)  # (row, col), sorted row by row
-    rows, cols = cells[:, 0], cells[:, 1]
-    new_run = np.ones(len(cells), dtype=bool)
-    new_run[1:] = (rows[1:] != rows[:-1]) | (cols[1:] != cols[:-1] + 1)
-    first = np.flatnonzero(new_run)
-    last = np.append(first[1:], len(cells)) - 1
-    rows, starts, ends = rows[first], cols[first], cols[last] + 1
-    return shapely.box(starts * resolution, rows * resolution, ends * resolution,
-                       (rows + 1) * resolution)
+    from mapkit.raster import burn_points, grid_for_bounds
+
+    lo, hi = points_mm.min(axis=0), points_mm.max(axis=0)
+    grid = grid_for_bounds(((float(lo[0]), float(lo[1])), (float(hi[0]), float(hi[1]))),
+                           resolution, 0.0)
+    occ = burn_points(grid, points_mm)
+    padded = np.zeros((occ.shape[0], occ.shape[1] + 2), dtype=np.int8)
+    padded[:, 1:-1] = occ
+    step = np.diff(padded, axis=1)
+    rows, starts = np.nonzero(step == 1)
+    _, ends = np.nonzero(step == -1)  # same order: both scan the rows in turn
+    (ox, oy), r = grid.origin_mm, grid.resolution_mm
+    return shapely.box((ox + starts * r) / 1000.0, (oy + rows * r) / 1000.0,
+                       (ox + ends * r) / 1000.0, (oy + (rows + 1) * r) / 1000.0)
 
 
 def footprint(
@@ -184,6 +188,7 @@ def footprint(
 
     Raises:
         MeshError: When the map has nothing to make walls from, or a size is not positive.
+        RasterError: When the grid for walls from points would be too large.
     """
     import shapely
 
