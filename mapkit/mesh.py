@@ -134,7 +134,7 @@ def _pick_source(m: MapData, source: str) -> str:
 
 
 def _segment_boxes(lines_mm: np.ndarray[Any, Any], thickness: float) -> Any:
-    """One rectangle per segment (metres), ``thickness`` wide with square ends, as shapely polygons."""
+    """One rectangle per segment (metres), ``thickness`` wide with square ends (shapely)."""
     import shapely
 
     seg = lines_mm.astype(np.float64).reshape(-1, 2, 2) / 1000.0

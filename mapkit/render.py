@@ -250,7 +250,9 @@ def _finite(obj: MapObject) -> bool:
     return all(math.isfinite(v) for v in vals)
 
 
-def _data_extent(m: MapData, objects: Iterable[MapObject]) -> tuple[float, float, float, float] | None:
+def _data_extent(
+    m: MapData, objects: Iterable[MapObject]
+) -> tuple[float, float, float, float] | None:
     """Extent in metres of the scan data and the drawn objects."""
     xs: list[float] = []
     ys: list[float] = []
@@ -333,7 +335,8 @@ def _layout(
         raise RenderError(f"a height of {height} px leaves no room for the map")
     mpp = max(dx / axes_w, dy / axes_h)
     cx, cy = (x0 + x1) / 2, (y0 + y1) / 2
-    view = (cx - axes_w * mpp / 2, cy - axes_h * mpp / 2, cx + axes_w * mpp / 2, cy + axes_h * mpp / 2)
+    hw, hh = axes_w * mpp / 2, axes_h * mpp / 2
+    view = (cx - hw, cy - hh, cx + hw, cy + hh)
     return _Layout(width, height, left, bottom, axes_w, axes_h, view, mpp)
 
 
@@ -352,7 +355,7 @@ def _density_image(
     occ[iy[ok] * lay.axes_w + ix[ok]] = True
     occ = occ.reshape(lay.axes_h, lay.axes_w)
     # Zoomed in beyond the map's grid: draw each point as a cell of the map's resolution.
-    k = min(int(round(resolution_mm * scale)), 9) if resolution_mm > 0 else 1
+    k = min(round(resolution_mm * scale), 9) if resolution_mm > 0 else 1
     if k > 1:
         from scipy.ndimage import binary_dilation
 
@@ -407,7 +410,7 @@ def _place_names(
     # A light box rather than a stroked halo keeps names as text in SVG and PDF (searchable).
     box = {"boxstyle": "square,pad=0.1", "facecolor": "white", "edgecolor": "none", "alpha": 0.7}
     hidden = 0
-    for (_, x, y, text, color), (axp, ayp) in zip(names, anchors):
+    for (_, x, y, text, color), (axp, ayp) in zip(names, anchors, strict=True):
         label = _text(text)
         # Text metrics once per name; the spots' boxes follow arithmetically (baseline-aligned).
         w, h, d = renderer.get_text_width_height_descent(label, prop, ismath=False)
@@ -533,10 +536,12 @@ def _draw(
     for (kind, typ), group in line_groups.items():
         segs = np.asarray([o.corners() for o in group]) / 1000.0
         if kind == "forbidden_line":
-            color, lw, ls, label = COLORS[kind], 1.3 if thumbnail else 2.2, "-", _LEGEND_LABELS[kind]
+            color, ls, label = COLORS[kind], "-", _LEGEND_LABELS[kind]
+            lw = 1.3 if thumbnail else 2.2
         else:
             p = params.get(typ, {})
-            color, lw, ls, label = _color(p.get("Color0"), COLORS["boundary"]), 1.4, "--", _label(typ)
+            color, lw, ls = _color(p.get("Color0"), COLORS["boundary"]), 1.4, "--"
+            label = _label(typ)
             if p.get("Shape") == "Measure":
                 for seg in segs:
                     length = float(np.hypot(*(seg[1] - seg[0])))
@@ -544,13 +549,14 @@ def _draw(
         ax.add_collection(LineCollection(segs, colors=color, linewidths=lw, linestyles=ls,
                                          zorder=5, gid=f"{kind}:{typ}"))
         handles.append(Line2D([], [], color=color, lw=lw, ls=ls, label=f"{label} ({len(group)})"))
-        for o, seg in zip(group, segs):
+        for o, seg in zip(group, segs, strict=True):
             if o.name:
                 names.append((5, *seg.mean(axis=0), o.name, _darker(color)))
 
     # Point objects: one marker call and one arrow call per kind.
     markers: list[np.ndarray[Any, Any]] = []
-    for prio, kind in enumerate(("home", "dock", "goal_heading", "goal", "location", "other_point")):
+    point_kinds = ("home", "dock", "goal_heading", "goal", "location", "other_point")
+    for prio, kind in enumerate(point_kinds):
         group = [o for _, o in by_kind.get(kind, [])]
         if kind == "location":  # text labels (Shape=Label): the name only, no marker
             text_only = [o for o in group if params.get(o.type, {}).get("Shape") == "Label"]
@@ -575,7 +581,7 @@ def _draw(
         handles.append(Line2D([], [], ls="", marker=_MARKERS[kind], ms=6, mfc=color, mec="white",
                               label=f"{_LEGEND_LABELS[kind]} ({len(group)})"))
         names.extend((min(prio, 3), px, py, o.name, color)
-                     for o, (px, py) in zip(group, xy) if o.name)
+                     for o, (px, py) in zip(group, xy, strict=True) if o.name)
 
     hidden = 0
     if show_names and names and not thumbnail:
@@ -675,8 +681,9 @@ def make_figure(
         raise RenderError(f"dpi must be between 10 and 1200, got {dpi}")
     objects = _visible_objects(m)
     legend = legend and not thumbnail and width >= _LEGEND_MIN_WIDTH
-    lay = _layout(_data_extent(m, [o for _, o in objects]), int(width), None if height is None else int(height),
-                  thumbnail=thumbnail, legend_px=170 if legend else 0)
+    lay = _layout(_data_extent(m, [o for _, o in objects]), int(width),
+                  None if height is None else int(height), thumbnail=thumbnail,
+                  legend_px=170 if legend else 0)
     if title is None:
         src = os.path.basename(m.provenance.source) if m.provenance else ""
         title = f"{src}  ({m.category})" if src else m.category
@@ -798,7 +805,8 @@ def render(
 
 def _writer(m: MapData, path: PathLike) -> str:
     r = render(m, path)
-    return f"wrote {os.fspath(path)} ({r.width}x{r.height} px {r.format.upper() if r.format else ''})"
+    kind = r.format.upper() if r.format else ""
+    return f"wrote {os.fspath(path)} ({r.width}x{r.height} px {kind})"
 
 
 for _suffix in FORMATS:

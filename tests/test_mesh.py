@@ -1,4 +1,4 @@
-"""3D walls: watertight meshes of the right size in every format, and a Gazebo world that loads them."""
+"""3D walls: watertight meshes of the right size in every format, and a Gazebo world for them."""
 
 from __future__ import annotations
 
@@ -41,7 +41,8 @@ def check_closed(mesh: trimesh.Trimesh) -> None:
     assert mesh.volume > 0  # outward normals
 
 
-def check_bounds_around_lines(mesh: trimesh.Trimesh, lines_mm: np.ndarray, t: float, h: float) -> None:
+def check_bounds_around_lines(mesh: trimesh.Trimesh, lines_mm: np.ndarray, t: float,
+                              h: float) -> None:
     """Square-ended boxes reach t/2 .. t/sqrt(2) beyond the extreme line ends."""
     ends = lines_mm.reshape(-1, 2) / 1000.0
     lo, hi = ends.min(axis=0), ends.max(axis=0)
@@ -62,7 +63,8 @@ def test_one_wall_is_one_box() -> None:
 
 
 def test_crossing_walls_are_merged() -> None:
-    mesh = wall_mesh(lines_map([[0, 0, 4000, 0], [2000, -2000, 2000, 2000]]), height=2, thickness=0.1)
+    m = lines_map([[0, 0, 4000, 0], [2000, -2000, 2000, 2000]])
+    mesh = wall_mesh(m, height=2, thickness=0.1)
     check_closed(mesh)
     # Two 4.1 x 0.1 boxes minus their 0.1 x 0.1 overlap, grown by FUSE along the outline.
     assert mesh.volume == pytest.approx((2 * 4.1 * 0.1 - 0.01) * 2, abs=16.4 * FUSE * 2 * 1.01)
@@ -179,7 +181,8 @@ def test_convert_writes_meshes(tmp_path: Path) -> None:
     src = tmp_path / "m.map"
     mapkit.save(lines_map([[0, 0, 2000, 0]]), src)
     for suffix in (".stl", ".obj", ".glb", ".dae"):
-        assert convert_file(src, tmp_path / ("w" + suffix)).startswith(f"wrote {tmp_path / ('w' + suffix)}")
+        out = tmp_path / ("w" + suffix)
+        assert convert_file(src, out).startswith(f"wrote {out}")
         assert trimesh.load(tmp_path / ("w" + suffix), force="mesh").volume > 0
 
 
@@ -202,6 +205,7 @@ def test_bad_parameters(kw: dict, message: str) -> None:
 
 
 def test_bad_suffix(tmp_path: Path) -> None:
-    with pytest.raises(UnsupportedFormatError, match=r"meshes are \.stl, \.obj, \.glb, \.dae, not '\.ply'"):
+    with pytest.raises(UnsupportedFormatError,
+                       match=r"meshes are \.stl, \.obj, \.glb, \.dae, not '\.ply'"):
         export_mesh(lines_map([[0, 0, 1000, 0]]), tmp_path / "w.ply")
     assert not list(tmp_path.iterdir())

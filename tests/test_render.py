@@ -1,4 +1,4 @@
-"""Pictures of maps: files of the requested size in each format, objects drawn where ARIA puts them."""
+"""Pictures of maps: files of the requested size in each format, objects where ARIA puts them."""
 
 from __future__ import annotations
 
@@ -112,7 +112,8 @@ def test_forbidden_area_outline_is_its_corners(fx: int, fy: int, tx: int, ty: in
 
 
 def test_showroom_forbidden_area_lands_where_formats_md_says(shared_dir: Path) -> None:
-    """FORMATS.md A.7.3 / T24: FA3 (theta 180 about the origin) covers x -6001..21124, y -7648..-1564."""
+    """FORMATS.md A.7.3 / T24: FA3 (theta 180 about the origin) covers x -6001..21124,
+    y -7648..-1564."""
     m = mapkit.load(shared_dir / "real" / "omron-ld-showroom-ex4.map")
     index = next(i for i, o in enumerate(m.objects) if o.name == "FA3")
     fig, _ = make_figure(m, width=800)
@@ -127,7 +128,8 @@ def test_heading_arrows_for_headed_objects_only() -> None:
     fig, r = make_figure(m, width=800)
     gids = artists_by_gid(fig)
     assert "goal-heading" not in gids
-    for kind, obj in (("goal_heading", m.objects[1]), ("dock", m.objects[2]), ("home", m.objects[3])):
+    headed = (("goal_heading", m.objects[1]), ("dock", m.objects[2]), ("home", m.objects[3]))
+    for kind, obj in headed:
         (q,) = gids[f"{kind}-heading"]
         assert np.allclose(q.X, [obj.x / 1000]) and np.allclose(q.Y, [obj.y / 1000])
         angle = math.degrees(math.atan2(q.V[0], q.U[0]))
@@ -166,8 +168,10 @@ def test_every_point_is_drawn(pts: list[tuple[int, int]]) -> None:
     near = np.zeros_like(lit)
     for dx in (-1, 0, 1):
         for dy in (-1, 0, 1):
-            near[np.clip(iy + dy, 0, lit.shape[0] - 1), np.clip(ix + dx, 0, lit.shape[1] - 1)] = True
-    assert all(lit[max(y - 1, 0):y + 2, max(x - 1, 0):x + 2].any() for x, y in zip(ix, iy))
+            rows = np.clip(iy + dy, 0, lit.shape[0] - 1)
+            near[rows, np.clip(ix + dx, 0, lit.shape[1] - 1)] = True
+    assert all(lit[max(y - 1, 0):y + 2, max(x - 1, 0):x + 2].any()
+               for x, y in zip(ix, iy, strict=True))
     assert not (lit & ~near).any()  # nothing drawn where there is no point
 
 
@@ -224,7 +228,8 @@ def test_convert_writes_pictures(tmp_path: Path) -> None:
 
 
 def test_bad_suffix(tmp_path: Path) -> None:
-    with pytest.raises(UnsupportedFormatError, match=r"pictures are \.png, \.svg or \.pdf, not '\.jpg'"):
+    with pytest.raises(UnsupportedFormatError,
+                       match=r"pictures are \.png, \.svg or \.pdf, not '\.jpg'"):
         render(small_map(), tmp_path / "m.jpg")
     assert not (tmp_path / "m.jpg").exists()
 
@@ -270,7 +275,8 @@ def show(*args, **kwargs):
     real_show(*args, **kwargs)
 
 plt.show = show
-r = render(mapkit.MapData(objects=(mapkit.MapObject("Goal", 0, 0, name="G"),)), show=True, width=500)
+m = mapkit.MapData(objects=(mapkit.MapObject("Goal", 0, 0, name="G"),))
+r = render(m, show=True, width=500)
 print(shown[0], r.width, r.path)
 """
 
@@ -288,12 +294,14 @@ def x_display() -> Any:
     probe = subprocess.run([sys.executable, "-c", "import tkinter; from PIL import ImageTk"],
                            capture_output=True)
     if xvfb is None or probe.returncode != 0:
-        pytest.skip("needs Xvfb and Tk for matplotlib (apt install xvfb python3-tk python3-pil.imagetk)")
+        pytest.skip("needs Xvfb and Tk for matplotlib "
+                    "(apt install xvfb python3-tk python3-pil.imagetk)")
     for number in range(90, 120):
-        if not os.path.exists(f"/tmp/.X11-unix/X{number}") and not os.path.exists(f"/tmp/.X{number}-lock"):
+        if not (os.path.exists(f"/tmp/.X11-unix/X{number}")
+                or os.path.exists(f"/tmp/.X{number}-lock")):
             break
-    proc = subprocess.Popen([xvfb, f":{number}", "-screen", "0", "1280x1024x24", "-nolisten", "tcp"],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    proc = subprocess.Popen([xvfb, f":{number}", "-screen", "0", "1280x1024x24", "-nolisten",
+                             "tcp"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
         for _ in range(100):
             if os.path.exists(f"/tmp/.X11-unix/X{number}"):

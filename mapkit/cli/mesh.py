@@ -10,17 +10,19 @@ from mapkit.cli.options import echo_json, force_option, json_option, output_opti
 from mapkit.formats.registry import read_any
 from mapkit.mesh import export_mesh as export
 
+_POSITIVE = click.FloatRange(0, min_open=True)
+
 
 @click.command("export-mesh", short_help="A 3D wall mesh (STL/OBJ/GLB/DAE) and a Gazebo world.")
 @click.argument("map_file", type=click.Path(exists=True, dir_okay=False))
 @output_option("Mesh to write: .stl, .obj, .glb or .dae.", required=True)
-@click.option("--height", type=click.FloatRange(0, min_open=True), default=2.0, show_default=True, help="Wall height (m).")
-@click.option("--thickness", type=click.FloatRange(0, min_open=True), default=0.1, show_default=True,
+@click.option("--height", type=_POSITIVE, default=2.0, show_default=True, help="Wall height (m).")
+@click.option("--thickness", type=_POSITIVE, default=0.1, show_default=True,
               help="Wall thickness (m) for walls made from LINES.")
 @click.option("--from", "source", type=click.Choice(["auto", "lines", "points"]), default="auto",
-              show_default=True, help="Make walls from the LINES or from the points' occupied cells "
-              "(auto: LINES when the map has any).")
-@click.option("--resolution", type=click.FloatRange(0, min_open=True), default=0.05, show_default=True,
+              show_default=True, help="Make walls from the LINES or from the points' occupied "
+              "cells (auto: LINES when the map has any).")
+@click.option("--resolution", type=_POSITIVE, default=0.05, show_default=True,
               help="Cell size (m) for walls made from points.")
 @click.option("--world", type=click.Path(dir_okay=False), default=None,
               help="Gazebo SDF world to write [default: the mesh's name with .sdf].")

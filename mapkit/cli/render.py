@@ -26,7 +26,8 @@ from mapkit.render import render as render_map
 @click.option("--no-lines", is_flag=True, help="Do not draw the LINES.")
 @click.option("--no-legend", is_flag=True, help="No legend.")
 @click.option("--thumbnail", is_flag=True, help="The map only: no axes, grid, names or legend.")
-@click.option("--title", default=None, help='Title above the map [default: file name]; "" for none.')
+@click.option("--title", default=None,
+              help='Title above the map [default: file name]; "" for none.')
 @force_option
 @json_option
 def render(map_file: str, output: str | None, show: bool, width: int, height: int | None,
@@ -58,7 +59,8 @@ def render(map_file: str, output: str | None, show: bool, width: int, height: in
                    "names_hidden": r.names_hidden})
         return
     if r.path:
-        click.echo(f"wrote {r.path} ({r.format.upper() if r.format else ''}, {r.width}x{r.height} px, "
+        kind = r.format.upper() if r.format else ""
+        click.echo(f"wrote {r.path} ({kind}, {r.width}x{r.height} px, "
                    f"{r.metres_per_pixel * 1000:.1f} mm per pixel)")
     if r.names_hidden:
         n = r.names_hidden

@@ -31,7 +31,8 @@ def test_mesh_and_world(runner: CliRunner, office: Path, tmp_path: Path) -> None
     mesh = trimesh.load(out)
     assert mesh.is_watertight and mesh.bounds[1][2] == pytest.approx(2.5)
     lines = res.output.splitlines()
-    assert lines[0].startswith(f"wrote {out} (STL, walls from lines: {len(mesh.faces)} triangles, watertight")
+    assert lines[0].startswith(
+        f"wrote {out} (STL, walls from lines: {len(mesh.faces)} triangles, watertight")
     assert lines[1] == (f"wrote {tmp_path / 'walls.sdf'} (Gazebo SDF world; robot home RobotHome "
                         f"'Home' at 1.000, 1.000 m, yaw 0.000 rad)")
     root = ET.parse(tmp_path / "walls.sdf").getroot()
@@ -51,10 +52,11 @@ def test_world_path_and_json(runner: CliRunner, office: Path, tmp_path: Path) ->
 
 
 def test_no_world(runner: CliRunner, office: Path, tmp_path: Path) -> None:
-    res = runner.invoke(cli, ["export-mesh", str(office), "-o", str(tmp_path / "w.obj"), "--no-world"])
+    out = str(tmp_path / "w.obj")
+    res = runner.invoke(cli, ["export-mesh", str(office), "-o", out, "--no-world"])
     assert res.exit_code == 0, res.output
     assert sorted(p.name for p in tmp_path.iterdir()) == ["office.map", "w.obj"]
-    res = runner.invoke(cli, ["export-mesh", str(office), "-o", str(tmp_path / "w.obj"), "--no-world",
+    res = runner.invoke(cli, ["export-mesh", str(office), "-o", out, "--no-world",
                               "--world", "x.sdf", "--force"])
     assert res.exit_code == 2 and "--world and --no-world exclude each other" in res.output
 
@@ -75,11 +77,13 @@ def test_points_only_map(runner: CliRunner, tmp_path: Path) -> None:
     assert "walls from points" in res.output
     res = runner.invoke(cli, ["export-mesh", str(src), "-o", str(tmp_path / "w.stl"), "--force",
                               "--from", "lines"])
-    assert res.exit_code == 1 and "has no LINES to make walls from (150 points, 0 lines)" in res.output
+    assert res.exit_code == 1
+    assert "has no LINES to make walls from (150 points, 0 lines)" in res.output
 
 
 def test_bad_height(runner: CliRunner, office: Path, tmp_path: Path) -> None:
-    res = runner.invoke(cli, ["export-mesh", str(office), "-o", str(tmp_path / "w.stl"), "--height", "0"])
+    out = str(tmp_path / "w.stl")
+    res = runner.invoke(cli, ["export-mesh", str(office), "-o", out, "--height", "0"])
     assert res.exit_code == 2 and "--height" in res.output
 
 

@@ -16,7 +16,8 @@ from mapkit.model import MapData, MapObject, Scan
 
 @pytest.fixture
 def office(tmp_path: Path) -> Path:
-    m = MapData(scans=(Scan.from_arrays([[0, 0], [6000, 4000]], [[0, 0, 6000, 0], [0, 0, 0, 4000]]),),
+    scan = Scan.from_arrays([[0, 0], [6000, 4000]], [[0, 0, 6000, 0], [0, 0, 0, 4000]])
+    m = MapData(scans=(scan,),
                 objects=(MapObject("GoalWithHeading", 3000, 2000, 90, name="Desk"),
                          MapObject("ForbiddenArea", 0, 0, 0, from_to=(1000, 1000, 2000, 2000))))
     path = tmp_path / "office.map"
@@ -40,7 +41,8 @@ def test_render_png(runner: CliRunner, office: Path, tmp_path: Path) -> None:
 
 
 @pytest.mark.parametrize("suffix", [".svg", ".pdf"])
-def test_render_vector_formats_json(runner: CliRunner, office: Path, tmp_path: Path, suffix: str) -> None:
+def test_render_vector_formats_json(runner: CliRunner, office: Path, tmp_path: Path,
+                                    suffix: str) -> None:
     out = tmp_path / ("office" + suffix)
     res = runner.invoke(cli, ["render", str(office), "-o", str(out), "--json", "--no-names",
                               "--no-points", "--no-legend", "--title", ""])
