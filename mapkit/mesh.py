@@ -425,8 +425,12 @@ def _mesh_bytes(mesh: trimesh.Trimesh, fmt: str) -> bytes:
     """
     from trimesh.visual import ColorVisuals
 
-    if fmt in ("stl", "obj"):  # no colour: OBJ would get non-standard per-vertex colours
-        data = mesh.export(file_type=fmt, **({"include_normals": False} if fmt == "obj" else {}))
+    data: Any
+    if fmt == "stl":
+        data = mesh.export(file_type="stl")
+        return bytes(data)
+    if fmt == "obj":  # no colour: OBJ would get non-standard per-vertex colours
+        data = mesh.export(file_type="obj", include_normals=False)
         return data.encode("utf-8") if isinstance(data, str) else bytes(data)
     mesh = mesh.copy()
     mesh.visual = ColorVisuals(mesh, face_colors=np.tile(WALL_COLOR, (len(mesh.faces), 1)))
@@ -439,7 +443,8 @@ def _mesh_bytes(mesh: trimesh.Trimesh, fmt: str) -> bytes:
         if fixed == text:
             raise MeshError("cannot write COLLADA: the exporter's <up_axis> was not found")
         return fixed.encode("utf-8")
-    return bytes(mesh.export(file_type="glb", include_normals=False))
+    data = mesh.export(file_type="glb", include_normals=False)
+    return bytes(data)
 
 
 def _mesh_format(path: PathLike) -> str:

@@ -129,7 +129,8 @@ _AREA_FILL = (0.84, 0.1, 0.11, 0.08)
 _HATCH = "#ec8a8c"
 _HATCH_PATTERN = "///"
 #: matplotlib settings for every picture (deterministic SVG ids, text kept as text, thin hatching).
-_RC = {"svg.hashsalt": "mapkit", "svg.fonttype": "none", "pdf.fonttype": 42, "hatch.linewidth": 0.7}
+_RC: dict[Any, Any] = {"svg.hashsalt": "mapkit", "svg.fonttype": "none", "pdf.fonttype": 42,
+                       "hatch.linewidth": 0.7}
 
 _MARKERS = {
     "goal": "o",
@@ -272,8 +273,8 @@ def _data_extent(
 
 def _nice(x: float) -> float:
     """The largest 1, 2 or 5 times a power of ten that is at most ``x`` (``x`` > 0)."""
-    p = 10 ** math.floor(math.log10(x))
-    for f in (5, 2, 1):
+    p = 10.0 ** math.floor(math.log10(x))
+    for f in (5.0, 2.0, 1.0):
         if f * p <= x:
             return f * p
     return p
@@ -351,9 +352,9 @@ def _density_image(
     ix = np.floor((points_mm[:, 0] - x0 * 1000.0) * scale).astype(np.int64)
     iy = np.floor((points_mm[:, 1] - y0 * 1000.0) * scale).astype(np.int64)
     ok = (ix >= 0) & (ix < lay.axes_w) & (iy >= 0) & (iy < lay.axes_h)
-    occ = np.zeros(lay.axes_w * lay.axes_h, dtype=bool)
-    occ[iy[ok] * lay.axes_w + ix[ok]] = True
-    occ = occ.reshape(lay.axes_h, lay.axes_w)
+    flat = np.zeros(lay.axes_w * lay.axes_h, dtype=bool)
+    flat[iy[ok] * lay.axes_w + ix[ok]] = True
+    occ = flat.reshape(lay.axes_h, lay.axes_w)
     # Zoomed in beyond the map's grid: draw each point as a cell of the map's resolution.
     k = min(round(resolution_mm * scale), 9) if resolution_mm > 0 else 1
     if k > 1:
@@ -475,7 +476,7 @@ def _draw(
     # LINES: one collection.
     n_lines = sum(s.num_lines for s in m.scans)
     if show_lines and n_lines:
-        segs = np.concatenate([s.lines for s in m.scans]).reshape(-1, 2, 2) / 1000.0
+        segs: Any = np.concatenate([s.lines for s in m.scans]).reshape(-1, 2, 2) / 1000.0
         ax.add_collection(LineCollection(segs, colors=COLORS["lines"], linewidths=0.9, zorder=2,
                                          gid="lines"))
         handles.append(Line2D([], [], color=COLORS["lines"], lw=1, label=f"lines ({n_lines:,})"))
@@ -495,6 +496,7 @@ def _draw(
     for kind in ("sector", "home_area", "forbidden_area"):
         for i, o in by_kind.get(kind, []):
             corners = np.asarray(o.corners()) / 1000.0
+            key: tuple[str, str]
             name_color = color = COLORS[kind]
             if kind == "forbidden_area":
                 ax.add_patch(Polygon(corners, closed=True, facecolor=_AREA_FILL,
@@ -518,12 +520,12 @@ def _draw(
             if o.name:
                 c = corners.mean(axis=0)
                 names.append((4, c[0], c[1], o.name, name_color))
-    for (key, label), (color, count) in rect_types.items():
-        label = f"{label} ({count})"
-        if key == "forbidden_area":
+    for (rect_kind, type_label), (color, count) in rect_types.items():
+        label = f"{type_label} ({count})"
+        if rect_kind == "forbidden_area":
             handles.append(Patch(facecolor=_AREA_FILL, edgecolor=color, hatch=_HATCH_PATTERN,
                                  label=label))
-        elif key == "home_area":
+        elif rect_kind == "home_area":
             handles.append(Patch(facecolor="none", edgecolor=color, ls="--", label=label))
         else:
             handles.append(Patch(facecolor=color, alpha=0.35, edgecolor=color, label=label))
@@ -534,7 +536,7 @@ def _draw(
         for _, o in by_kind.get(kind, []):
             line_groups.setdefault((kind, o.type), []).append(o)
     for (kind, typ), group in line_groups.items():
-        segs = np.asarray([o.corners() for o in group]) / 1000.0
+        segs = np.asarray([o.corners() for o in group]) / 1000.0  # (K, 2, 2) metres
         if kind == "forbidden_line":
             color, ls, label = COLORS[kind], "-", _LEGEND_LABELS[kind]
             lw = 1.3 if thumbnail else 2.2
