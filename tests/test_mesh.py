@@ -209,3 +209,11 @@ def test_bad_suffix(tmp_path: Path) -> None:
                        match=r"meshes are \.stl, \.obj, \.glb, \.dae, not '\.ply'"):
         export_mesh(lines_map([[0, 0, 1000, 0]]), tmp_path / "w.ply")
     assert not list(tmp_path.iterdir())
+
+
+def test_zero_length_segments_become_square_posts() -> None:
+    mesh = wall_mesh(lines_map([[0, 0, 0, 0], [500, 500, 500, 500]]), height=2.0, thickness=0.1)
+    check_closed(mesh)
+    assert mesh.body_count == 2
+    g = 0.05 + FUSE
+    assert mesh.volume == pytest.approx(2 * (2 * g) ** 2 * 2.0)
