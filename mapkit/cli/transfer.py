@@ -30,6 +30,12 @@ DEFAULT_PORT = 7373  # == mapkit.transfer.DEFAULT_PORT (a test checks)
 F = TypeVar("F", bound=Callable[..., Any])
 
 
+def _auth_text(secret: bytes | None) -> str:
+    from mapkit.transfer.protocol import AUTH_METHODS
+
+    return "|".join(AUTH_METHODS) if secret else "none"
+
+
 def _secret_options(f: F) -> F:
     f = click.option("--insecure", is_flag=True,
                      help="Go without authentication (the other side must say so too).")(f)
@@ -164,7 +170,7 @@ def serve(folder: str, listen_addr: str, secret_file: str | None, insecure: bool
                     insecure=insecure, tls=tls)
     h, p = srv.address
     err(f"mapkit serve: serving {srv.folder.root} on {h}:{p} "
-        f"(auth {'hmac-sha256' if secret else 'none'}, tls {'on' if tls else 'off'})")
+        f"(auth {_auth_text(secret)}, tls {'on' if tls else 'off'})")
     _serve(srv)
 
 
@@ -197,7 +203,7 @@ def receive(listen_addr: str, folder: str, secret_file: str | None, insecure: bo
 
     def listening(address: tuple[str, int]) -> None:
         err(f"mapkit receive: waiting on {address[0]}:{address[1]} for files into {root} "
-            f"(auth {'hmac-sha256' if secret else 'none'}, tls {'on' if tls else 'off'})")
+            f"(auth {_auth_text(secret)}, tls {'on' if tls else 'off'})")
 
     def show(info: dict[str, Any]) -> None:
         if not as_json:

@@ -457,7 +457,7 @@ class MapServer:
         with self._lock:
             self.sessions += 1
         log.info("%s: session %016x (%s, auth %s)", peer, link.channel.session,
-                 hs.client.get("peer", "?"), hs.client.get("auth"))
+                 hs.client.get("peer", "?"), hs.auth)
         last: Any = None  # the last transfer's machine, for its late frames
         while True:
             try:

@@ -2,7 +2,9 @@
 
 A :class:`FrameLink` joins a socket and a :class:`~mapkit.transfer.protocol.Channel`: ``send``
 writes :class:`~mapkit.transfer.protocol.Out` frames with one gather write each (no copy of
-chunk data on plain TCP), ``receive`` reads into a 1 MiB buffer and returns the next frame.
+chunk data on plain TCP), ``receive`` reads with ``recv_into`` through
+:meth:`~mapkit.transfer.protocol.Channel.receive_into` (a large payload lands in its own buffer,
+copied once by the kernel) and returns the next frame.
 :func:`run` drives any protocol machine over a link until it finishes.
 """
 
@@ -27,7 +29,7 @@ __all__ = [
     "server_tls_context",
 ]
 
-RECV_BUFFER = 1 << 20
+RECV_BUFFER = 64 * 1024  # largest read outside a large payload
 IOV_MAX = 512
 
 
@@ -160,8 +162,6 @@ class FrameLink:
         self.channel = channel
         self.peer = peer
         self.tls = isinstance(sock, ssl.SSLSocket)
-        self._buf = bytearray(RECV_BUFFER)
-        self._view = memoryview(self._buf)
         self.bytes_in = 0
         self.bytes_out = 0
         self.closed = False
@@ -219,7 +219,7 @@ class FrameLink:
                 return None
             try:
                 self.sock.settimeout(left)
-                n = self.sock.recv_into(self._view)
+                n = self.channel.receive_into(self.sock.recv_into, RECV_BUFFER)
             except TimeoutError:
                 return None
             except (OSError, ssl.SSLError) as err:
@@ -230,7 +230,6 @@ class FrameLink:
                 self.closed = True
                 raise LocalTransferError(f"connection closed by {self.peer}")
             self.bytes_in += n
-            self.channel.receive_data(self._view[:n])
 
     def close(self) -> None:
         """Close the socket (idempotent)."""

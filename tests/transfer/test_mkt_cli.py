@@ -167,7 +167,7 @@ def start_serve(folder: Path, secret_file: Path) -> tuple[subprocess.Popen, int]
                             stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True, env=env)
     assert proc.stderr is not None
     line = proc.stderr.readline()
-    m = re.search(r"on 127\.0\.0\.1:(\d+) \(auth hmac-sha256", line)
+    m = re.search(r"on 127\.0\.0\.1:(\d+) \(auth blake2b\|hmac-sha256", line)
     assert m, line
     threading.Thread(target=proc.stderr.read, daemon=True).start()  # keep draining the log
     return proc, int(m.group(1))
