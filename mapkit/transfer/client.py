@@ -22,6 +22,7 @@ import os
 import secrets
 import socket
 import ssl
+import threading
 import time
 from collections.abc import Callable
 from typing import Any
@@ -51,10 +52,28 @@ __all__ = ["Client", "Progress", "fetch_file", "list_maps", "load_map", "offer_f
 #: ``progress(done_bytes, total_bytes)``, called a few times a second during a transfer.
 Progress = Callable[[int, int], None]
 
+#: Chunk size of the TCP client: few, large frames keep Python's per-frame work out of the way
+#: (the robot's ``max_chunk`` caps it; ROS bindings use smaller chunks).
+TCP_CHUNK_SIZE = 1 << 20
+
+# (device, inode, size, mtime, ctime) -> (sha256, md5 or None): a file sent again in this
+# process (a resumed or repeated push) is not hashed again. A stale entry cannot slip through:
+# the receiver checks the SHA-256 of what arrived, and a mismatch makes the sender hash afresh.
+_DIGESTS: dict[tuple[int, int, int, int, int], tuple[str, str | None]] = {}
+_DIGESTS_MAX = 64
+_DIGESTS_LOCK = threading.Lock()
+
 
 def offer_for_file(path: str | os.PathLike[str], *, name: str | None = None,
-                   chunk_size: int = DEFAULT_CHUNK_SIZE) -> tuple[int, Offer]:
+                   chunk_size: int = DEFAULT_CHUNK_SIZE, cached: bool = True) -> tuple[int, Offer]:
     """Open a local file and describe it: ``(fd, offer)`` (SHA-256 always, MD5 for maps).
+
+    Args:
+        path: The file.
+        name: Name to offer (default: the file's).
+        chunk_size: Bytes per chunk.
+        cached: Reuse the digests computed for this very file (same device, inode, size, mtime
+            and ctime) earlier in this process; False hashes it again.
 
     Raises:
         LocalTransferError: When the file cannot be read or the name is not a plain file name.
@@ -68,7 +87,18 @@ def offer_for_file(path: str | os.PathLike[str], *, name: str | None = None,
     try:
         st = os.fstat(fd)
         kind = kind_of(name)
-        sha, md5 = file_digests(fd, st.st_size, md5=kind == "map")
+        key = (st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns, st.st_ctime_ns)
+        with _DIGESTS_LOCK:
+            known = _DIGESTS.get(key) if cached else None
+        if known is not None and (known[1] is not None or kind != "map"):
+            sha, md5 = known[0], known[1] if kind == "map" else None
+        else:
+            sha, md5 = file_digests(fd, st.st_size, md5=kind == "map")
+            with _DIGESTS_LOCK:
+                _DIGESTS.pop(key, None)
+                _DIGESTS[key] = (sha, md5)
+                while len(_DIGESTS) > _DIGESTS_MAX:
+                    del _DIGESTS[next(iter(_DIGESTS))]
     except BaseException:
         os.close(fd)
         raise
@@ -119,7 +149,7 @@ class Client:
 
     def __init__(self, host: str, port: int = DEFAULT_PORT, *, secret: bytes | None = None,
                  insecure: bool = False, tls: ssl.SSLContext | None = None, timeout: float = 10.0,
-                 rto: float = 2.0, chunk_size: int = DEFAULT_CHUNK_SIZE, window: int = 16,
+                 rto: float = 2.0, chunk_size: int = TCP_CHUNK_SIZE, window: int = 16,
                  progress_interval: float = 0.1) -> None:
         if secret is None and not insecure:
             raise LocalTransferError("no shared secret: give --secret-file or MAPKIT_SECRET, or "
@@ -170,7 +200,7 @@ class Client:
         """
         for attempt in (1, 2):
             t0 = time.monotonic()
-            fd, offer = offer_for_file(path, name=name, chunk_size=self.chunk_size)
+            fd, offer = offer_for_file(path, name=name, chunk_size=self.chunk_size, cached=attempt == 1)
             try:
                 def read(i: int, fd: int = fd, offer: Offer = offer) -> bytes:
                     return os.pread(fd, offer.chunk_len(i), i * offer.chunk_size)

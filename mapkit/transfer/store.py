@@ -51,6 +51,7 @@ log = logging.getLogger(__name__)
 
 JOURNAL_VERSION = 1
 READ_BLOCK = 1 << 20
+THREADS_FROM = 8 << 20  # files from this size are written and hashed in background threads
 
 # Indirections so tests can inject faults (a full disk) without touching the real os module.
 _pwrite = os.pwrite
@@ -147,6 +148,8 @@ class PartialFile:
         self._last_checkpoint = time.monotonic()
         self._queues: list[queue.Queue[Any]] = []
         self._threads: list[threading.Thread] = []
+        self._stop = threading.Event()
+        self._ck_lock = threading.Lock()
         self._error: BaseException | None = None
 
     # opening ---------------------------------------------------------------------------------
@@ -270,15 +273,27 @@ class PartialFile:
                         self.name, dropped)
 
     # writing -----------------------------------------------------------------------------------
-    def start_writer(self, depth: int = 8) -> None:
-        """Write and hash in two background threads from now on, so that disk writes, the
-        SHA-256 and the network (the caller's thread) overlap. :meth:`write` then queues;
-        errors come out of the next call."""
-        if not self._threads:
+    def start_writer(self, depth: int = 8, *, min_size: int = THREADS_FROM) -> None:
+        """Work in background threads from now on, so that the network (the caller's thread),
+        the disk writes, the SHA-256 and the fsyncs overlap: one thread writes chunks, one hashes
+        them, one checkpoints (fsync, then journal) every ``checkpoint_interval`` seconds.
+        :meth:`write` then only queues; errors come out of the next call.
+
+        Args:
+            depth: Chunks queued per thread at most (then :meth:`write` waits).
+            min_size: Stay in the caller's thread when less than this many bytes are still to
+                come: for a small file, handing chunks to threads costs more than it saves.
+        """
+        todo = self.offer.size - self.resumed * self.offer.chunk_size
+        if not self._threads and todo >= min_size:
             self._queues = [queue.Queue(depth), queue.Queue(depth)]
-            for q, job, what in ((self._queues[0], self._write_now, "write"),
-                                 (self._queues[1], self._hash_now, "hash")):
-                t = threading.Thread(target=self._work, args=(q, job), daemon=True,
+            self._stop.clear()
+            jobs: list[tuple[Callable[..., None], tuple[Any, ...], str]] = [
+                (self._work, (self._queues[0], self._write_now), "write"),
+                (self._work, (self._queues[1], self._hash_now), "hash"),
+                (self._sync_loop, (), "sync")]
+            for target, args, what in jobs:
+                t = threading.Thread(target=target, args=args, daemon=True,
                                      name=f"mapkit-{what}-{self.name}")
                 t.start()
                 self._threads.append(t)
@@ -296,6 +311,14 @@ class PartialFile:
             finally:
                 q.task_done()
 
+    def _sync_loop(self) -> None:
+        while not self._stop.wait(self.checkpoint_interval):
+            if self._error is None:
+                try:
+                    self.checkpoint()
+                except BaseException as err:
+                    self._error = err
+
     def flush(self) -> None:
         """Wait until queued chunks are written and hashed.
 
@@ -309,6 +332,7 @@ class PartialFile:
             raise err
 
     def _stop_writer(self) -> None:
+        self._stop.set()
         for q in self._queues:
             q.put(None)
         for t in self._threads:
@@ -330,12 +354,17 @@ class PartialFile:
         else:
             self._write_now(index, data, crc)
             self._hash_now(index, data)
+            if time.monotonic() - self._last_checkpoint >= self.checkpoint_interval:
+                self.checkpoint()
 
     def _hash_now(self, index: int, data: bytes | bytearray | memoryview) -> None:
-        """Hash a chunk that continues the in-order prefix; others are read back at the end."""
-        if index == self._hashed:
-            self._hasher.update(data)
-            self._hashed += 1
+        """Hash a chunk that continues the in-order prefix, then the chunks after it that are
+        already on disk (they arrived ahead of it); others wait for their turn."""
+        if index != self._hashed:
+            return
+        self._hasher.update(data)
+        self._hashed += 1
+        self._catch_up()
 
     def _write_now(self, index: int, data: bytes | bytearray | memoryview, crc: int | None) -> None:
         assert self._fd is not None
@@ -347,11 +376,10 @@ class PartialFile:
                 mv, off = mv[n:], off + n
         except OSError as err:
             raise _os_error(err, f"writing {self.name}") from err
-        self.have[index] = 1
+        # the CRC first, then the bit: whoever sees the bit (checkpoint, hasher) sees both
         self.crcs[index] = zlib.crc32(data) if crc is None else crc
+        self.have[index] = 1
         self._dirty = True
-        if time.monotonic() - self._last_checkpoint >= self.checkpoint_interval:
-            self.checkpoint()
 
     def _catch_up(self) -> None:
         """Hash, in order, chunks already on disk that arrived ahead of the hash cursor."""
@@ -363,20 +391,30 @@ class PartialFile:
             self._hashed += 1
 
     def checkpoint(self) -> None:
-        """Make the chunks written so far durable and record them in the journal."""
-        if not self._dirty or self._fd is None:
-            return
-        try:
-            os.fsync(self._fd)
-            j = {"version": JOURNAL_VERSION, "name": self.name, "size": self.offer.size,
-                 "sha256": self.offer.sha256, "chunk_size": self.offer.chunk_size,
-                 "have": encode_bitmap(self.have),
-                 "crc": base64.b64encode(self.crcs.tobytes()).decode("ascii")}
-            atomic_write(self.journal, json.dumps(j).encode("utf-8"))
-        except OSError as err:
-            raise _os_error(err, f"saving the resume journal of {self.name}") from err
-        self._dirty = False
-        self._last_checkpoint = time.monotonic()
+        """Make the chunks written so far durable, then record them in the journal.
+
+        The list of chunks is taken before the fsync, so the journal never claims a chunk
+        whose data is not on disk.
+
+        Raises:
+            StoreError: ``NO_SPACE`` or ``IO_ERROR``.
+        """
+        with self._ck_lock:
+            if not self._dirty or self._fd is None:
+                return
+            self._dirty = False
+            have = encode_bitmap(self.have)  # chunks written so far (their CRCs are set)
+            crcs = self.crcs.tobytes()
+            try:
+                os.fsync(self._fd)
+                j = {"version": JOURNAL_VERSION, "name": self.name, "size": self.offer.size,
+                     "sha256": self.offer.sha256, "chunk_size": self.offer.chunk_size,
+                     "have": have, "crc": base64.b64encode(crcs).decode("ascii")}
+                atomic_write(self.journal, json.dumps(j).encode("utf-8"))
+            except OSError as err:
+                self._dirty = True
+                raise _os_error(err, f"saving the resume journal of {self.name}") from err
+            self._last_checkpoint = time.monotonic()
 
     # ending -----------------------------------------------------------------------------------------
     def finalize(self) -> dict[str, Any]:
