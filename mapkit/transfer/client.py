@@ -24,11 +24,12 @@ import socket
 import ssl
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any
 
 from mapkit.errors import LocalTransferError, TransferError
 from mapkit.transfer.protocol import (
+    AUTH_METHODS,
     DEFAULT_CHUNK_SIZE,
     DEFAULT_PORT,
     Channel,
@@ -138,9 +139,12 @@ class Client:
         chunk_size: Bytes per chunk.
         window: Chunks in flight.
         progress_interval: Seconds between progress callbacks (0: after every frame).
+        auth_methods: Per-frame tag algorithms to offer, preferred first (see
+            :data:`~mapkit.transfer.protocol.AUTH_METHODS`).
 
     Attributes:
         server: The server's HELLO_ACK (name, limits, features).
+        auth: The per-frame tag algorithm in use (``"none"`` without a secret).
 
     Raises:
         LocalTransferError: Cannot connect, or no secret and not insecure.
@@ -150,7 +154,8 @@ class Client:
     def __init__(self, host: str, port: int = DEFAULT_PORT, *, secret: bytes | None = None,
                  insecure: bool = False, tls: ssl.SSLContext | None = None, timeout: float = 10.0,
                  rto: float = 2.0, chunk_size: int = TCP_CHUNK_SIZE, window: int = 16,
-                 progress_interval: float = 0.1) -> None:
+                 progress_interval: float = 0.1,
+                 auth_methods: Sequence[str] = AUTH_METHODS) -> None:
         if secret is None and not insecure:
             raise LocalTransferError("no shared secret: give --secret-file or MAPKIT_SECRET, or "
                                      "--insecure if the robot runs without one")
@@ -163,13 +168,14 @@ class Client:
         session = int.from_bytes(secrets.token_bytes(8), "big")
         self.link = FrameLink(sock, Channel(initiator=True, session=session), peer=f"{host}:{port}")
         hs = ClientHandshake(self.link.channel, secret, peer=socket.gethostname(), rto=rto,
-                             idle_timeout=timeout)
+                             idle_timeout=timeout, auth_methods=auth_methods)
         try:
             run(self.link, hs)
         except BaseException:
             self.link.close()
             raise
         self.server = hs.server
+        self.auth = hs.auth
         max_chunk = self.server.get("max_chunk")
         if isinstance(max_chunk, int) and max_chunk > 0:
             self.chunk_size = min(self.chunk_size, max_chunk)
@@ -200,7 +206,8 @@ class Client:
         """
         for attempt in (1, 2):
             t0 = time.monotonic()
-            fd, offer = offer_for_file(path, name=name, chunk_size=self.chunk_size, cached=attempt == 1)
+            fd, offer = offer_for_file(path, name=name, chunk_size=self.chunk_size,
+                                       cached=attempt == 1)
             try:
                 def read(i: int, fd: int = fd, offer: Offer = offer) -> bytes:
                     return os.pread(fd, offer.chunk_len(i), i * offer.chunk_size)
@@ -218,7 +225,8 @@ class Client:
             finally:
                 os.close(fd)
             dt = time.monotonic() - t0
-            return {**offer.json(), "host": self.host, "chunks_sent": tx.chunks_sent,
+            return {**offer.json(), "host": self.host, "auth": self.auth,
+                    "chunks_sent": tx.chunks_sent,
                     "chunks_resent": tx.chunks_resent, "chunks_skipped": tx.chunks_skipped,
                     "chunks_distinct": len(tx.sent_indices),
                     "seconds": round(dt, 4), "mb_per_s": round(offer.size / dt / 1e6, 2) if dt else None,

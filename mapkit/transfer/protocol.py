@@ -362,7 +362,7 @@ def dump_json(obj: dict[str, Any]) -> bytes:
     return json.dumps(obj, separators=(",", ":"), ensure_ascii=False).encode("utf-8")
 
 
-def parse_json(payload: bytes, what: str = "frame") -> dict[str, Any]:
+def parse_json(payload: bytes | bytearray, what: str = "frame") -> dict[str, Any]:
     """Parse a control payload.
 
     Raises:
@@ -377,19 +377,22 @@ def parse_json(payload: bytes, what: str = "frame") -> dict[str, Any]:
     return obj
 
 
-def _tag_hmac_sha256(key: bytes, head: bytes | memoryview, payload: bytes | bytearray | memoryview) -> bytes:
+_Bytes = bytes | bytearray | memoryview
+
+
+def _tag_hmac_sha256(key: bytes, head: bytes | memoryview, payload: _Bytes) -> bytes:
     mac = hmac.new(key, head, hashlib.sha256)
     mac.update(payload)
     return mac.digest()[:TAG_SIZE]
 
 
-def _tag_blake2b(key: bytes, head: bytes | memoryview, payload: bytes | bytearray | memoryview) -> bytes:
+def _tag_blake2b(key: bytes, head: bytes | memoryview, payload: _Bytes) -> bytes:
     mac = hashlib.blake2b(head, digest_size=TAG_SIZE, key=key)
     mac.update(payload)  # hashlib releases the GIL on large buffers
     return mac.digest()
 
 
-_TAGGERS: dict[str, Callable[[bytes, bytes | memoryview, bytes | bytearray | memoryview], bytes]] = {
+_TAGGERS: dict[str, Callable[[bytes, bytes | memoryview, _Bytes], bytes]] = {
     "blake2b": _tag_blake2b,
     "hmac-sha256": _tag_hmac_sha256,
 }
@@ -683,12 +686,24 @@ class Channel:
         return self._check(head, ftype, flags, session, seq, ref, body_crc, tagged, body, tag)
 
     def _check(self, head: bytes, ftype: int, flags: int, session: int, seq: int, ref: int,
-               body_crc: int, tagged: bool, payload: bytes | bytearray, tag: bytes) -> Event | object:
+               body_crc: int, tagged: bool, payload: bytes | bytearray,
+               tag: bytes) -> Event | object:
         """CRC, session, tag and replay checks of a whole frame already taken off the buffer."""
-        crc = zlib.crc32(payload)
-        if zlib.crc32(tag, crc) != body_crc:
-            self.stats["damaged"] += 1
-            return Damaged(ftype, seq, ref)
+        handshake = ftype in (FrameType.HELLO, FrameType.HELLO_ACK)
+        key = None if handshake else self._recv_key
+        tag_ok = False
+        if key is not None and tagged and len(payload) >= _TAG_FIRST:
+            # a valid tag proves the body intact: the CRC pass is skipped, and the payload's own
+            # CRC (for the resume journal) follows from the header's CRC of payload ‖ tag
+            mine = self._tagger(key, head[:MAC_HEADER], payload)
+            tag_ok = hmac.compare_digest(mine, tag)
+        if tag_ok:
+            crc = crc32_strip(body_crc, tag)
+        else:
+            crc = zlib.crc32(payload)
+            if zlib.crc32(tag, crc) != body_crc:
+                self.stats["damaged"] += 1
+                return Damaged(ftype, seq, ref)
         # session
         if self.session is None:
             self.session = session
@@ -699,9 +714,9 @@ class Channel:
             return _AGAIN
         # authentication
         authentic = False
-        handshake = ftype in (FrameType.HELLO, FrameType.HELLO_ACK)
-        if self._recv_key is not None and not handshake:
-            if tagged and hmac.compare_digest(self._tagger(self._recv_key, head[:MAC_HEADER], payload), tag):
+        if key is not None:
+            if tag_ok or (tagged and len(payload) < _TAG_FIRST and hmac.compare_digest(
+                    self._tagger(key, head[:MAC_HEADER], payload), tag)):
                 authentic = True
             elif ftype == FrameType.REJECT and not tagged:
                 authentic = False  # an untagged refusal: delivered, marked as not authentic
@@ -740,6 +755,34 @@ class Channel:
 
 
 _AGAIN = object()
+_TAG_FIRST = 4096  # payloads from this size: check the tag first, the CRC only if the tag fails
+
+
+def _crc_table() -> tuple[list[int], dict[int, int]]:
+    table = []
+    for i in range(256):
+        c = i
+        for _ in range(8):
+            c = (c >> 1) ^ 0xEDB88320 if c & 1 else c >> 1
+        table.append(c)
+    return table, {t >> 24: i for i, t in enumerate(table)}
+
+
+_CRC_TABLE, _CRC_TOP = _crc_table()
+
+
+def crc32_strip(crc: int, tail: bytes) -> int:
+    """The CRC-32 of ``data`` from the CRC-32 of ``data ‖ tail`` (zlib's CRC run backwards).
+
+    Examples:
+        >>> crc32_strip(zlib.crc32(b"payload" + b"tag"), b"tag") == zlib.crc32(b"payload")
+        True
+    """
+    s = crc ^ 0xFFFFFFFF
+    for b in reversed(tail):
+        i = _CRC_TOP[s >> 24]
+        s = (((s ^ _CRC_TABLE[i]) << 8) & 0xFFFFFFFF) | (i ^ b)
+    return s ^ 0xFFFFFFFF
 
 
 # -- keys and secrets ----------------------------------------------------------------------------
@@ -1205,7 +1248,8 @@ class ClientHandshake(_Machine):
             if d.get("version") != VERSION:
                 raise ProtocolError(f"server chose MKT version {d.get('version')!r}", Status.BAD_VERSION)
             chosen = d.get("auth")
-            if not (chosen == self.offered or (isinstance(self.offered, list) and chosen in self.offered)):
+            if chosen != self.offered and not (isinstance(self.offered, list)
+                                               and chosen in self.offered):
                 raise AuthenticationError(f"asked for auth {self.offered!r}, server answered "
                                           f"{chosen!r}")
             self.auth = str(chosen)
@@ -1308,7 +1352,7 @@ class ServerHandshake(_Machine):
             auth = self._choose(d.get("auth"))
             nonce_c = _unhex(d.get("nonce"), NONCE_SIZE, "HELLO nonce")
             self.client = d
-            self._hello = f.payload
+            self._hello = bytes(f.payload)
             ack = {"version": VERSION, "nonce": self.nonce.hex(), "auth": auth, "peer": self.peer,
                    "software": SOFTWARE, **self.info}
             self._ack = Out(FrameType.HELLO_ACK, dump_json(ack), ref=f.ref)
@@ -1352,9 +1396,10 @@ class ServerHandshake(_Machine):
                                       "--insecure): connect with --insecure", Status.AUTH_REQUIRED)
         for m in methods:
             if m in self.auth_methods:
-                return m
+                return str(m)
         raise AuthenticationError(f"no common auth method: the client offers {methods!r}, this "
-                                  f"server accepts {list(self.auth_methods)!r}", Status.AUTH_REQUIRED)
+                                  f"server accepts {list(self.auth_methods)!r}",
+                                  Status.AUTH_REQUIRED)
 
     def resend(self, f: Frame) -> list[Out]:
         """After the handshake: answer a repeated AUTH (the client missed AUTH_OK)."""

@@ -23,7 +23,7 @@ import socket
 import ssl
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -31,6 +31,7 @@ from mapkit._atomic import atomic_write, fsync_dir
 from mapkit.errors import LocalTransferError, MapFormatError, TransferError
 from mapkit.formats.map import parse_map
 from mapkit.transfer.protocol import (
+    AUTH_METHODS,
     DEFAULT_CHUNK_SIZE,
     DEFAULT_PORT,
     AuthenticationError,
@@ -325,6 +326,8 @@ class MapServer:
             seconds ends that stale session and resumes its partial file (a terminal that lost
             its Wi-Fi and reconnects); a writer active more recently makes the push ``busy``.
         on_received: Called with each VERIFIED info dict after a push was published.
+        auth_methods: Per-frame tag algorithms accepted (see
+            :data:`~mapkit.transfer.protocol.AUTH_METHODS`); each client gets its most preferred.
 
     Examples:
         >>> import tempfile
@@ -338,7 +341,8 @@ class MapServer:
                  tls: ssl.SSLContext | None = None, push_only: bool = False, max_clients: int = 64,
                  idle_timeout: float = 30.0, max_chunk: int = 1 << 20, name: str = "",
                  rto: float = 2.0, window: int = 16, takeover_after: float = 5.0,
-                 on_received: Callable[[dict[str, Any]], None] | None = None) -> None:
+                 on_received: Callable[[dict[str, Any]], None] | None = None,
+                 auth_methods: Sequence[str] = AUTH_METHODS) -> None:
         if secret is None and not insecure:
             raise LocalTransferError("no shared secret: give --secret-file or MAPKIT_SECRET, or "
                                      "--insecure to accept anyone")
@@ -355,6 +359,7 @@ class MapServer:
         self.name = name or socket.gethostname()
         self.on_received = on_received
         self.takeover_after = takeover_after
+        self.auth_methods = tuple(auth_methods)
         self._writers: dict[str, tuple[FrameLink, Receiver]] = {}
         self._sock = listen(host, port)
         self.address: tuple[str, int] = self._sock.getsockname()[:2]
@@ -444,6 +449,7 @@ class MapServer:
     def _session(self, link: FrameLink, peer: str) -> None:
         features = ["push"] if self.push_only else ["push", "pull", "list", "load"]
         hs = ServerHandshake(link.channel, self.secret, insecure=self.insecure, peer=self.name,
+                             auth_methods=self.auth_methods,
                              info={"max_chunk": self.max_chunk, "max_size": self.folder.max_size,
                                    "features": features}, idle_timeout=self.idle_timeout)
         try:
@@ -484,6 +490,8 @@ class MapServer:
                 continue
             try:
                 last = self._request(link, ev, peer, features) or last
+            except _Ended as err:  # the peer was told (CANCEL); it may try again in this session
+                last = err.machine
             except (ProtocolError, StoreError) as err:
                 log.warning("%s: %s refused: %s", peer, FrameType(ev.type).name if ev.type in
                             FrameType._value2member_map_ else ev.type, err)
@@ -548,7 +556,7 @@ class MapServer:
             log.warning("%s: push of %s failed: %s", peer, offer.name, err)
             no_space = getattr(rx.error, "status", None) == Status.NO_SPACE
             dest.close(keep=not no_space)  # a full disk keeps no partial file
-            raise _Ended(str(err)) from err
+            raise _Ended(str(err), rx) from err
         finally:
             with self._lock:
                 if self._writers.get(dest.name, (None,))[0] is link:
@@ -600,7 +608,7 @@ class MapServer:
                 run(link, tx)
             except TransferError as err:
                 log.warning("%s: pull of %s failed: %s", peer, offer.name, err)
-                raise _Ended(str(err)) from err
+                raise _Ended(str(err), tx) from err
             log.info("%s: sent %s (%d bytes, %d chunks sent, %d skipped)", peer, offer.name,
                      offer.size, tx.chunks_sent, tx.chunks_skipped)
             return tx
@@ -609,4 +617,12 @@ class MapServer:
 
 
 class _Ended(TransferError):
-    """A transfer ended in failure; the peer was told; the session goes on."""
+    """A transfer ended in failure; the peer was told; the session goes on.
+
+    Attributes:
+        machine: The failed transfer's machine (it answers the transfer's late frames).
+    """
+
+    def __init__(self, message: str, machine: Any) -> None:
+        super().__init__(message)
+        self.machine = machine

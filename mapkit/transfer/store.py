@@ -53,8 +53,10 @@ JOURNAL_VERSION = 1
 READ_BLOCK = 1 << 20
 THREADS_FROM = 8 << 20  # files from this size are written and hashed in background threads
 
-# Indirections so tests can inject faults (a full disk) without touching the real os module.
+# Indirections so tests can inject faults (a full disk) or watch the order of writes and
+# fsyncs without touching the real os module.
 _pwrite = os.pwrite
+_fsync = os.fsync
 _fallocate = getattr(os, "posix_fallocate", None)
 
 
@@ -273,7 +275,7 @@ class PartialFile:
                         self.name, dropped)
 
     # writing -----------------------------------------------------------------------------------
-    def start_writer(self, depth: int = 8, *, min_size: int = THREADS_FROM) -> None:
+    def start_writer(self, depth: int = 8, *, min_size: int | None = None) -> None:
         """Work in background threads from now on, so that the network (the caller's thread),
         the disk writes, the SHA-256 and the fsyncs overlap: one thread writes chunks, one hashes
         them, one checkpoints (fsync, then journal) every ``checkpoint_interval`` seconds.
@@ -282,10 +284,11 @@ class PartialFile:
         Args:
             depth: Chunks queued per thread at most (then :meth:`write` waits).
             min_size: Stay in the caller's thread when less than this many bytes are still to
-                come: for a small file, handing chunks to threads costs more than it saves.
+                come (default ``THREADS_FROM``, 8 MiB): for a small file, handing chunks to
+                threads costs more than it saves.
         """
         todo = self.offer.size - self.resumed * self.offer.chunk_size
-        if not self._threads and todo >= min_size:
+        if not self._threads and todo >= (THREADS_FROM if min_size is None else min_size):
             self._queues = [queue.Queue(depth), queue.Queue(depth)]
             self._stop.clear()
             jobs: list[tuple[Callable[..., None], tuple[Any, ...], str]] = [
@@ -403,13 +406,13 @@ class PartialFile:
             if not self._dirty or self._fd is None:
                 return
             self._dirty = False
-            have = encode_bitmap(self.have)  # chunks written so far (their CRCs are set)
+            have = bytes(self.have)  # chunks written so far (their CRCs were set before)
             crcs = self.crcs.tobytes()
             try:
-                os.fsync(self._fd)
+                _fsync(self._fd)
                 j = {"version": JOURNAL_VERSION, "name": self.name, "size": self.offer.size,
                      "sha256": self.offer.sha256, "chunk_size": self.offer.chunk_size,
-                     "have": have, "crc": base64.b64encode(crcs).decode("ascii")}
+                     "have": encode_bitmap(have), "crc": base64.b64encode(crcs).decode("ascii")}
                 atomic_write(self.journal, json.dumps(j).encode("utf-8"))
             except OSError as err:
                 self._dirty = True
@@ -436,7 +439,7 @@ class PartialFile:
             if sum(self.have) != self.offer.chunks:
                 raise StoreError(f"{self.name}: finalize with chunks missing", Status.INTERNAL)
             self._catch_up()
-            os.fsync(self._fd)
+            _fsync(self._fd)
             sha = self._hasher.hexdigest()
             if sha != self.offer.sha256:
                 raise StoreChecksumError(f"{self.name}: SHA-256 of the received file is {sha}, the "

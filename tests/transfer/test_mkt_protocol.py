@@ -14,6 +14,7 @@ from hypothesis import strategies as st
 
 from mapkit.errors import TransferError
 from mapkit.transfer.protocol import (
+    AUTH_METHODS,
     HEADER_SIZE,
     AuthenticationError,
     Channel,
@@ -32,7 +33,9 @@ from mapkit.transfer.protocol import (
     ServerHandshake,
     Status,
     TransferComplete,
+    crc32_strip,
     decode_bitmap,
+    dump_json,
     encode_bitmap,
     encode_frame,
     load_secret,
@@ -46,12 +49,13 @@ SECRET = b"0123456789abcdef-test-secret"
 
 
 @given(st.binary(max_size=3000), st.integers(0, 2**32 - 1), st.sampled_from(list(FrameType)),
-       st.booleans())
-def test_frame_round_trip(payload: bytes, ref: int, ftype: FrameType, keyed: bool) -> None:
+       st.booleans(), st.sampled_from(AUTH_METHODS))
+def test_frame_round_trip(payload: bytes, ref: int, ftype: FrameType, keyed: bool,
+                          auth: str) -> None:
     tx, rx = Channel(initiator=True, session=0xABCDEF), Channel(initiator=False)
     if keyed:
-        tx.install_keys(b"k" * 32, b"s" * 32)
-        rx.install_keys(b"k" * 32, b"s" * 32)
+        tx.install_keys(b"k" * 32, b"s" * 32, auth)
+        rx.install_keys(b"k" * 32, b"s" * 32, auth)
     wire = tx.encode(Out(ftype, payload, ref=ref))
     rx.receive_data(wire)
     ev = rx.next_event()
@@ -61,11 +65,13 @@ def test_frame_round_trip(payload: bytes, ref: int, ftype: FrameType, keyed: boo
     assert rx.next_event() is None
 
 
-@given(st.binary(min_size=1, max_size=600), st.data())
-def test_any_single_bit_flip_is_detected(payload: bytes, data: st.DataObject) -> None:
+@given(st.one_of(st.binary(min_size=1, max_size=600), st.binary(min_size=4096, max_size=5000)),
+       st.sampled_from(AUTH_METHODS), st.data())
+def test_any_single_bit_flip_is_detected(payload: bytes, auth: str, data: st.DataObject) -> None:
+    # small payloads: CRC first; from 4 KiB: the tag first, the CRC only when the tag fails
     tx, rx = Channel(initiator=True, session=5), Channel(initiator=False, ordered=True)
-    tx.install_keys(b"k" * 32, b"s" * 32)
-    rx.install_keys(b"k" * 32, b"s" * 32)
+    tx.install_keys(b"k" * 32, b"s" * 32, auth)
+    rx.install_keys(b"k" * 32, b"s" * 32, auth)
     wire = bytearray(tx.encode(Out(FrameType.DATA, payload, ref=3)))
     bit = data.draw(st.integers(0, len(wire) * 8 - 1))
     wire[bit // 8] ^= 1 << (bit % 8)
@@ -108,6 +114,69 @@ def test_stream_decoder_any_split_any_garbage(frames, splits) -> None:
             got.append(ev)
     assert [f.payload for f in got] == [p for p, _ in frames]
     assert rx.stats["garbage"] == sum(len(j) for _, j in frames)
+
+
+@given(st.lists(st.tuples(st.binary(max_size=2000), st.binary(max_size=20)), min_size=1,
+                max_size=6),
+       st.lists(st.integers(1, 3000), min_size=1, max_size=10), st.integers(1, 500),
+       st.sampled_from([None, *AUTH_METHODS]))
+def test_payloads_received_in_place_any_split(frames, reads, threshold, auth) -> None:
+    """Large payloads go straight into their own buffer (receive_into), whatever the reads."""
+    tx = Channel(initiator=True, session=3)
+    rx = Channel(initiator=False, direct_threshold=threshold)
+    if auth:
+        tx.install_keys(b"k" * 32, b"s" * 32, auth)
+        rx.install_keys(b"k" * 32, b"s" * 32, auth)
+    wire = b""
+    for payload, junk in frames:
+        wire += junk.replace(b"M", b"m") + tx.encode(Out(FrameType.DATA, payload, ref=len(payload)))
+    got, pos, k = [], 0, 0
+
+    def recv(view: memoryview) -> int:
+        n = min(len(view), reads[k % len(reads)], len(wire) - pos)
+        view[:n] = wire[pos:pos + n]
+        return n
+
+    while pos < len(wire):
+        n = rx.receive_into(recv, 1024)
+        pos, k = pos + n, k + 1
+        while (ev := rx.next_event()) is not None:
+            got.append(ev)
+    assert [bytes(f.payload) for f in got] == [p for p, _ in frames]
+    assert all(f.authentic == bool(auth) for f in got)
+    assert all(f.crc == zlib.crc32(p) for f, (p, _) in zip(got, frames, strict=True))
+    assert rx.stats["garbage"] == sum(len(j) for _, j in frames) and rx.buffered == 0
+
+
+def test_damaged_large_payload_received_in_place_is_reported() -> None:
+    tx, rx = Channel(initiator=True, session=3), Channel(initiator=False, direct_threshold=100)
+    tx.install_keys(b"k" * 32, b"s" * 32, "blake2b")
+    rx.install_keys(b"k" * 32, b"s" * 32, "blake2b")
+    good = tx.encode(Out(FrameType.DATA, bytes(range(256)) * 20, ref=7))
+    bad = bytearray(tx.encode(Out(FrameType.DATA, bytes(range(256)) * 20, ref=8)))
+    bad[HEADER_SIZE + 4000] ^= 0x10
+    wire = bytes(bad) + good
+    pos = 0
+    events = []
+    while pos < len(wire):
+        piece = wire[pos:pos + 700]
+        pos += rx.receive_into(lambda v, piece=piece: _fill(v, piece), 1024)
+        while (ev := rx.next_event()) is not None:
+            events.append(ev)
+    assert events[0] == Damaged(FrameType.DATA, 2, 8)
+    assert isinstance(events[1], Frame) and events[1].ref == 7
+    assert isinstance(events[1].payload, bytearray)
+
+
+def _fill(view: memoryview, data: bytes) -> int:
+    n = min(len(view), len(data))
+    view[:n] = data[:n]
+    return n
+
+
+@given(st.binary(max_size=3000), st.binary(max_size=64))
+def test_crc32_strip_undoes_the_tail(data: bytes, tail: bytes) -> None:
+    assert crc32_strip(zlib.crc32(data + tail), tail) == zlib.crc32(data)
 
 
 def test_replayed_frame_is_refused_on_a_stream() -> None:
@@ -229,12 +298,13 @@ faults_st = st.lists(st.tuples(st.sampled_from(["ok", "drop", "flip", "dup", "la
 
 
 def run_push(data: bytes, chunk_size: int, link: Link, *, secret: bytes | None, window: int = 4,
-             have: bytearray | None = None) -> tuple[Sender, Receiver | None, bytes, list[Exception]]:
+             have: bytearray | None = None, auth: tuple[str, ...] = AUTH_METHODS,
+             ) -> tuple[Sender, Receiver | None, bytes, list[Exception]]:
     """Handshake + push over ``link`` in simulated time. Returns the machines and the bytes."""
     session = 0x1234
     cch = Channel(initiator=True, session=session, ordered=link.ordered)
     sch = Channel(initiator=False, ordered=link.ordered)
-    chs = ClientHandshake(cch, secret, rto=1.0, max_tries=8, idle_timeout=60)
+    chs = ClientHandshake(cch, secret, rto=1.0, max_tries=8, idle_timeout=60, auth_methods=auth)
     shs = ServerHandshake(sch, secret, insecure=secret is None, idle_timeout=60)
     offer = Offer.for_bytes("f.map", data, chunk_size=chunk_size)
     tx = Sender(offer, lambda i: data[i * chunk_size:(i + 1) * chunk_size], ref=1, window=window,
@@ -337,14 +407,14 @@ def run_push(data: bytes, chunk_size: int, link: Link, *, secret: bytes | None, 
 @settings(max_examples=80)
 @given(data=st.binary(max_size=5000), chunk_size=st.integers(1, 700), faults=faults_st,
        rate=st.sampled_from([0.0, 0.05, 0.2]), seed=st.integers(0, 1000), ordered=st.booleans(),
-       auth=st.booleans(), window=st.integers(1, 8))
+       auth=st.sampled_from([None, *AUTH_METHODS]), window=st.integers(1, 8))
 def test_push_over_a_hostile_link_delivers_exactly_or_fails_cleanly(
         data: bytes, chunk_size: int, faults: list[tuple[str, int]], rate: float, seed: int,
-        ordered: bool, auth: bool, window: int) -> None:
+        ordered: bool, auth: str | None, window: int) -> None:
     chunk_size = max(chunk_size, len(data) // 200 + 1)  # keep the number of chunks bounded
     link = Link(faults, rate, seed, ordered)
     tx, rx, got, errors = run_push(data, chunk_size, link, secret=SECRET if auth else None,
-                                   window=window)
+                                   window=window, auth=(auth,) if auth else AUTH_METHODS)
     if tx.finished and tx.error is None:
         assert rx is not None and rx.finished and rx.error is None
         assert got == data
@@ -396,6 +466,80 @@ def test_auth_mode_mismatch(client_secret, server_secret, insecure, match) -> No
     chs.handle(cch.next_event(), 0)
     assert isinstance(chs.error, Rejected) and chs.error.status in (Status.AUTH_REQUIRED,)
     assert match in str(chs.error)
+
+
+def _handshake(client: ClientHandshake, server: ServerHandshake, cch: Channel, sch: Channel,
+               tamper=None) -> None:
+    """Run a handshake to its end; ``tamper`` may rewrite the HELLO (a man in the middle)."""
+    hello = b"".join(cch.encode(o) for o in client.start(0))
+    sch.receive_data(tamper(hello) if tamper else hello)
+    for _ in range(3):
+        cch.receive_data(b"".join(sch.encode(o) for o in server.handle(sch.next_event(), 0)))
+        out = client.handle(cch.next_event(), 0)
+        if client.finished or not out:
+            return
+        sch.receive_data(b"".join(cch.encode(o) for o in out))
+
+
+@pytest.mark.parametrize(("offered", "accepted", "chosen"), [
+    (AUTH_METHODS, AUTH_METHODS, "blake2b"),
+    (("hmac-sha256", "blake2b"), AUTH_METHODS, "hmac-sha256"),  # the client's preference wins
+    (AUTH_METHODS, ("hmac-sha256",), "hmac-sha256"),
+    (("blake2b",), ("blake2b",), "blake2b"),
+])
+def test_tag_algorithm_is_negotiated(offered, accepted, chosen) -> None:
+    cch, sch = Channel(initiator=True, session=1), Channel(initiator=False)
+    chs = ClientHandshake(cch, SECRET, auth_methods=offered)
+    shs = ServerHandshake(sch, SECRET, auth_methods=accepted)
+    _handshake(chs, shs, cch, sch)
+    assert chs.finished and chs.error is None and shs.finished
+    assert chs.auth == shs.auth == cch.auth == sch.auth == chosen
+    # tagged with the chosen algorithm: a frame checks on the other side
+    sch.receive_data(cch.encode(Out(FrameType.LIST, b"{}", ref=1)))
+    ev = sch.next_event()
+    assert isinstance(ev, Frame) and ev.authentic
+
+
+def test_no_common_tag_algorithm_is_refused() -> None:
+    cch, sch = Channel(initiator=True, session=1), Channel(initiator=False)
+    chs = ClientHandshake(cch, SECRET, auth_methods=("blake2b",))
+    shs = ServerHandshake(sch, SECRET, auth_methods=("hmac-sha256",))
+    _handshake(chs, shs, cch, sch)
+    assert isinstance(chs.error, Rejected) and chs.error.status == Status.AUTH_REQUIRED
+    assert ("no common auth method: the client offers ['blake2b'], this server accepts "
+            "['hmac-sha256']") in str(chs.error)
+
+
+def test_a_single_string_auth_is_still_understood() -> None:
+    """A HELLO with ``"auth": "hmac-sha256"`` (the first MKT/1 clients) gets HMAC-SHA256."""
+    sch = Channel(initiator=False)
+    shs = ServerHandshake(sch, SECRET)
+    hello = {"versions": [1], "nonce": "00" * 32, "auth": "hmac-sha256", "peer": "old",
+             "software": "x"}
+    old_client = Channel(initiator=True, session=4)
+    sch.receive_data(old_client.encode(Out(FrameType.HELLO, dump_json(hello))))
+    (ack,) = shs.handle(sch.next_event(), 0)
+    assert ack.type == FrameType.HELLO_ACK and b'"auth":"hmac-sha256"' in bytes(ack.payload)
+    assert sch.auth == "hmac-sha256"
+
+
+def test_downgrade_of_the_tag_algorithm_is_detected() -> None:
+    """A man in the middle who strips BLAKE2b from the HELLO breaks the proofs (transcript)."""
+    cch, sch = Channel(initiator=True, session=1), Channel(initiator=False)
+    chs = ClientHandshake(cch, SECRET)
+    shs = ServerHandshake(sch, SECRET)
+
+    def strip(wire: bytes) -> bytes:
+        rx = Channel(initiator=False)
+        rx.receive_data(wire)
+        f = rx.next_event()
+        d = f.json()
+        d["auth"] = ["hmac-sha256"]
+        return Channel(initiator=True, session=1).encode(Out(FrameType.HELLO, dump_json(d)))
+
+    with pytest.raises(AuthenticationError, match=r"AUTH frame .seq 2. has a wrong tag"):
+        _handshake(chs, shs, cch, sch, tamper=strip)
+    assert shs.auth == "hmac-sha256" and not shs.finished
 
 
 def test_server_that_cannot_prove_the_secret_is_refused() -> None:

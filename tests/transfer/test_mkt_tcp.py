@@ -92,7 +92,11 @@ def test_one_session_many_requests(tmp_path, robot_dir, make_server) -> None:
 # -- cut connections and resume ---------------------------------------------------------------------
 
 
-def test_push_cut_at_many_points_resumes_and_resends_only_missing(tmp_path, robot_dir, make_server, proxy) -> None:
+@pytest.mark.parametrize("threads", [False, True], ids=["inline", "threads"])
+def test_push_cut_at_many_points_resumes_and_resends_only_missing(
+        tmp_path, robot_dir, make_server, proxy, monkeypatch, threads) -> None:
+    if threads:  # the robot writes, hashes and checkpoints in background threads even for this file
+        monkeypatch.setattr(store_mod, "THREADS_FROM", 0)
     chunk, n = 16 * 1024, 40
     data = os.urandom(chunk * n - 123)
     src = tmp_path / "big.2d"
@@ -168,6 +172,57 @@ def test_bit_flips_are_detected_and_repaired(tmp_path, robot_dir, make_server, p
     out = tmp_path / "back.2d"
     fetch_file(p2.address[0], "f.2d", out, port=p2.address[1], chunk_size=chunk, **client_options())
     assert out.read_bytes() == data
+
+
+# -- speed paths --------------------------------------------------------------------------------
+
+
+def test_tag_algorithm_is_negotiated_over_tcp(tmp_path, robot_dir, make_server) -> None:
+    data = os.urandom(3 * (1 << 20) + 5)  # four frames of the default 1 MiB chunk
+    src = tmp_path / "a.2d"
+    src.write_bytes(data)
+    srv = make_server()
+    r = send_file(src, *srv.address, **client_options())
+    assert r["auth"] == "blake2b" and r["chunks"] == 4 and (robot_dir / "a.2d").read_bytes() == data
+    old = make_server(auth_methods=("hmac-sha256",))
+    r = send_file(src, *old.address, name="b.2d", **client_options())
+    assert r["auth"] == "hmac-sha256" and (robot_dir / "b.2d").read_bytes() == data
+    with pytest.raises(Rejected, match=r"auth_required: no common auth method") as e:
+        send_file(src, *old.address, name="c.2d", **client_options(auth_methods=("blake2b",)))
+    assert e.value.status == Status.AUTH_REQUIRED
+    assert listing(robot_dir) == ["a.2d", "b.2d"]
+
+
+def test_sender_reuses_digests_and_recovers_from_a_stale_one(tmp_path, robot_dir, make_server,
+                                                             monkeypatch) -> None:
+    import mapkit.transfer.client as client_mod
+
+    monkeypatch.setattr(client_mod, "_DIGESTS", {})
+    calls: list[int] = []
+    real = client_mod.file_digests
+
+    def counting(fd, size, *, md5=True):
+        calls.append(size)
+        return real(fd, size, md5=md5)
+
+    monkeypatch.setattr(client_mod, "file_digests", counting)
+    data = os.urandom(50_000)
+    src = tmp_path / "c.2d"
+    src.write_bytes(data)
+    srv = make_server()
+    send_file(src, *srv.address, **client_options())
+    send_file(src, *srv.address, name="d.2d", **client_options())
+    assert len(calls) == 1  # the second send knew the file's SHA-256
+    src.write_bytes(data[::-1])  # a new file: new mtime and ctime, hashed again
+    send_file(src, *srv.address, name="e.2d", **client_options())
+    assert len(calls) == 2 and (robot_dir / "e.2d").read_bytes() == data[::-1]
+    st = os.stat(src)
+    key = (st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns, st.st_ctime_ns)
+    assert key in client_mod._DIGESTS
+    client_mod._DIGESTS[key] = ("0" * 64, None)  # a stale entry: the robot's check catches it
+    r = send_file(src, *srv.address, name="f.2d", **client_options())
+    assert len(calls) == 3 and r["sha256"] == sha(data[::-1])
+    assert (robot_dir / "f.2d").read_bytes() == data[::-1]
 
 
 # -- refusals -----------------------------------------------------------------------------------------------
@@ -428,6 +483,10 @@ def test_tls_push_and_pull(tmp_path, robot_dir, make_server, cert) -> None:
     src.write_bytes(make_map(2000))
     send_file(src, *srv.address, tls=client_tls_context(str(crt)), chunk_size=4096, **client_options())
     assert (robot_dir / "a.map").read_bytes() == src.read_bytes()
+    big = tmp_path / "big.2d"  # 1 MiB frames: payloads read in place through TLS
+    big.write_bytes(os.urandom(2_500_000))
+    send_file(big, *srv.address, tls=client_tls_context(str(crt)), **client_options())
+    assert (robot_dir / "big.2d").read_bytes() == big.read_bytes()
     with pytest.raises(LocalTransferError, match=r"TLS with 127.0.0.1:.* failed"):
         send_file(src, *srv.address, tls=client_tls_context(), **client_options())
     with pytest.raises(LocalTransferError, match=r"cannot load the TLS certificate"):
