@@ -52,10 +52,13 @@ def cli(ctx: click.Context, verbose: int, quiet: bool, debug: bool) -> None:
 
 # Commands are registered explicitly, one module per command or command group.
 from mapkit.cli import convert as _convert  # noqa: E402
+from mapkit.cli import edit as _edit  # noqa: E402
 from mapkit.cli import info as _info  # noqa: E402
 
 cli.add_command(_info.info)
 cli.add_command(_convert.convert)
+for _command in _edit.COMMANDS:
+    cli.add_command(_command)
 
 
 def main() -> None:

@@ -8,7 +8,8 @@ objects change). Write the result with :func:`mapkit.save`.
 Objects:
     :func:`add_goal`, :func:`add_dock`, :func:`add_home`, :func:`forbid_area`,
     :func:`forbid_line`, :func:`add_object` (any declared type, with parameters),
-    :func:`remove`, :func:`rename`, :func:`move`, :func:`select`, :func:`name_references`.
+    :func:`remove`, :func:`rename`, :func:`move`, :func:`select`, :func:`name_references`,
+    :func:`list_objects`.
 Data and geometry:
     :func:`erase`, :func:`draw_line`, :func:`crop`, :func:`transform` (:class:`Rigid`),
     :func:`merge`, :func:`merge_clashes`; regions are :class:`Region` (box or polygon).
@@ -32,6 +33,7 @@ Examples:
 from mapkit.edit.checks import COORD_LIMIT, SPAN_LIMIT
 from mapkit.edit.diff import DataChange, InfoChange, MapDiff, ObjectChange, ValueChange, diff
 from mapkit.edit.geometry import Rigid, rect_about_centre
+from mapkit.edit.listing import list_objects
 from mapkit.edit.ops import (
     CLASH_POLICIES,
     add_dock,
@@ -81,6 +83,7 @@ __all__ = [
     "erase",
     "forbid_area",
     "forbid_line",
+    "list_objects",
     "load_script",
     "merge",
     "merge_clashes",

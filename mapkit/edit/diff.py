@@ -1,9 +1,9 @@
 """What differs between two maps: objects, info lines, header values, points and lines.
 
-Objects are paired in three passes: identical objects first (as many as both maps hold), then
-by type and name, then by name alone (a ``Goal`` that gained a heading and became
-``GoalWithHeading`` is *changed*, not removed and added); unnamed objects left over are paired
-by type in file order when both maps have the same number of them. A pair that differs only in
+Objects are paired in passes: identical objects first (as many as both maps hold), then by type
+and name, then by name alone (a ``Goal`` that gained a heading and became ``GoalWithHeading`` is
+*changed*, not removed and added), then by type and place (a renamed object); unnamed objects
+left over are paired by type in file order when both maps have the same number of them. A pair that differs only in
 position, heading or corners is *moved*; one that differs in anything else is *changed*.
 
 Points and lines are compared as sets of integer rows (vectorised): how many rows each side has
@@ -279,6 +279,20 @@ def _pair_objects(a: Sequence[MapObject], b: Sequence[MapObject], where: str) ->
             else:
                 still.append(i)
         rest_a = still
+    # Renamed (or re-described) in place: same type and same geometry.
+    by_place: dict[Any, list[int]] = defaultdict(list)
+    for j in rest_b:
+        by_place[(b[j].type.lower(), b[j].x, b[j].y, b[j].theta, b[j].from_to)].append(j)
+    still = []
+    for i in rest_a:
+        js = by_place.get((a[i].type.lower(), a[i].x, a[i].y, a[i].theta, a[i].from_to))
+        if js:
+            j = js.pop(0)
+            pairs.append((i, j))
+            rest_b.remove(j)
+        else:
+            still.append(i)
+    rest_a = still
     # Unnamed leftovers: pair by type in file order when the counts agree.
     by_type_a: dict[str, list[int]] = defaultdict(list)
     by_type_b: dict[str, list[int]] = defaultdict(list)
