@@ -8,8 +8,9 @@ maps such a rectangle to one with ``theta' = theta + phi`` and corners shifted b
 
 Rotations by multiples of 90 degrees use exact cosines and sines (0, 1, -1), so integer data
 stays exactly integer; other angles round points and segment ends to the nearest millimetre
-(ARIA stores integers). Objects keep full float precision in memory; the writer rounds them
-(``%.0f``) as ARIA does.
+(ARIA stores integers). Objects keep full float precision in memory (values within 1e-7 mm of a whole
+millimetre are snapped to it, so float noise does not pile up); the writer rounds them (``%.0f``)
+as ARIA does.
 """
 
 from __future__ import annotations
@@ -23,6 +24,12 @@ import numpy as np
 from mapkit.model import MapObject
 
 __all__ = ["Rigid", "is_anchor", "object_centre", "rect_about_centre"]
+
+
+def _snap(v: float, tol: float = 1e-7) -> float:
+    """``v`` rounded to the nearest integer when within ``tol`` of it (float noise of a motion)."""
+    r = round(v)
+    return float(r) if abs(v - r) < tol else v
 
 
 def _cos_sin(deg: float) -> tuple[float, float]:
@@ -105,18 +112,23 @@ class Rigid:
         if is_anchor(obj):
             return obj
         if shape == "point" or obj.from_to is None:
-            x, y = self.apply_xy(obj.x, obj.y)
-            return replace(obj, x=x, y=y, theta=obj.theta + self.angle)
+            x, y = self._xy(obj.x, obj.y)
+            return replace(obj, x=x, y=y, theta=_snap(obj.theta + self.angle, 1e-9))
         fx, fy, tx, ty = obj.from_to
         if shape == "line":
-            a = self.apply_xy(fx, fy)
-            b = self.apply_xy(tx, ty)
-            x, y = self.apply_xy(obj.x, obj.y)
+            a = self._xy(fx, fy)
+            b = self._xy(tx, ty)
+            x, y = self._xy(obj.x, obj.y)
             return replace(obj, x=x, y=y, from_to=(a[0], a[1], b[0], b[1]))
-        theta = obj.theta + self.angle
+        theta = _snap(obj.theta + self.angle, 1e-9)
         dx, dy = rotate_xy(self.tx, self.ty, -theta)
-        x, y = (obj.x, obj.y) if (obj.x, obj.y) == (0.0, 0.0) else self.apply_xy(obj.x, obj.y)
-        return replace(obj, x=x, y=y, theta=theta, from_to=(fx + dx, fy + dy, tx + dx, ty + dy))
+        x, y = (obj.x, obj.y) if (obj.x, obj.y) == (0.0, 0.0) else self._xy(obj.x, obj.y)
+        return replace(obj, x=x, y=y, theta=theta,
+                       from_to=(_snap(fx + dx), _snap(fy + dy), _snap(tx + dx), _snap(ty + dy)))
+
+    def _xy(self, x: float, y: float) -> tuple[float, float]:
+        nx, ny = self.apply_xy(x, y)
+        return _snap(nx), _snap(ny)
 
 
 def is_anchor(obj: MapObject) -> bool:
