@@ -50,7 +50,7 @@ def object_json(o: MapObject) -> dict[str, Any]:
 
 
 def _fmt(v: float) -> str:
-    return "%.0f" % v if abs(v - round(v)) < 1e-9 or abs(v) >= 100 else f"{v:g}"
+    return "%.0f" % v if abs(v - round(v)) < 0.05 else "%.1f" % v
 
 
 def _where(o: MapObject) -> str:
