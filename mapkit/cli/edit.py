@@ -48,9 +48,22 @@ from mapkit.formats.map import load, save
 from mapkit.model import MapData
 
 __all__ = [
-    "add_dock_cmd", "add_goal_cmd", "add_home_cmd", "add_object_cmd", "crop_cmd", "diff_cmd",
-    "draw_line_cmd", "edit_cmd", "erase_cmd", "forbid_cmd", "merge_cmd", "move_cmd", "objects_cmd",
-    "remove_cmd", "rename_cmd", "transform_cmd",
+    "add_dock_cmd",
+    "add_goal_cmd",
+    "add_home_cmd",
+    "add_object_cmd",
+    "crop_cmd",
+    "diff_cmd",
+    "draw_line_cmd",
+    "edit_cmd",
+    "erase_cmd",
+    "forbid_cmd",
+    "merge_cmd",
+    "move_cmd",
+    "objects_cmd",
+    "remove_cmd",
+    "rename_cmd",
+    "transform_cmd",
 ]
 
 # Negative numbers as arguments: click would take "-1000" for an option otherwise.
@@ -66,8 +79,12 @@ def _writes(f: Callable[..., Any]) -> Callable[..., Any]:
     f = click.option("--dry-run", is_flag=True, help="Show what would change; write nothing.")(f)
     f = force_option(f)
     f = backup_option(f)
-    f = click.option("-o", "--output", type=click.Path(dir_okay=False),
-                     help="Write the result to OUTPUT instead of changing MAP.")(f)
+    f = click.option(
+        "-o",
+        "--output",
+        type=click.Path(dir_okay=False),
+        help="Write the result to OUTPUT instead of changing MAP.",
+    )(f)
     return f
 
 
@@ -88,14 +105,19 @@ def _polygon(text: str | None) -> list[tuple[float, float]] | None:
     try:
         vals = [float(t) for t in nums]
     except ValueError:
-        raise click.BadParameter(f"{text!r}: give vertices as 'X1,Y1 X2,Y2 X3,Y3 ...'",
-                                 param_hint="--polygon") from None
+        raise click.BadParameter(
+            f"{text!r}: give vertices as 'X1,Y1 X2,Y2 X3,Y3 ...'", param_hint="--polygon"
+        ) from None
     if len(vals) % 2:
-        raise click.BadParameter(f"{text!r}: an odd count of numbers; give X,Y pairs", param_hint="--polygon")
-    return list(zip(vals[0::2], vals[1::2]))
+        raise click.BadParameter(
+            f"{text!r}: an odd count of numbers; give X,Y pairs", param_hint="--polygon"
+        )
+    return list(zip(vals[0::2], vals[1::2], strict=False))
 
 
-def _region(box: Sequence[float] | None, polygon: str | None, *, required: bool, box_name: str = "--box") -> Region | None:
+def _region(
+    box: Sequence[float] | None, polygon: str | None, *, required: bool, box_name: str = "--box"
+) -> Region | None:
     if box and polygon is not None:
         raise click.UsageError(f"give {box_name} or --polygon, not both")
     if box:
@@ -105,7 +127,9 @@ def _region(box: Sequence[float] | None, polygon: str | None, *, required: bool,
         assert pts is not None
         return Region.polygon(pts)
     if required:
-        raise click.UsageError(f"give a region: {box_name} X1 Y1 X2 Y2 or --polygon 'X1,Y1 X2,Y2 X3,Y3 ...'")
+        raise click.UsageError(
+            f"give a region: {box_name} X1 Y1 X2 Y2 or --polygon 'X1,Y1 X2,Y2 X3,Y3 ...'"
+        )
     return None
 
 
@@ -119,7 +143,12 @@ def _apply(
     notes: Callable[[MapData, MapData], list[str]] | None = None,
 ) -> MapData:
     """Load, edit, report the changes, write atomically (unless nothing changed or a dry run)."""
-    if output and os.path.exists(output) and not force and os.path.abspath(output) != os.path.abspath(map_file):
+    if (
+        output
+        and os.path.exists(output)
+        and not force
+        and os.path.abspath(output) != os.path.abspath(map_file)
+    ):
         raise click.UsageError(f"{output} exists; add --force to overwrite it")
     m = load(map_file)
     new = edit(m)
@@ -139,17 +168,22 @@ def _apply(
         return new
     target = output or map_file
     md5 = save(new, target, backup=backup)
-    click.echo(f"wrote {target} (MD5 {md5})" + (f", previous file kept as {target}.bak" if backup else ""))
+    click.echo(
+        f"wrote {target} (MD5 {md5})" + (f", previous file kept as {target}.bak" if backup else "")
+    )
     return new
 
 
-def _reference_notes(names: Callable[[MapData], list[str]]) -> Callable[[MapData, MapData], list[str]]:
+def _reference_notes(
+    names: Callable[[MapData], list[str]],
+) -> Callable[[MapData, MapData], list[str]]:
     def notes(before: MapData, after: MapData) -> list[str]:
         out = []
         for n in names(before):
             for section, _, line in name_references(after, n):
                 out.append(f"{section}: {' '.join(line)} still names {n!r}")
         return out
+
     return notes
 
 
@@ -163,23 +197,60 @@ def _reference_notes(names: Callable[[MapData], list[str]]) -> Callable[[MapData
 @click.argument("y", type=float)
 @click.option("--heading", type=float, help="Heading in degrees (makes a GoalWithHeading).")
 @click.option("--description", default="", help="Free text stored with the goal.")
-@click.option("--type", "type_", default="Goal", show_default=True, help="A goal type the map declares.")
-@click.option("--param", "params", multiple=True, metavar="NAME=VALUE", help="A parameter of the type (repeat).")
+@click.option(
+    "--type", "type_", default="Goal", show_default=True, help="A goal type the map declares."
+)
+@click.option(
+    "--param",
+    "params",
+    multiple=True,
+    metavar="NAME=VALUE",
+    help="A parameter of the type (repeat).",
+)
 @click.option("--allow-duplicate", is_flag=True, help="Accept a name another object has.")
 @click.option("--allow-undeclared", is_flag=True, help="Accept a type the map does not declare.")
 @_writes
-def add_goal_cmd(map_file: str, name: str, x: float, y: float, heading: float | None, description: str,
-                 type_: str, params: tuple[str, ...], allow_duplicate: bool, allow_undeclared: bool,
-                 output: str | None, backup: bool, force: bool, dry_run: bool) -> None:
+def add_goal_cmd(
+    map_file: str,
+    name: str,
+    x: float,
+    y: float,
+    heading: float | None,
+    description: str,
+    type_: str,
+    params: tuple[str, ...],
+    allow_duplicate: bool,
+    allow_undeclared: bool,
+    output: str | None,
+    backup: bool,
+    force: bool,
+    dry_run: bool,
+) -> None:
     """Add a goal NAME at X Y (millimetres).
 
     \b
     Example:
       mapkit add-goal office.map Kitchen 12000 -3500 --heading 90
     """
-    _apply(map_file, output, backup, force, dry_run, lambda m: add_goal(
-        m, name, x, y, heading=heading, description=description, type=type_, params=_params(params),
-        allow_duplicate=allow_duplicate, allow_undeclared=allow_undeclared))
+    _apply(
+        map_file,
+        output,
+        backup,
+        force,
+        dry_run,
+        lambda m: add_goal(
+            m,
+            name,
+            x,
+            y,
+            heading=heading,
+            description=description,
+            type=type_,
+            params=_params(params),
+            allow_duplicate=allow_duplicate,
+            allow_undeclared=allow_undeclared,
+        ),
+    )
 
 
 @click.command("add-dock", context_settings=_SETTINGS)
@@ -189,23 +260,60 @@ def add_goal_cmd(map_file: str, name: str, x: float, y: float, heading: float | 
 @click.argument("y", type=float)
 @click.option("--heading", type=float, help="Docking heading in degrees (default 0).")
 @click.option("--description", default="", help="Free text stored with the dock.")
-@click.option("--type", "type_", default="Dock", show_default=True, help="A dock type the map declares.")
-@click.option("--param", "params", multiple=True, metavar="NAME=VALUE", help="A parameter of the type (repeat).")
+@click.option(
+    "--type", "type_", default="Dock", show_default=True, help="A dock type the map declares."
+)
+@click.option(
+    "--param",
+    "params",
+    multiple=True,
+    metavar="NAME=VALUE",
+    help="A parameter of the type (repeat).",
+)
 @click.option("--allow-duplicate", is_flag=True, help="Accept a name another object has.")
 @click.option("--allow-undeclared", is_flag=True, help="Accept a type the map does not declare.")
 @_writes
-def add_dock_cmd(map_file: str, name: str, x: float, y: float, heading: float | None, description: str,
-                 type_: str, params: tuple[str, ...], allow_duplicate: bool, allow_undeclared: bool,
-                 output: str | None, backup: bool, force: bool, dry_run: bool) -> None:
+def add_dock_cmd(
+    map_file: str,
+    name: str,
+    x: float,
+    y: float,
+    heading: float | None,
+    description: str,
+    type_: str,
+    params: tuple[str, ...],
+    allow_duplicate: bool,
+    allow_undeclared: bool,
+    output: str | None,
+    backup: bool,
+    force: bool,
+    dry_run: bool,
+) -> None:
     """Add a dock NAME at X Y.
 
     \b
     Example:
       mapkit add-dock office.map "Dock 1" -2800 -2900 --heading -90
     """
-    _apply(map_file, output, backup, force, dry_run, lambda m: add_dock(
-        m, name, x, y, heading=heading, description=description, type=type_, params=_params(params),
-        allow_duplicate=allow_duplicate, allow_undeclared=allow_undeclared))
+    _apply(
+        map_file,
+        output,
+        backup,
+        force,
+        dry_run,
+        lambda m: add_dock(
+            m,
+            name,
+            x,
+            y,
+            heading=heading,
+            description=description,
+            type=type_,
+            params=_params(params),
+            allow_duplicate=allow_duplicate,
+            allow_undeclared=allow_undeclared,
+        ),
+    )
 
 
 @click.command("add-home", context_settings=_SETTINGS)
@@ -213,17 +321,35 @@ def add_dock_cmd(map_file: str, name: str, x: float, y: float, heading: float | 
 @click.argument("x", type=float, required=False)
 @click.argument("y", type=float, required=False)
 @click.option("--heading", type=float, help="Start heading in degrees (default 0).")
-@click.option("--area", nargs=4, type=float, metavar="X1 Y1 X2 Y2", help="A start region instead of a pose.")
+@click.option(
+    "--area", nargs=4, type=float, metavar="X1 Y1 X2 Y2", help="A start region instead of a pose."
+)
 @click.option("--angle", type=float, default=0.0, help="Angle of the area in degrees.")
-@click.option("--rotate-about-centre", is_flag=True, help="Turn the area about its own centre (not the origin).")
+@click.option(
+    "--rotate-about-centre",
+    is_flag=True,
+    help="Turn the area about its own centre (not the origin).",
+)
 @click.option("--name", default="", help="Name of the home.")
 @click.option("--description", default="", help="Free text.")
 @click.option("--allow-duplicate", is_flag=True, help="Accept a name another object has.")
 @_writes
-def add_home_cmd(map_file: str, x: float | None, y: float | None, heading: float | None,
-                 area: tuple[float, ...] | None, angle: float, rotate_about_centre: bool, name: str,
-                 description: str, allow_duplicate: bool, output: str | None, backup: bool, force: bool,
-                 dry_run: bool) -> None:
+def add_home_cmd(
+    map_file: str,
+    x: float | None,
+    y: float | None,
+    heading: float | None,
+    area: tuple[float, ...] | None,
+    angle: float,
+    rotate_about_centre: bool,
+    name: str,
+    description: str,
+    allow_duplicate: bool,
+    output: str | None,
+    backup: bool,
+    force: bool,
+    dry_run: bool,
+) -> None:
     """Add a RobotHome: a start pose X Y [--heading] or a start region --area.
 
     \b
@@ -231,24 +357,66 @@ def add_home_cmd(map_file: str, x: float | None, y: float | None, heading: float
       mapkit add-home office.map 0 0 --heading 90
       mapkit add-home office.map --area -500 -500 500 500 --name Start
     """
-    _apply(map_file, output, backup, force, dry_run, lambda m: add_home(
-        m, x, y, heading=heading, area=area or None, angle=angle, rotate_about_centre=rotate_about_centre,
-        name=name, description=description, allow_duplicate=allow_duplicate))
+    _apply(
+        map_file,
+        output,
+        backup,
+        force,
+        dry_run,
+        lambda m: add_home(
+            m,
+            x,
+            y,
+            heading=heading,
+            area=area or None,
+            angle=angle,
+            rotate_about_centre=rotate_about_centre,
+            name=name,
+            description=description,
+            allow_duplicate=allow_duplicate,
+        ),
+    )
 
 
 @click.command("forbid", context_settings=_SETTINGS)
 @_map_arg
-@click.option("--area", nargs=4, type=float, metavar="X1 Y1 X2 Y2", help="A forbidden area (opposite corners).")
-@click.option("--line", nargs=4, type=float, metavar="X1 Y1 X2 Y2", help="A forbidden line (its ends).")
-@click.option("--angle", type=float, default=0.0, help="Angle of the area in degrees (ARIA turns it about the map origin).")
-@click.option("--rotate-about-centre", is_flag=True, help="Turn the area about its own centre instead.")
+@click.option(
+    "--area",
+    nargs=4,
+    type=float,
+    metavar="X1 Y1 X2 Y2",
+    help="A forbidden area (opposite corners).",
+)
+@click.option(
+    "--line", nargs=4, type=float, metavar="X1 Y1 X2 Y2", help="A forbidden line (its ends)."
+)
+@click.option(
+    "--angle",
+    type=float,
+    default=0.0,
+    help="Angle of the area in degrees (ARIA turns it about the map origin).",
+)
+@click.option(
+    "--rotate-about-centre", is_flag=True, help="Turn the area about its own centre instead."
+)
 @click.option("--name", default="", help="Name (forbidden areas and lines are usually unnamed).")
 @click.option("--description", default="", help="Free text.")
 @click.option("--allow-duplicate", is_flag=True, help="Accept a name another object has.")
 @_writes
-def forbid_cmd(map_file: str, area: tuple[float, ...] | None, line: tuple[float, ...] | None, angle: float,
-               rotate_about_centre: bool, name: str, description: str, allow_duplicate: bool,
-               output: str | None, backup: bool, force: bool, dry_run: bool) -> None:
+def forbid_cmd(
+    map_file: str,
+    area: tuple[float, ...] | None,
+    line: tuple[float, ...] | None,
+    angle: float,
+    rotate_about_centre: bool,
+    name: str,
+    description: str,
+    allow_duplicate: bool,
+    output: str | None,
+    backup: bool,
+    force: bool,
+    dry_run: bool,
+) -> None:
     """Add a ForbiddenArea (--area) or a ForbiddenLine (--line).
 
     ARIA stores a turned area as corners in a frame turned by the angle about the map origin, so
@@ -265,12 +433,39 @@ def forbid_cmd(map_file: str, area: tuple[float, ...] | None, line: tuple[float,
     if line and (angle or rotate_about_centre):
         raise click.UsageError("--angle and --rotate-about-centre are for --area")
     if area:
-        _apply(map_file, output, backup, force, dry_run, lambda m: add_object(
-            m, "ForbiddenArea", area=area, angle=angle, rotate_about_centre=rotate_about_centre, name=name,
-            description=description, allow_duplicate=allow_duplicate))
+        _apply(
+            map_file,
+            output,
+            backup,
+            force,
+            dry_run,
+            lambda m: add_object(
+                m,
+                "ForbiddenArea",
+                area=area,
+                angle=angle,
+                rotate_about_centre=rotate_about_centre,
+                name=name,
+                description=description,
+                allow_duplicate=allow_duplicate,
+            ),
+        )
     else:
-        _apply(map_file, output, backup, force, dry_run, lambda m: add_object(
-            m, "ForbiddenLine", line=line, name=name, description=description, allow_duplicate=allow_duplicate))
+        _apply(
+            map_file,
+            output,
+            backup,
+            force,
+            dry_run,
+            lambda m: add_object(
+                m,
+                "ForbiddenLine",
+                line=line,
+                name=name,
+                description=description,
+                allow_duplicate=allow_duplicate,
+            ),
+        )
 
 
 @click.command("add-object", context_settings=_SETTINGS)
@@ -278,22 +473,49 @@ def forbid_cmd(map_file: str, area: tuple[float, ...] | None, line: tuple[float,
 @click.argument("type_", metavar="TYPE")
 @click.option("--at", nargs=2, type=float, metavar="X Y", help="Position of a point object.")
 @click.option("--heading", type=float, help="Heading of a point object in degrees.")
-@click.option("--area", nargs=4, type=float, metavar="X1 Y1 X2 Y2", help="Corners of a sector (rectangle).")
+@click.option(
+    "--area", nargs=4, type=float, metavar="X1 Y1 X2 Y2", help="Corners of a sector (rectangle)."
+)
 @click.option("--angle", type=float, default=0.0, help="Angle of the area in degrees.")
-@click.option("--rotate-about-centre", is_flag=True, help="Turn the area about its own centre (not the origin).")
-@click.option("--line", nargs=4, type=float, metavar="X1 Y1 X2 Y2", help="Ends of a boundary (line).")
+@click.option(
+    "--rotate-about-centre",
+    is_flag=True,
+    help="Turn the area about its own centre (not the origin).",
+)
+@click.option(
+    "--line", nargs=4, type=float, metavar="X1 Y1 X2 Y2", help="Ends of a boundary (line)."
+)
 @click.option("--name", default="", help="Object name.")
 @click.option("--description", default="", help="Free text.")
-@click.option("--param", "params", multiple=True, metavar="NAME=VALUE",
-              help="A parameter the type declares (MapInfo: ArgDesc); repeat. Others take their defaults.")
+@click.option(
+    "--param",
+    "params",
+    multiple=True,
+    metavar="NAME=VALUE",
+    help="A parameter the type declares (MapInfo: ArgDesc); repeat. Others take their defaults.",
+)
 @click.option("--allow-undeclared", is_flag=True, help="Accept a type the map does not declare.")
 @click.option("--allow-duplicate", is_flag=True, help="Accept a name another object has.")
 @_writes
-def add_object_cmd(map_file: str, type_: str, at: tuple[float, ...] | None, heading: float | None,
-                   area: tuple[float, ...] | None, angle: float, rotate_about_centre: bool,
-                   line: tuple[float, ...] | None, name: str, description: str, params: tuple[str, ...],
-                   allow_undeclared: bool, allow_duplicate: bool, output: str | None, backup: bool,
-                   force: bool, dry_run: bool) -> None:
+def add_object_cmd(
+    map_file: str,
+    type_: str,
+    at: tuple[float, ...] | None,
+    heading: float | None,
+    area: tuple[float, ...] | None,
+    angle: float,
+    rotate_about_centre: bool,
+    line: tuple[float, ...] | None,
+    name: str,
+    description: str,
+    params: tuple[str, ...],
+    allow_undeclared: bool,
+    allow_duplicate: bool,
+    output: str | None,
+    backup: bool,
+    force: bool,
+    dry_run: bool,
+) -> None:
     """Add an object of any TYPE the map declares: sectors, boundaries, goal/dock/location types.
 
     The type's MapInfo: class decides the shape: SectorType takes --area, BoundaryType --line,
@@ -305,22 +527,42 @@ def add_object_cmd(map_file: str, type_: str, at: tuple[float, ...] | None, head
           --name Slow --param TransVelMax=300
       mapkit add-object columbia.map Measure --line 0 0 5000 0
     """
-    _apply(map_file, output, backup, force, dry_run, lambda m: add_object(
-        m, type_, at=at or None, heading=heading, area=area or None, angle=angle,
-        rotate_about_centre=rotate_about_centre, line=line or None, name=name, description=description,
-        params=_params(params), allow_undeclared=allow_undeclared, allow_duplicate=allow_duplicate))
+    _apply(
+        map_file,
+        output,
+        backup,
+        force,
+        dry_run,
+        lambda m: add_object(
+            m,
+            type_,
+            at=at or None,
+            heading=heading,
+            area=area or None,
+            angle=angle,
+            rotate_about_centre=rotate_about_centre,
+            line=line or None,
+            name=name,
+            description=description,
+            params=_params(params),
+            allow_undeclared=allow_undeclared,
+            allow_duplicate=allow_duplicate,
+        ),
+    )
 
 
 def _cell(v: Any) -> str:
     if isinstance(v, float):
-        return "%.0f" % v
+        return f"{v:.0f}"
     return str(v)
 
 
 @click.command("objects")
 @_map_arg
 @click.option("--type", "type_", help="Only this type (Goal includes GoalWithHeading).")
-@click.option("--all", "all_", is_flag=True, help="Also inactive (_Cairn:) and template child objects.")
+@click.option(
+    "--all", "all_", is_flag=True, help="Also inactive (_Cairn:) and template child objects."
+)
 @json_option
 def objects_cmd(map_file: str, type_: str | None, all_: bool, as_json: bool) -> None:
     """List the objects of MAP, numbered as #N for remove, rename and move.
@@ -338,9 +580,15 @@ def objects_cmd(map_file: str, type_: str | None, all_: bool, as_json: bool) -> 
         return
     width_t = max(4, *(len(r["type"]) for r in rows))
     width_n = max(4, *(len(r["name"]) + 2 for r in rows))
-    click.echo(f"{'#':>4}  {'type':<{width_t}}  {'name':<{width_n}}  {'x':>8} {'y':>8} {'theta':>8}  where")
+    click.echo(
+        f"{'#':>4}  {'type':<{width_t}}  {'name':<{width_n}}  {'x':>8} {'y':>8} {'theta':>8}  where"
+    )
     for r in rows:
-        idx = str(r["index"]) if r["index"] else {"inactive_objects": "_", "child_objects": "c"}[r["list"]]
+        idx = (
+            str(r["index"])
+            if r["index"]
+            else {"inactive_objects": "_", "child_objects": "c"}[r["list"]]
+        )
         if r["shape"] == "rect":
             where = "area " + " ".join(f"({x:.0f}, {y:.0f})" for x, y in r["corners"])
         elif r["shape"] == "line":
@@ -350,8 +598,10 @@ def objects_cmd(map_file: str, type_: str | None, all_: bool, as_json: bool) -> 
             where = "point"
         if r["params"]:
             where += "  " + " ".join(f"{k}={v}" for k, v in r["params"].items())
-        click.echo(f"{idx:>4}  {r['type']:<{width_t}}  {r['name']!r:<{width_n}}  {_cell(r['x']):>8} "
-                   f"{_cell(r['y']):>8} {r['theta']:>8.2f}  {where}")
+        click.echo(
+            f"{idx:>4}  {r['type']:<{width_t}}  {r['name']!r:<{width_n}}  {_cell(r['x']):>8} "
+            f"{_cell(r['y']):>8} {r['theta']:>8.2f}  {where}"
+        )
 
 
 @click.command("remove", context_settings=_SETTINGS)
@@ -360,8 +610,16 @@ def objects_cmd(map_file: str, type_: str | None, all_: bool, as_json: bool) -> 
 @click.option("--type", "type_", help="Only objects of this type.")
 @click.option("--all", "all_", is_flag=True, help="Remove every object a shared name picks.")
 @_writes
-def remove_cmd(map_file: str, names: tuple[str, ...], type_: str | None, all_: bool, output: str | None,
-               backup: bool, force: bool, dry_run: bool) -> None:
+def remove_cmd(
+    map_file: str,
+    names: tuple[str, ...],
+    type_: str | None,
+    all_: bool,
+    output: str | None,
+    backup: bool,
+    force: bool,
+    dry_run: bool,
+) -> None:
     """Remove objects by NAME (case-insensitive) or #N (see mapkit objects).
 
     \b
@@ -369,8 +627,15 @@ def remove_cmd(map_file: str, names: tuple[str, ...], type_: str | None, all_: b
       mapkit remove office.map Kitchen "Old desk"
       mapkit remove columbia.map '#3' '#4'
     """
-    _apply(map_file, output, backup, force, dry_run, lambda m: remove(m, *names, type=type_, all_matches=all_),
-           _reference_notes(lambda m: [n for n in names if not n.startswith("#")]))
+    _apply(
+        map_file,
+        output,
+        backup,
+        force,
+        dry_run,
+        lambda m: remove(m, *names, type=type_, all_matches=all_),
+        _reference_notes(lambda m: [n for n in names if not n.startswith("#")]),
+    )
 
 
 @click.command("rename", context_settings=_SETTINGS)
@@ -380,8 +645,17 @@ def remove_cmd(map_file: str, names: tuple[str, ...], type_: str | None, all_: b
 @click.option("--type", "type_", help="Only objects of this type.")
 @click.option("--allow-duplicate", is_flag=True, help="Accept a name another object has.")
 @_writes
-def rename_cmd(map_file: str, name: str, new_name: str, type_: str | None, allow_duplicate: bool,
-               output: str | None, backup: bool, force: bool, dry_run: bool) -> None:
+def rename_cmd(
+    map_file: str,
+    name: str,
+    new_name: str,
+    type_: str | None,
+    allow_duplicate: bool,
+    output: str | None,
+    backup: bool,
+    force: bool,
+    dry_run: bool,
+) -> None:
     """Rename the object NAME (or #N) to NEW_NAME; its CairnInfo: Params follow.
 
     Routes and tasks that mention the old name are reported, not changed.
@@ -390,9 +664,15 @@ def rename_cmd(map_file: str, name: str, new_name: str, type_: str | None, allow
     Example:
       mapkit rename office.map "Goal 1" Reception
     """
-    _apply(map_file, output, backup, force, dry_run,
-           lambda m: rename(m, name, new_name, type=type_, allow_duplicate=allow_duplicate),
-           _reference_notes(lambda m: [m.objects[i].name for i in select(m, name, type=type_)]))
+    _apply(
+        map_file,
+        output,
+        backup,
+        force,
+        dry_run,
+        lambda m: rename(m, name, new_name, type=type_, allow_duplicate=allow_duplicate),
+        _reference_notes(lambda m: [m.objects[i].name for i in select(m, name, type=type_)]),
+    )
 
 
 @click.command("move", context_settings=_SETTINGS)
@@ -401,12 +681,24 @@ def rename_cmd(map_file: str, name: str, new_name: str, type_: str | None, allow
 @click.argument("x", type=float, required=False)
 @click.argument("y", type=float, required=False)
 @click.option("--by", nargs=2, type=float, metavar="DX DY", help="Move by an offset instead.")
-@click.option("--heading", type=float, help="New heading in degrees (areas turn about their centre).")
+@click.option(
+    "--heading", type=float, help="New heading in degrees (areas turn about their centre)."
+)
 @click.option("--type", "type_", help="Only objects of this type.")
 @_writes
-def move_cmd(map_file: str, name: str, x: float | None, y: float | None, by: tuple[float, ...] | None,
-             heading: float | None, type_: str | None, output: str | None, backup: bool, force: bool,
-             dry_run: bool) -> None:
+def move_cmd(
+    map_file: str,
+    name: str,
+    x: float | None,
+    y: float | None,
+    by: tuple[float, ...] | None,
+    heading: float | None,
+    type_: str | None,
+    output: str | None,
+    backup: bool,
+    force: bool,
+    dry_run: bool,
+) -> None:
     """Move the object NAME (or #N) to X Y, or --by DX DY; and/or set its --heading.
 
     Lines and areas are moved so their centre lands on X Y.
@@ -416,8 +708,14 @@ def move_cmd(map_file: str, name: str, x: float | None, y: float | None, by: tup
       mapkit move office.map Kitchen 12500 -3500 --heading 180
       mapkit move office.map '#2' --by 0 250
     """
-    _apply(map_file, output, backup, force, dry_run,
-           lambda m: move(m, name, x, y, by=by or None, heading=heading, type=type_))
+    _apply(
+        map_file,
+        output,
+        backup,
+        force,
+        dry_run,
+        lambda m: move(m, name, x, y, by=by or None, heading=heading, type=type_),
+    )
 
 
 # -- data and geometry -------------------------------------------------------------------------
@@ -426,11 +724,23 @@ def move_cmd(map_file: str, name: str, x: float | None, y: float | None, by: tup
 @click.command("erase", context_settings=_SETTINGS)
 @_map_arg
 @click.option("--box", nargs=4, type=float, metavar="X1 Y1 X2 Y2", help="Erase inside this box.")
-@click.option("--polygon", metavar="'X1,Y1 X2,Y2 ...'", help="Erase inside this polygon (3 or more vertices).")
-@click.option("--source", "sources", multiple=True, help="Only this scan source (repeat; default all).")
+@click.option(
+    "--polygon", metavar="'X1,Y1 X2,Y2 ...'", help="Erase inside this polygon (3 or more vertices)."
+)
+@click.option(
+    "--source", "sources", multiple=True, help="Only this scan source (repeat; default all)."
+)
 @_writes
-def erase_cmd(map_file: str, box: tuple[float, ...] | None, polygon: str | None, sources: tuple[str, ...],
-              output: str | None, backup: bool, force: bool, dry_run: bool) -> None:
+def erase_cmd(
+    map_file: str,
+    box: tuple[float, ...] | None,
+    polygon: str | None,
+    sources: tuple[str, ...],
+    output: str | None,
+    backup: bool,
+    force: bool,
+    dry_run: bool,
+) -> None:
     """Remove the points inside a region and cut away the parts of lines inside it.
 
     The eraser for people, carts and doors the scan caught. Objects are not touched; the border
@@ -443,7 +753,14 @@ def erase_cmd(map_file: str, box: tuple[float, ...] | None, polygon: str | None,
     """
     region = _region(box, polygon, required=True)
     assert region is not None
-    _apply(map_file, output, backup, force, dry_run, lambda m: erase(m, region, sources=sources or None))
+    _apply(
+        map_file,
+        output,
+        backup,
+        force,
+        dry_run,
+        lambda m: erase(m, region, sources=sources or None),
+    )
 
 
 @click.command("draw-line", context_settings=_SETTINGS)
@@ -453,44 +770,90 @@ def erase_cmd(map_file: str, box: tuple[float, ...] | None, polygon: str | None,
 @click.argument("x2", type=float)
 @click.argument("y2", type=float)
 @click.option("--source", help="Scan source to draw into (default the first).")
-@click.option("--as-points", is_flag=True, help="Draw a row of points on the resolution grid instead of a LINES segment.")
+@click.option(
+    "--as-points",
+    is_flag=True,
+    help="Draw a row of points on the resolution grid instead of a LINES segment.",
+)
 @_writes
-def draw_line_cmd(map_file: str, x1: float, y1: float, x2: float, y2: float, source: str | None,
-                  as_points: bool, output: str | None, backup: bool, force: bool, dry_run: bool) -> None:
+def draw_line_cmd(
+    map_file: str,
+    x1: float,
+    y1: float,
+    x2: float,
+    y2: float,
+    source: str | None,
+    as_points: bool,
+    output: str | None,
+    backup: bool,
+    force: bool,
+    dry_run: bool,
+) -> None:
     """Add a line segment from X1 Y1 to X2 Y2 to the map data (a wall the scan missed).
 
     \b
     Example:
       mapkit draw-line office.map 0 0 5000 0 --as-points
     """
-    _apply(map_file, output, backup, force, dry_run,
-           lambda m: draw_line(m, x1, y1, x2, y2, source=source, as_points=as_points))
+    _apply(
+        map_file,
+        output,
+        backup,
+        force,
+        dry_run,
+        lambda m: draw_line(m, x1, y1, x2, y2, source=source, as_points=as_points),
+    )
 
 
 def _transform_notes(rotate: float) -> Callable[[MapData, MapData], list[str]]:
     def notes(before: MapData, after: MapData) -> list[str]:
         out = []
         if before.origin_lla is not None:
-            out.append("OriginLatLongAlt: is kept as it was, but it gives the latitude and longitude of "
-                       "the map origin, which moved: update it if the map is geo-referenced")
+            out.append(
+                "OriginLatLongAlt: is kept as it was, but it gives the latitude and longitude of "
+                "the map origin, which moved: update it if the map is geo-referenced"
+            )
         if rotate % 90 and any(s.resolution > 0 and s.num_points for s in before.scans):
-            out.append(f"a turn of {rotate:g} degrees takes the points off their {before.scan.resolution} mm "
-                       "grid (rounded to whole mm)")
+            out.append(
+                f"a turn of {rotate:g} degrees takes the points off their "
+                f"{before.scan.resolution} mm "
+                "grid (rounded to whole mm)"
+            )
         if before.child_objects:
-            out.append("template children (ChildCairn:) are relative to their group and were not moved")
+            out.append(
+                "template children (ChildCairn:) are relative to their group and were not moved"
+            )
         return out
+
     return notes
 
 
 @click.command("transform", context_settings=_SETTINGS)
 @_map_arg
-@click.option("--translate", nargs=2, type=float, metavar="DX DY", help="Shift by DX DY millimetres.")
+@click.option(
+    "--translate", nargs=2, type=float, metavar="DX DY", help="Shift by DX DY millimetres."
+)
 @click.option("--rotate", type=float, default=0.0, help="Turn by DEG degrees counter-clockwise.")
-@click.option("--about", nargs=2, type=float, metavar="X Y", help="Turn about this point (default the origin).")
+@click.option(
+    "--about",
+    nargs=2,
+    type=float,
+    metavar="X Y",
+    help="Turn about this point (default the origin).",
+)
 @click.option("--recenter", is_flag=True, help="First move the centre of the data to the origin.")
 @_writes
-def transform_cmd(map_file: str, translate: tuple[float, ...] | None, rotate: float, about: tuple[float, ...] | None,
-                  recenter: bool, output: str | None, backup: bool, force: bool, dry_run: bool) -> None:
+def transform_cmd(
+    map_file: str,
+    translate: tuple[float, ...] | None,
+    rotate: float,
+    about: tuple[float, ...] | None,
+    recenter: bool,
+    output: str | None,
+    backup: bool,
+    force: bool,
+    dry_run: bool,
+) -> None:
     """Move the whole map: points, lines and every object together; headings follow.
 
     Order: --recenter, then --rotate about --about, then --translate. Turned areas keep their
@@ -506,11 +869,24 @@ def transform_cmd(map_file: str, translate: tuple[float, ...] | None, rotate: fl
         raise click.UsageError("give --translate, --rotate or --recenter")
 
     def edit(m: MapData) -> MapData:
-        motion = transform_motion(m, rotate=rotate, translate=translate or (0.0, 0.0),
-                                  about=about or (0.0, 0.0), recenter=recenter)
-        err(f"motion: turn {motion.angle:g} degrees, then shift ({motion.tx:.1f}, {motion.ty:.1f}) mm")
-        return transform(m, rotate=rotate, translate=translate or (0.0, 0.0), about=about or (0.0, 0.0),
-                         recenter=recenter)
+        motion = transform_motion(
+            m,
+            rotate=rotate,
+            translate=translate or (0.0, 0.0),
+            about=about or (0.0, 0.0),
+            recenter=recenter,
+        )
+        err(
+            f"motion: turn {motion.angle:g} degrees, then shift "
+            f"({motion.tx:.1f}, {motion.ty:.1f}) mm"
+        )
+        return transform(
+            m,
+            rotate=rotate,
+            translate=translate or (0.0, 0.0),
+            about=about or (0.0, 0.0),
+            recenter=recenter,
+        )
 
     _apply(map_file, output, backup, force, dry_run, edit, _transform_notes(rotate))
 
@@ -521,8 +897,16 @@ def transform_cmd(map_file: str, translate: tuple[float, ...] | None, rotate: fl
 @click.option("--polygon", metavar="'X1,Y1 X2,Y2 ...'", help="Keep this polygon.")
 @click.option("--keep-objects", is_flag=True, help="Keep objects outside the region too.")
 @_writes
-def crop_cmd(map_file: str, box: tuple[float, ...] | None, polygon: str | None, keep_objects: bool,
-             output: str | None, backup: bool, force: bool, dry_run: bool) -> None:
+def crop_cmd(
+    map_file: str,
+    box: tuple[float, ...] | None,
+    polygon: str | None,
+    keep_objects: bool,
+    output: str | None,
+    backup: bool,
+    force: bool,
+    dry_run: bool,
+) -> None:
     """Keep only the data inside a region; objects wholly outside it are removed.
 
     \b
@@ -531,36 +915,73 @@ def crop_cmd(map_file: str, box: tuple[float, ...] | None, polygon: str | None, 
     """
     region = _region(box, polygon, required=True)
     assert region is not None
-    _apply(map_file, output, backup, force, dry_run, lambda m: crop(m, region, keep_objects=keep_objects))
+    _apply(
+        map_file,
+        output,
+        backup,
+        force,
+        dry_run,
+        lambda m: crop(m, region, keep_objects=keep_objects),
+    )
 
 
 def _merge_notes(other: MapData, on_clash: str) -> Callable[[MapData, MapData], list[str]]:
     def notes(before: MapData, after: MapData) -> list[str]:
         out = []
-        what = {"keep": "both kept", "rename": "OTHER's renamed", "base": "BASE's kept",
-                "other": "OTHER's kept", "error": ""}[on_clash]
+        what = {
+            "keep": "both kept",
+            "rename": "OTHER's renamed",
+            "base": "BASE's kept",
+            "other": "OTHER's kept",
+            "error": "",
+        }[on_clash]
         for b, o in merge_clashes(before, other):
-            out.append(f"name clash: {b.type} {b.name!r} in BASE and {o.type} {o.name!r} in OTHER ({what})")
+            out.append(
+                f"name clash: {b.type} {b.name!r} in BASE and {o.type} {o.name!r} in OTHER ({what})"
+            )
         if other.scan.resolution != before.scan.resolution:
-            out.append(f"resolutions differ: BASE {before.scan.resolution} mm, OTHER {other.scan.resolution} mm")
+            out.append(
+                f"resolutions differ: BASE {before.scan.resolution} mm, "
+                f"OTHER {other.scan.resolution} mm"
+            )
         for key, lines in other.info.items():
             if key not in ("MapInfo", "CairnInfo") and lines != before.info.get(key, ()):
                 out.append(f"OTHER's {key}: lines were not merged (BASE's kept)")
         return out
+
     return notes
 
 
 @click.command("merge", context_settings=_SETTINGS)
 @click.argument("base", type=click.Path(exists=True, dir_okay=False))
 @click.argument("other", type=click.Path(exists=True, dir_okay=False))
-@click.option("--region", nargs=4, type=float, metavar="X1 Y1 X2 Y2",
-              help="Take OTHER's data only inside this box (BASE's data there is replaced).")
+@click.option(
+    "--region",
+    nargs=4,
+    type=float,
+    metavar="X1 Y1 X2 Y2",
+    help="Take OTHER's data only inside this box (BASE's data there is replaced).",
+)
 @click.option("--polygon", metavar="'X1,Y1 X2,Y2 ...'", help="The same with a polygon.")
-@click.option("--on-clash", type=click.Choice(CLASH_POLICIES), default="keep", show_default=True,
-              help="Same name in both maps: keep both, rename OTHER's, keep BASE's or OTHER's, or refuse.")
+@click.option(
+    "--on-clash",
+    type=click.Choice(CLASH_POLICIES),
+    default="keep",
+    show_default=True,
+    help="Same name in both maps: keep both, rename OTHER's, keep BASE's or OTHER's, or refuse.",
+)
 @_writes
-def merge_cmd(base: str, other: str, region: tuple[float, ...] | None, polygon: str | None, on_clash: str,
-              output: str | None, backup: bool, force: bool, dry_run: bool) -> None:
+def merge_cmd(
+    base: str,
+    other: str,
+    region: tuple[float, ...] | None,
+    polygon: str | None,
+    on_clash: str,
+    output: str | None,
+    backup: bool,
+    force: bool,
+    dry_run: bool,
+) -> None:
     """Insert map OTHER into BASE (Mapper3's Insert Map); BASE changes unless -o.
 
     Without a region OTHER's points and lines are added; with one, the data inside it comes
@@ -572,8 +993,15 @@ def merge_cmd(base: str, other: str, region: tuple[float, ...] | None, polygon: 
     """
     reg = _region(region, polygon, required=False, box_name="--region")
     other_map = load(other)
-    _apply(base, output, backup, force, dry_run, lambda m: merge(m, other_map, region=reg, on_clash=on_clash),
-           _merge_notes(other_map, on_clash))
+    _apply(
+        base,
+        output,
+        backup,
+        force,
+        dry_run,
+        lambda m: merge(m, other_map, region=reg, on_clash=on_clash),
+        _merge_notes(other_map, on_clash),
+    )
 
 
 # -- diff and scripts --------------------------------------------------------------------------
@@ -603,8 +1031,10 @@ def diff_cmd(a: str, b: str, as_json: bool) -> None:
         click.echo(f"{a} and {b} hold the same map")
     else:
         c = d.counts()
-        click.echo(f"objects: {c['added']} added, {c['removed']} removed, {c['moved']} moved, "
-                   f"{c['changed']} changed")
+        click.echo(
+            f"objects: {c['added']} added, {c['removed']} removed, {c['moved']} moved, "
+            f"{c['changed']} changed"
+        )
         for line in d.summary():
             click.echo("  " + line)
     sys.exit(0 if d.equal else 1)
@@ -612,10 +1042,17 @@ def diff_cmd(a: str, b: str, as_json: bool) -> None:
 
 @click.command("edit")
 @_map_arg
-@click.option("--script", "script", required=True, type=click.Path(exists=True, dir_okay=False),
-              help="A YAML or JSON file of edits (see docs/edit.md).")
+@click.option(
+    "--script",
+    "script",
+    required=True,
+    type=click.Path(exists=True, dir_okay=False),
+    help="A YAML or JSON file of edits (see docs/edit.md).",
+)
 @_writes
-def edit_cmd(map_file: str, script: str, output: str | None, backup: bool, force: bool, dry_run: bool) -> None:
+def edit_cmd(
+    map_file: str, script: str, output: str | None, backup: bool, force: bool, dry_run: bool
+) -> None:
     """Apply a batch of edits from a YAML or JSON file as one atomic change.
 
     If any edit is refused, nothing is written.
@@ -627,11 +1064,31 @@ def edit_cmd(map_file: str, script: str, output: str | None, backup: bool, force
     edits = load_script(script)
     base_dir = os.path.dirname(os.path.abspath(script))
     err(f"{len(edits)} edit(s) from {script}")
-    _apply(map_file, output, backup, force, dry_run, lambda m: apply_script(m, edits, base_dir=base_dir))
+    _apply(
+        map_file,
+        output,
+        backup,
+        force,
+        dry_run,
+        lambda m: apply_script(m, edits, base_dir=base_dir),
+    )
 
 
 COMMANDS = [
-    add_goal_cmd, add_dock_cmd, add_home_cmd, forbid_cmd, add_object_cmd, objects_cmd, remove_cmd,
-    rename_cmd, move_cmd, erase_cmd, draw_line_cmd, transform_cmd, crop_cmd, merge_cmd, diff_cmd,
+    add_goal_cmd,
+    add_dock_cmd,
+    add_home_cmd,
+    forbid_cmd,
+    add_object_cmd,
+    objects_cmd,
+    remove_cmd,
+    rename_cmd,
+    move_cmd,
+    erase_cmd,
+    draw_line_cmd,
+    transform_cmd,
+    crop_cmd,
+    merge_cmd,
+    diff_cmd,
     edit_cmd,
 ]

@@ -90,7 +90,9 @@ def check_data_range(arr: np.ndarray[Any, Any], what: str) -> None:
     """Every value of an integer data array within ±:data:`COORD_LIMIT` (vectorised)."""
     if arr.size and int(np.abs(arr).max()) > COORD_LIMIT:
         bad = int(np.abs(arr).max())
-        raise EditError(f"{what}: a coordinate of {bad} mm is outside ARIA's range (±{COORD_LIMIT} mm)")
+        raise EditError(
+            f"{what}: a coordinate of {bad} mm is outside ARIA's range (±{COORD_LIMIT} mm)"
+        )
 
 
 def _span(scan: Scan) -> int:
@@ -101,7 +103,7 @@ def _span(scan: Scan) -> int:
 
 
 def check_span(before: MapData, after: MapData) -> None:
-    """Refuse a result whose data spans more than 2 km when the input's did not (ARIA refuses it)."""
+    """Refuse a result whose data spans more than 2 km when the input's did not (ARIA would)."""
     old = {s.name.lower(): _span(s) for s in before.scans}
     for s in after.scans:
         span = _span(s)
@@ -117,17 +119,21 @@ def check_text(value: Any, what: str) -> str:
     """A name or description ARIA can store: a str with no ``"`` and no line break.
 
     Examples:
-        >>> check_text('say "hi"', "name")
+        >>> check_text('say "hi"', "name")  # doctest: +ELLIPSIS
         Traceback (most recent call last):
         ...
-        mapkit.errors.EditError: name 'say "hi"' contains '"': ARIA has no escape for it in a quoted field
+        mapkit.errors.EditError: name 'say "hi"' contains '"': ARIA has no escape for it...
     """
     if not isinstance(value, str):
         raise EditError(f"{what} must be text, got {value!r}")
     if '"' in value:
-        raise EditError(f"{what} {value!r} contains '\"': ARIA has no escape for it in a quoted field")
+        raise EditError(
+            f"{what} {value!r} contains '\"': ARIA has no escape for it in a quoted field"
+        )
     if "\n" in value or "\r" in value or "\0" in value:
-        raise EditError(f"{what} {value!r} contains a line break or NUL: it would break the map line")
+        raise EditError(
+            f"{what} {value!r} contains a line break or NUL: it would break the map line"
+        )
     return value
 
 
@@ -142,10 +148,10 @@ def check_type_name(value: Any) -> str:
     Examples:
         >>> check_type_name("Sim.BoxObstacle")
         'Sim.BoxObstacle'
-        >>> check_type_name("Forbidden Area")
+        >>> check_type_name("Forbidden Area")  # doctest: +ELLIPSIS
         Traceback (most recent call last):
         ...
-        mapkit.errors.EditError: object type 'Forbidden Area' must be one word without spaces or quotes
+        mapkit.errors.EditError: object type 'Forbidden Area' must be one word without spaces...
     """
     if not isinstance(value, str) or not _TYPE_TOKEN.match(value):
         raise EditError(f"object type {value!r} must be one word without spaces or quotes")

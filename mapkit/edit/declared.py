@@ -34,14 +34,16 @@ __all__ = [
 ]
 
 #: ARIA's built-in types and the class they behave as (``RobotHome`` may be a point or a rectangle).
-BUILTIN_CLASSES: Mapping[str, str] = types.MappingProxyType({
-    "Goal": "GoalType",
-    "GoalWithHeading": "GoalType",
-    "Dock": "DockType",
-    "RobotHome": "RobotHome",
-    "ForbiddenLine": "BoundaryType",
-    "ForbiddenArea": "SectorType",
-})
+BUILTIN_CLASSES: Mapping[str, str] = types.MappingProxyType(
+    {
+        "Goal": "GoalType",
+        "GoalWithHeading": "GoalType",
+        "Dock": "DockType",
+        "RobotHome": "RobotHome",
+        "ForbiddenLine": "BoundaryType",
+        "ForbiddenArea": "SectorType",
+    }
+)
 
 _POINT_CLASSES = ("GoalType", "DockType", "LocationType")
 
@@ -84,9 +86,10 @@ def type_class(m: MapData, type: str) -> str | None:
 
     Examples:
         >>> from mapkit.formats.map import loads
-        >>> m = loads("2D-Map\\nMapInfo: SectorType Name=Slow\\nMapInfo: GoalType Name=Door\\nDATA\\n")
-        >>> type_class(m, "Slow"), type_class(m, "DoorWithHeading"), type_class(m, "Dock"), type_class(m, "X")
-        ('SectorType', 'GoalType', 'DockType', None)
+        >>> m = loads("2D-Map\\nMapInfo: SectorType Name=Slow\\n"
+        ...           "MapInfo: GoalType Name=Door\\nDATA\\n")
+        >>> [type_class(m, t) for t in ("Slow", "DoorWithHeading", "Dock", "X")]
+        ['SectorType', 'GoalType', 'DockType', None]
     """
     declared = m.declared_types()
     if type in declared:
@@ -149,8 +152,11 @@ class ArgSpec:
         try:
             num = int(text) if self.kind == "int" else float(text)
         except ValueError:
-            raise EditError(f"parameter {self.name} must be {'an integer' if self.kind == 'int' else 'a number'}, "
-                            f"got {value!r}") from None
+            raise EditError(
+                f"parameter {self.name} must be "
+                f"{'an integer' if self.kind == 'int' else 'a number'}, "
+                f"got {value!r}"
+            ) from None
         if not math.isfinite(num):
             raise EditError(f"parameter {self.name} must be finite, got {value!r}")
         if self.min is not None and num < self.min:
@@ -191,8 +197,15 @@ def type_args(m: MapData, type: str) -> list[ArgSpec]:
         if kind not in ("int", "double", "bool", "string"):
             kind = "string"
         neutral = {"int": "0", "double": "0", "bool": "false", "string": ""}[kind]
-        out.append(ArgSpec(kv["Name"], kind, kv.get("Value", neutral), _bound(kv.get("Min")),
-                           _bound(kv.get("Max"))))
+        out.append(
+            ArgSpec(
+                kv["Name"],
+                kind,
+                kv.get("Value", neutral),
+                _bound(kv.get("Min")),
+                _bound(kv.get("Max")),
+            )
+        )
     return out
 
 
@@ -232,17 +245,23 @@ def params_for_new_object(
     values = dict(values or {})
     if not specs:
         if values:
-            raise EditError(f"type {type!r} declares no parameters (no MapInfo: ArgDesc with "
-                            f"Parent={type}); got {', '.join(sorted(values))}")
+            raise EditError(
+                f"type {type!r} declares no parameters (no MapInfo: ArgDesc with "
+                f"Parent={type}); got {', '.join(sorted(values))}"
+            )
         return None
     known = {s.name.lower(): s for s in specs}
     unknown = [k for k in values if k.lower() not in known]
     if unknown:
-        raise EditError(f"unknown parameter(s) {', '.join(unknown)} for type {type!r}; it has "
-                        f"{', '.join(s.name for s in specs)}")
+        raise EditError(
+            f"unknown parameter(s) {', '.join(unknown)} for type {type!r}; it has "
+            f"{', '.join(s.name for s in specs)}"
+        )
     if not name:
         if values:
-            raise EditError(f"parameters need a named object: ARIA finds them by name (type {type!r})")
+            raise EditError(
+                f"parameters need a named object: ARIA finds them by name (type {type!r})"
+            )
         return None
     given = {k.lower(): v for k, v in values.items()}
     tokens = []
@@ -310,6 +329,6 @@ def object_params(m: MapData, obj: MapObject) -> dict[str, str]:
     lines = m.info.get("CairnInfo", ())
     i = _params_index(lines, obj.name) if obj.name else None
     if i is not None:
-        for s, tok in zip(specs, lines[i][2:]):
+        for s, tok in zip(specs, lines[i][2:], strict=False):
             values[s.name] = unquote(tok)
     return values

@@ -3,8 +3,9 @@
 Objects are paired in passes: identical objects first (as many as both maps hold), then by type
 and name, then by name alone (a ``Goal`` that gained a heading and became ``GoalWithHeading`` is
 *changed*, not removed and added), then by type and place (a renamed object); unnamed objects
-left over are paired by type in file order when both maps have the same number of them. A pair that differs only in
-position, heading or corners is *moved*; one that differs in anything else is *changed*.
+left over are paired by type in file order when both maps have the same number of them. A pair
+that differs only in position, heading or corners is *moved*; one that differs in anything else
+is *changed*.
 
 Points and lines are compared as sets of integer rows (vectorised): how many rows each side has
 that the other lacks, and the box they cover. Info lines are compared per section as multisets.
@@ -34,7 +35,15 @@ import numpy as np
 
 from mapkit.model import INFO_KEYWORDS, MapData, MapObject, Scan
 
-__all__ = ["DataChange", "InfoChange", "MapDiff", "ObjectChange", "ValueChange", "diff", "object_json"]
+__all__ = [
+    "DataChange",
+    "InfoChange",
+    "MapDiff",
+    "ObjectChange",
+    "ValueChange",
+    "diff",
+    "object_json",
+]
 
 _GEOMETRY = ("x", "y", "theta", "from_to")
 _Box = tuple[tuple[int, int], tuple[int, int]]
@@ -43,14 +52,19 @@ _Box = tuple[tuple[int, int], tuple[int, int]]
 def object_json(o: MapObject) -> dict[str, Any]:
     """An object as JSON-ready data."""
     return {
-        "type": o.type, "name": o.name, "x": o.x, "y": o.y, "theta": o.theta,
-        "description": o.description, "icon": o.icon,
+        "type": o.type,
+        "name": o.name,
+        "x": o.x,
+        "y": o.y,
+        "theta": o.theta,
+        "description": o.description,
+        "icon": o.icon,
         "from_to": list(o.from_to) if o.from_to is not None else None,
     }
 
 
 def _fmt(v: float) -> str:
-    return "%.0f" % v if abs(v - round(v)) < 0.05 else "%.1f" % v
+    return f"{v:.0f}" if abs(v - round(v)) < 0.05 else f"{v:.1f}"
 
 
 def _where(o: MapObject) -> str:
@@ -85,7 +99,9 @@ class ObjectChange:
 
     def describe(self) -> str:
         """One line of text."""
-        prefix = {"objects": "", "inactive_objects": "inactive ", "child_objects": "child "}[self.where]
+        prefix = {"objects": "", "inactive_objects": "inactive ", "child_objects": "child "}[
+            self.where
+        ]
         if self.kind == "added":
             assert self.after is not None
             return f"added {prefix}{_label(self.after)} at {_where(self.after)}"
@@ -94,7 +110,9 @@ class ObjectChange:
             return f"removed {prefix}{_label(self.before)} at {_where(self.before)}"
         assert self.before is not None and self.after is not None
         if self.kind == "moved":
-            return f"moved {prefix}{_label(self.after)}: {_where(self.before)} -> {_where(self.after)}"
+            return (
+                f"moved {prefix}{_label(self.after)}: {_where(self.before)} -> {_where(self.after)}"
+            )
         parts = []
         for f in self.fields:
             if f in _GEOMETRY:
@@ -107,7 +125,8 @@ class ObjectChange:
     def to_json(self) -> dict[str, Any]:
         """JSON-ready data."""
         return {
-            "kind": self.kind, "where": self.where,
+            "kind": self.kind,
+            "where": self.where,
             "before": object_json(self.before) if self.before else None,
             "after": object_json(self.after) if self.after else None,
             "fields": list(self.fields),
@@ -142,21 +161,36 @@ class DataChange:
         """One line of text."""
         src = f" of source {self.source!r}" if self.source else ""
         parts = []
-        for n, box, verb in ((self.added, self.added_box, "added"), (self.removed, self.removed_box, "removed")):
+        for n, box, verb in (
+            (self.added, self.added_box, "added"),
+            (self.removed, self.removed_box, "removed"),
+        ):
             if n:
                 assert box is not None
                 parts.append(f"{n} {verb} in ({box[0][0]}, {box[0][1]})-({box[1][0]}, {box[1][1]})")
         if not parts:
             parts.append("same rows, other order or repeats")
-        return f"{self.kind}{src}: " + ", ".join(parts) + f" ({self.count_before} -> {self.count_after})"
+        return (
+            f"{self.kind}{src}: "
+            + ", ".join(parts)
+            + f" ({self.count_before} -> {self.count_after})"
+        )
 
     def to_json(self) -> dict[str, Any]:
         """JSON-ready data."""
-        box = (lambda b: [list(b[0]), list(b[1])] if b else None)
+
+        def box(b: _Box | None) -> list[list[int]] | None:
+            return [list(b[0]), list(b[1])] if b else None
+
         return {
-            "source": self.source, "kind": self.kind, "added": self.added, "removed": self.removed,
-            "added_box": box(self.added_box), "removed_box": box(self.removed_box),
-            "count_before": self.count_before, "count_after": self.count_after,
+            "source": self.source,
+            "kind": self.kind,
+            "added": self.added,
+            "removed": self.removed,
+            "added_box": box(self.added_box),
+            "removed_box": box(self.removed_box),
+            "count_before": self.count_before,
+            "count_after": self.count_after,
         }
 
 
@@ -176,13 +210,17 @@ class InfoChange:
 
     def describe(self) -> list[str]:
         """One line of text per line added or removed."""
-        return ([f"+ {self.section}: {' '.join(x)}" for x in self.added]
-                + [f"- {self.section}: {' '.join(x)}" for x in self.removed])
+        return [f"+ {self.section}: {' '.join(x)}" for x in self.added] + [
+            f"- {self.section}: {' '.join(x)}" for x in self.removed
+        ]
 
     def to_json(self) -> dict[str, Any]:
         """JSON-ready data."""
-        return {"section": self.section, "added": [" ".join(x) for x in self.added],
-                "removed": [" ".join(x) for x in self.removed]}
+        return {
+            "section": self.section,
+            "added": [" ".join(x) for x in self.added],
+            "removed": [" ".join(x) for x in self.removed],
+        }
 
 
 @dataclass(frozen=True)
@@ -305,7 +343,7 @@ def _pair_objects(a: Sequence[MapObject], b: Sequence[MapObject], where: str) ->
     for t, ia in by_type_a.items():
         jb = by_type_b.get(t, [])
         if len(ia) == len(jb):
-            pairs.extend(zip(ia, jb))
+            pairs.extend(zip(ia, jb, strict=False))
             rest_a = [i for i in rest_a if i not in ia]
             rest_b = [j for j in rest_b if j not in jb]
     out = []
@@ -334,7 +372,9 @@ def _box(rows: np.ndarray[Any, Any]) -> _Box | None:
     return (int(lo[0]), int(lo[1])), (int(hi[0]), int(hi[1]))
 
 
-def _data_change(source: str, kind: str, a: np.ndarray[Any, Any], b: np.ndarray[Any, Any]) -> DataChange | None:
+def _data_change(
+    source: str, kind: str, a: np.ndarray[Any, Any], b: np.ndarray[Any, Any]
+) -> DataChange | None:
     if a is b or (a.shape == b.shape and np.array_equal(a, b)):
         return None
     if len(a) and len(b):
@@ -343,7 +383,9 @@ def _data_change(source: str, kind: str, a: np.ndarray[Any, Any], b: np.ndarray[
         only_b = b[~np.isin(kb, ka)]
     else:
         only_a, only_b = a, b
-    return DataChange(source, kind, len(only_b), len(only_a), _box(only_b), _box(only_a), len(a), len(b))
+    return DataChange(
+        source, kind, len(only_b), len(only_a), _box(only_b), _box(only_a), len(a), len(b)
+    )
 
 
 def _scan_values(sa: Scan, sb: Scan, label: str) -> list[ValueChange]:
@@ -351,7 +393,7 @@ def _scan_values(sa: Scan, sb: Scan, label: str) -> list[ValueChange]:
     for f in ("display", "resolution", "points_sorted", "lines_sorted"):
         if getattr(sa, f) != getattr(sb, f):
             out.append(ValueChange(f"{label}{f}", getattr(sa, f), getattr(sb, f)))
-    # Boxes are written only for non-empty data; they differ on their own only when the data is equal.
+    # Boxes are written only for non-empty data; on their own they differ only for equal data.
     if sa.num_points and np.array_equal(sa.points, sb.points):
         for f in ("min_pos", "max_pos"):
             if getattr(sa, f) != getattr(sb, f):
@@ -436,8 +478,12 @@ def diff(a: MapData, b: MapData) -> MapDiff:
             continue
         values.append(ValueChange("source", None, sb.name))
         for kind in ("points", "lines"):
-            ch = _data_change(sb.name, kind, np.zeros((0, 2 if kind == "points" else 4), np.int64),
-                              getattr(sb, kind))
+            ch = _data_change(
+                sb.name,
+                kind,
+                np.zeros((0, 2 if kind == "points" else 4), np.int64),
+                getattr(sb, kind),
+            )
             if ch is not None:
                 data.append(ch)
     return MapDiff(tuple(objects), tuple(info), tuple(data), tuple(values))

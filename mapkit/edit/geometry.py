@@ -8,9 +8,9 @@ maps such a rectangle to one with ``theta' = theta + phi`` and corners shifted b
 
 Rotations by multiples of 90 degrees use exact cosines and sines (0, 1, -1), so integer data
 stays exactly integer; other angles round points and segment ends to the nearest millimetre
-(ARIA stores integers). Objects keep full float precision in memory (values within 1e-7 mm of a whole
-millimetre are snapped to it, so float noise does not pile up); the writer rounds them (``%.0f``)
-as ARIA does.
+(ARIA stores integers). Objects keep full float precision in memory (values within 1e-7 mm of a
+whole millimetre are snapped to it, so float noise does not pile up); the writer rounds them
+(``%.0f``) as ARIA does.
 """
 
 from __future__ import annotations
@@ -37,7 +37,13 @@ def _cos_sin(deg: float) -> tuple[float, float]:
     q = math.fmod(deg, 360.0)
     if q < 0:
         q += 360.0
-    exact = {0.0: (1.0, 0.0), 90.0: (0.0, 1.0), 180.0: (-1.0, 0.0), 270.0: (0.0, -1.0), 360.0: (1.0, 0.0)}
+    exact = {
+        0.0: (1.0, 0.0),
+        90.0: (0.0, 1.0),
+        180.0: (-1.0, 0.0),
+        270.0: (0.0, -1.0),
+        360.0: (1.0, 0.0),
+    }
     if q in exact:
         return exact[q]
     r = math.radians(deg)
@@ -123,8 +129,13 @@ class Rigid:
         theta = _snap(obj.theta + self.angle, 1e-9)
         dx, dy = rotate_xy(self.tx, self.ty, -theta)
         x, y = (obj.x, obj.y) if (obj.x, obj.y) == (0.0, 0.0) else self._xy(obj.x, obj.y)
-        return replace(obj, x=x, y=y, theta=theta,
-                       from_to=(_snap(fx + dx), _snap(fy + dy), _snap(tx + dx), _snap(ty + dy)))
+        return replace(
+            obj,
+            x=x,
+            y=y,
+            theta=theta,
+            from_to=(_snap(fx + dx), _snap(fy + dy), _snap(tx + dx), _snap(ty + dy)),
+        )
 
     def _xy(self, x: float, y: float) -> tuple[float, float]:
         nx, ny = self.apply_xy(x, y)
@@ -132,7 +143,10 @@ class Rigid:
 
 
 def is_anchor(obj: MapObject) -> bool:
-    """A zero-size rectangle at the origin: an anchor for task lists (``FeedbackHandler``), not a place."""
+    """A zero-size rectangle at the origin: an anchor for task lists, not a place.
+
+    Omron maps use them for ``FeedbackHandler`` and ``RobotArrivalHandler`` (FORMATS.md A.7.4).
+    """
     return obj.from_to is not None and not any(obj.from_to) and obj.x == 0 and obj.y == 0
 
 
@@ -158,7 +172,8 @@ def rect_about_centre(
     Examples:
         >>> rect_about_centre(1000, 0, 3000, 1000, 90)
         (-500.0, -2500.0, 1500.0, -1500.0)
-        >>> a = MapObject("ForbiddenArea", 0, 0, 90, from_to=rect_about_centre(1000, 0, 3000, 1000, 90))
+        >>> ft = rect_about_centre(1000, 0, 3000, 1000, 90)
+        >>> a = MapObject("ForbiddenArea", 0, 0, 90, from_to=ft)
         >>> sorted(tuple(round(v) for v in c) for c in a.corners())
         [(1500, -500), (1500, 1500), (2500, -500), (2500, 1500)]
     """

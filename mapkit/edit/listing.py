@@ -11,7 +11,9 @@ from mapkit.model import MapData
 __all__ = ["list_objects"]
 
 
-def list_objects(m: MapData, *, type: str | None = None, inactive: bool = False) -> list[dict[str, Any]]:
+def list_objects(
+    m: MapData, *, type: str | None = None, inactive: bool = False
+) -> list[dict[str, Any]]:
     """One JSON-ready dict per object, numbered as selectors number them (``#N``).
 
     Args:
@@ -47,21 +49,23 @@ def list_objects(m: MapData, *, type: str | None = None, inactive: bool = False)
             elif shape == "line" and o.from_to is not None:
                 corners = [list(o.from_to[:2]), list(o.from_to[2:])]
             cx, cy = object_centre(o, shape)
-            rows.append({
-                "index": i + 1 if where == "objects" else None,
-                "list": where,
-                "type": o.type,
-                "base_type": o.base_type,
-                "shape": shape,
-                "name": o.name,
-                "description": o.description,
-                "icon": o.icon,
-                "x": o.x,
-                "y": o.y,
-                "theta": o.theta,
-                "from_to": list(o.from_to) if o.from_to is not None else None,
-                "centre": [round(cx, 3) + 0.0, round(cy, 3) + 0.0],
-                "corners": corners,
-                "params": object_params(m, o),
-            })
+            rows.append(
+                {
+                    "index": i + 1 if where == "objects" else None,
+                    "list": where,
+                    "type": o.type,
+                    "base_type": o.base_type,
+                    "shape": shape,
+                    "name": o.name,
+                    "description": o.description,
+                    "icon": o.icon,
+                    "x": o.x,
+                    "y": o.y,
+                    "theta": o.theta,
+                    "from_to": list(o.from_to) if o.from_to is not None else None,
+                    "centre": [round(cx, 3) + 0.0, round(cy, 3) + 0.0],
+                    "corners": corners,
+                    "params": object_params(m, o),
+                }
+            )
     return rows

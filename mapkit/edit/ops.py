@@ -109,7 +109,11 @@ def _check_object_range(obj: MapObject, shape: str) -> None:
     check_coord(obj.x, f"{_label(obj)}: x")
     check_coord(obj.y, f"{_label(obj)}: y")
     if obj.from_to is not None:
-        corners = obj.corners() if shape == "rect" else ((obj.from_to[0], obj.from_to[1]), (obj.from_to[2], obj.from_to[3]))
+        corners = (
+            obj.corners()
+            if shape == "rect"
+            else ((obj.from_to[0], obj.from_to[1]), (obj.from_to[2], obj.from_to[3]))
+        )
         for cx, cy in corners:
             check_coord(cx, f"{_label(obj)}: corner x")
             check_coord(cy, f"{_label(obj)}: corner y")
@@ -124,7 +128,9 @@ def _resolve_type(m: MapData, type: str, allow_undeclared: bool) -> str | None:
     check_type_name(type)
     cls = type_class(m, type)
     if cls == "CairnGroupType":
-        raise EditError(f"{type!r} is a group template (CairnGroupType); mapkit does not add groups")
+        raise EditError(
+            f"{type!r} is a group template (CairnGroupType); mapkit does not add groups"
+        )
     if cls is None and not allow_undeclared:
         raise EditError(
             f"type {type!r} is not declared in this map's MapInfo: and is not built into ARIA "
@@ -134,13 +140,18 @@ def _resolve_type(m: MapData, type: str, allow_undeclared: bool) -> str | None:
     return cls
 
 
-def _area(area: Sequence[Any], angle: float, about_centre: bool) -> tuple[tuple[float, float, float, float], float]:
+def _area(
+    area: Sequence[Any], angle: float, about_centre: bool
+) -> tuple[tuple[float, float, float, float], float]:
     if len(area) != 4:
         raise EditError(f"an area is 4 numbers X1 Y1 X2 Y2, got {len(area)}")
-    x1, y1, x2, y2 = (check_coord(v, f"area {n}") for v, n in zip(area, ("X1", "Y1", "X2", "Y2")))
+    names = ("X1", "Y1", "X2", "Y2")
+    x1, y1, x2, y2 = (check_coord(v, f"area {n}") for v, n in zip(area, names, strict=True))
     angle = check_number(angle, "angle")
     if x1 == x2 or y1 == y2:
-        raise EditError(f"the area ({x1:g}, {y1:g}) - ({x2:g}, {y2:g}) has no area (degenerate rectangle)")
+        raise EditError(
+            f"the area ({x1:g}, {y1:g}) - ({x2:g}, {y2:g}) has no area (degenerate rectangle)"
+        )
     ft = rect_about_centre(x1, y1, x2, y2, angle) if about_centre else (x1, y1, x2, y2)
     return ft, angle
 
@@ -148,10 +159,14 @@ def _area(area: Sequence[Any], angle: float, about_centre: bool) -> tuple[tuple[
 def _segment(line: Sequence[Any], what: str = "line") -> tuple[float, float, float, float]:
     if len(line) != 4:
         raise EditError(f"a {what} is 4 numbers X1 Y1 X2 Y2, got {len(line)}")
-    x1, y1, x2, y2 = (check_coord(v, f"{what} {n}") for v, n in zip(line, ("X1", "Y1", "X2", "Y2")))
+    names = ("X1", "Y1", "X2", "Y2")
+    x1, y1, x2, y2 = (check_coord(v, f"{what} {n}") for v, n in zip(line, names, strict=True))
     if x1 == x2 and y1 == y2:
         raise EditError(f"the {what} ({x1:g}, {y1:g}) - ({x2:g}, {y2:g}) has no length")
     return x1, y1, x2, y2
+
+
+_SHAPE_WORDS = {"point": "a position", "rect": "an area", "line": "a line"}
 
 
 # -- objects: add ------------------------------------------------------------------------------
@@ -209,15 +224,19 @@ def add_object(
     cls = _resolve_type(m, type, allow_undeclared)
     given = [k for k, v in (("at", at), ("area", area), ("line", line)) if v is not None]
     if len(given) != 1:
-        raise EditError(f"give exactly one of a position, an area or a line for {type!r} (got "
-                        f"{', '.join(given) or 'none'})")
+        raise EditError(
+            f"give exactly one of a position, an area or a line for {type!r} (got "
+            f"{', '.join(given) or 'none'})"
+        )
     shape = {"at": "point", "area": "rect", "line": "line"}[given[0]]
     want = shape_of_class(cls)
     if cls == "RobotHome":
         want = None if shape in ("point", "rect") else "point or area"
     if want is not None and want != shape:
-        raise EditError(f"{type!r} is a {cls}: it takes {'a position' if want == 'point' else 'an area' if want == 'rect' else want if ' ' in want else 'a line'}, "
-                        f"not {'a position' if shape == 'point' else 'an area' if shape == 'rect' else 'a line'}")
+        raise EditError(
+            f"{type!r} is a {cls}: it takes {_SHAPE_WORDS.get(want, want)}, "
+            f"not {_SHAPE_WORDS[shape]}"
+        )
     name = check_name(name)
     description = check_text(description, "description")
     if not isinstance(icon, str) or not icon or any(c.isspace() or c == '"' for c in icon):
@@ -242,12 +261,15 @@ def add_object(
     elif shape == "rect":
         assert area is not None
         ft, theta = _area(area, angle, rotate_about_centre)
-        obj = MapObject(type, 0, 0, theta, name=name, description=description, icon=icon, from_to=ft)
+        obj = MapObject(
+            type, 0, 0, theta, name=name, description=description, icon=icon, from_to=ft
+        )
     else:
         assert line is not None
         x1, y1, x2, y2 = _segment(line)
-        obj = MapObject(type, x1, y1, 0, name=name, description=description, icon=icon,
-                        from_to=(x1, y1, x2, y2))
+        obj = MapObject(
+            type, x1, y1, 0, name=name, description=description, icon=icon, from_to=(x1, y1, x2, y2)
+        )
     _check_object_range(obj, shape)
     _check_unique(m, name, allow_duplicate=allow_duplicate)
     params_line = params_for_new_object(m, obj.type, name, params)
@@ -268,17 +290,27 @@ def add_goal(
     allow_undeclared: bool = False,
     allow_duplicate: bool = False,
 ) -> MapData:
-    """Add a goal: ``Goal``, or ``GoalWithHeading`` when a heading is given (or a declared goal type).
+    """Add a goal: ``Goal``, ``GoalWithHeading`` when a heading is given, or a declared goal type.
 
     Examples:
         >>> from mapkit.model import MapData
-        >>> add_goal(MapData(), "Desk", 1000, 0, heading=-90).objects[0]
-        MapObject(type='GoalWithHeading', x=1000.0, y=0.0, theta=-90.0, name='Desk', description='', icon='ICON', from_to=None)
+        >>> g = add_goal(MapData(), "Desk", 1000, 0, heading=-90).objects[0]
+        >>> g.type, g.x, g.y, g.theta, g.name
+        ('GoalWithHeading', 1000.0, 0.0, -90.0, 'Desk')
     """
     if _resolve_type(m, type, allow_undeclared) not in ("GoalType", None):
         raise EditError(f"{type!r} is not a goal type ({type_class(m, type)})")
-    return add_object(m, type, at=(x, y), heading=heading, name=name, description=description,
-                      params=params, allow_undeclared=allow_undeclared, allow_duplicate=allow_duplicate)
+    return add_object(
+        m,
+        type,
+        at=(x, y),
+        heading=heading,
+        name=name,
+        description=description,
+        params=params,
+        allow_undeclared=allow_undeclared,
+        allow_duplicate=allow_duplicate,
+    )
 
 
 def add_dock(
@@ -297,9 +329,17 @@ def add_dock(
     """Add a dock (``Dock`` or a declared dock type); the heading is the docking direction."""
     if _resolve_type(m, type, allow_undeclared) not in ("DockType", None):
         raise EditError(f"{type!r} is not a dock type ({type_class(m, type)})")
-    return add_object(m, type, at=(x, y), heading=0.0 if heading is None else heading, name=name,
-                      description=description, params=params, allow_undeclared=allow_undeclared,
-                      allow_duplicate=allow_duplicate)
+    return add_object(
+        m,
+        type,
+        at=(x, y),
+        heading=0.0 if heading is None else heading,
+        name=name,
+        description=description,
+        params=params,
+        allow_undeclared=allow_undeclared,
+        allow_duplicate=allow_duplicate,
+    )
 
 
 def add_home(
@@ -315,16 +355,31 @@ def add_home(
     description: str = "",
     allow_duplicate: bool = False,
 ) -> MapData:
-    """Add a ``RobotHome``: a start pose (``x``, ``y``, ``heading``) or a start region (``area``)."""
+    """Add a ``RobotHome``: a start pose (``x``, ``y``, ``heading``) or a region (``area``)."""
     if area is not None:
         if x is not None or y is not None or heading is not None:
             raise EditError("give a home either a position (X Y, heading) or an area, not both")
-        return add_object(m, "RobotHome", area=area, angle=angle, rotate_about_centre=rotate_about_centre,
-                          name=name, description=description, allow_duplicate=allow_duplicate)
+        return add_object(
+            m,
+            "RobotHome",
+            area=area,
+            angle=angle,
+            rotate_about_centre=rotate_about_centre,
+            name=name,
+            description=description,
+            allow_duplicate=allow_duplicate,
+        )
     if x is None or y is None:
         raise EditError("a home needs a position X Y or an area")
-    return add_object(m, "RobotHome", at=(x, y), heading=0.0 if heading is None else heading,
-                      name=name, description=description, allow_duplicate=allow_duplicate)
+    return add_object(
+        m,
+        "RobotHome",
+        at=(x, y),
+        heading=0.0 if heading is None else heading,
+        name=name,
+        description=description,
+        allow_duplicate=allow_duplicate,
+    )
 
 
 def forbid_area(
@@ -340,19 +395,39 @@ def forbid_area(
     description: str = "",
     allow_duplicate: bool = False,
 ) -> MapData:
-    """Add a ``ForbiddenArea`` (see :func:`add_object` for ``angle`` and ``rotate_about_centre``)."""
-    return add_object(m, "ForbiddenArea", area=(x1, y1, x2, y2), angle=angle,
-                      rotate_about_centre=rotate_about_centre, name=name, description=description,
-                      allow_duplicate=allow_duplicate)
+    """Add a ``ForbiddenArea`` (see :func:`add_object` on ``angle``, ``rotate_about_centre``)."""
+    return add_object(
+        m,
+        "ForbiddenArea",
+        area=(x1, y1, x2, y2),
+        angle=angle,
+        rotate_about_centre=rotate_about_centre,
+        name=name,
+        description=description,
+        allow_duplicate=allow_duplicate,
+    )
 
 
 def forbid_line(
-    m: MapData, x1: float, y1: float, x2: float, y2: float, *, name: str = "", description: str = "",
+    m: MapData,
+    x1: float,
+    y1: float,
+    x2: float,
+    y2: float,
+    *,
+    name: str = "",
+    description: str = "",
     allow_duplicate: bool = False,
 ) -> MapData:
     """Add a ``ForbiddenLine`` from ``(x1, y1)`` to ``(x2, y2)``."""
-    return add_object(m, "ForbiddenLine", line=(x1, y1, x2, y2), name=name, description=description,
-                      allow_duplicate=allow_duplicate)
+    return add_object(
+        m,
+        "ForbiddenLine",
+        line=(x1, y1, x2, y2),
+        name=name,
+        description=description,
+        allow_duplicate=allow_duplicate,
+    )
 
 
 # -- objects: select, remove, rename, move -------------------------------------------------------
@@ -378,7 +453,8 @@ def select(m: MapData, selector: str, *, type: str | None = None) -> list[int]:
 
     Examples:
         >>> from mapkit.model import MapData
-        >>> m = MapData(objects=(MapObject("Goal", 0, 0, name="A"), MapObject("GoalWithHeading", 1, 1, name="a")))
+        >>> a, b = MapObject("Goal", 0, 0, name="A"), MapObject("GoalWithHeading", 1, 1, name="a")
+        >>> m = MapData(objects=(a, b))
         >>> select(m, "A"), select(m, "#2"), select(m, "a", type="GoalWithHeading")
         ([0, 1], [1], [1])
     """
@@ -407,8 +483,10 @@ def _select_one(m: MapData, selector: str, type: str | None) -> int:
     if len(hits) > 1:
         listed = ", ".join(f"#{i + 1} {m.objects[i].type}" for i in hits[:8])
         more = f" and {len(hits) - 8} more" if len(hits) > 8 else ""
-        raise EditError(f"{len(hits)} objects are named {selector!r} ({listed}{more}); pick one with #N "
-                        "(see mapkit objects) or narrow with a type")
+        raise EditError(
+            f"{len(hits)} objects are named {selector!r} ({listed}{more}); pick one with #N "
+            "(see mapkit objects) or narrow with a type"
+        )
     return hits[0]
 
 
@@ -420,7 +498,9 @@ def _drop_orphan_params(m: MapData, names: Iterable[str]) -> MapData:
     return m
 
 
-def remove(m: MapData, *selectors: str, type: str | None = None, all_matches: bool = False) -> MapData:
+def remove(
+    m: MapData, *selectors: str, type: str | None = None, all_matches: bool = False
+) -> MapData:
     """Remove objects (and their ``CairnInfo: Params`` lines).
 
     Args:
@@ -443,7 +523,12 @@ def remove(m: MapData, *selectors: str, type: str | None = None, all_matches: bo
 
 
 def rename(
-    m: MapData, selector: str, new_name: str, *, type: str | None = None, allow_duplicate: bool = False
+    m: MapData,
+    selector: str,
+    new_name: str,
+    *,
+    type: str | None = None,
+    allow_duplicate: bool = False,
 ) -> MapData:
     """Rename one object; its ``CairnInfo: Params`` line follows the new name.
 
@@ -454,7 +539,9 @@ def rename(
     new_name = check_name(new_name, "new name")
     obj = m.objects[i]
     cls = type_class(m, obj.type)
-    if not new_name and (cls in ("GoalType", "DockType") or type_key(m, obj.type, "NameRequired") == "1"):
+    if not new_name and (
+        cls in ("GoalType", "DockType") or type_key(m, obj.type, "NameRequired") == "1"
+    ):
         raise EditError(f"a {obj.type} needs a name")
     _check_unique(m, new_name, allow_duplicate=allow_duplicate, skip=i)
     objects = list(m.objects)
@@ -574,11 +661,15 @@ def _scan_indices(m: MapData, sources: Iterable[str] | None) -> list[int]:
         return list(range(len(m.scans)))
     out = []
     for s in sources:
-        hits = [i for i, sc in enumerate(m.scans) if sc.name.lower() == s.lower()
-                or (s == "" and sc.is_default)]
+        hits = [
+            i
+            for i, sc in enumerate(m.scans)
+            if sc.name.lower() == s.lower() or (s == "" and sc.is_default)
+        ]
         if not hits:
-            raise EditError(f"no scan source {s!r}; the map has "
-                            f"{', '.join(repr(sc.name) for sc in m.scans)}")
+            raise EditError(
+                f"no scan source {s!r}; the map has {', '.join(repr(sc.name) for sc in m.scans)}"
+            )
         out.extend(hits)
     return sorted(set(out))
 
@@ -589,7 +680,9 @@ def _row_keys(a: np.ndarray[Any, Any]) -> np.ndarray[Any, Any]:
     return a.view(np.dtype((np.void, a.dtype.itemsize * a.shape[1]))).ravel()
 
 
-def rows_not_in(a: np.ndarray[Any, Any], b: np.ndarray[Any, Any]) -> np.ndarray[Any, np.dtype[np.bool_]]:
+def rows_not_in(
+    a: np.ndarray[Any, Any], b: np.ndarray[Any, Any]
+) -> np.ndarray[Any, np.dtype[np.bool_]]:
     """Mask of the rows of ``a`` that do not occur in ``b`` (vectorised)."""
     if len(a) == 0 or len(b) == 0:
         return np.ones(len(a), dtype=bool)
@@ -618,15 +711,24 @@ def erase(m: MapData, region: Region, *, sources: Iterable[str] | None = None) -
         new_lines = cut_lines(s.lines, region)
         changed_lines = len(new_lines) != len(s.lines) or not np.array_equal(new_lines, s.lines)
         if inside.any() or changed_lines:
-            scans[i] = _update_scan(s, points=s.points[~inside] if inside.any() else None,
-                                    lines=new_lines if changed_lines else None)
-    if all(a is b for a, b in zip(scans, m.scans)):
+            scans[i] = _update_scan(
+                s,
+                points=s.points[~inside] if inside.any() else None,
+                lines=new_lines if changed_lines else None,
+            )
+    if all(a is b for a, b in zip(scans, m.scans, strict=False)):
         return m
     return m.replace(scans=tuple(scans))
 
 
 def draw_line(
-    m: MapData, x1: float, y1: float, x2: float, y2: float, *, source: str | None = None,
+    m: MapData,
+    x1: float,
+    y1: float,
+    x2: float,
+    y2: float,
+    *,
+    source: str | None = None,
     as_points: bool = False,
 ) -> MapData:
     """Add a line segment to the map data (``LINES``), or, ``as_points``, a row of points.
@@ -690,8 +792,13 @@ def crop(m: MapData, region: Region, *, keep_objects: bool = False) -> MapData:
         if inside.all() and same_lines:
             scans.append(s)
             continue
-        scans.append(_update_scan(s, points=None if inside.all() else s.points[inside],
-                                  lines=None if same_lines else new_lines))
+        scans.append(
+            _update_scan(
+                s,
+                points=None if inside.all() else s.points[inside],
+                lines=None if same_lines else new_lines,
+            )
+        )
     out = m.replace(scans=tuple(scans))
     if keep_objects:
         return out
@@ -733,7 +840,7 @@ def transform_motion(
     about: Sequence[float] = (0.0, 0.0),
     recenter: bool = False,
 ) -> Rigid:
-    """The one motion :func:`transform` applies: recenter, then rotate about ``about``, then translate."""
+    """The one motion :func:`transform` applies: recenter, rotate about ``about``, translate."""
     rot = check_number(rotate, "rotation")
     if len(translate) != 2 or len(about) != 2:
         raise EditError("a translation and a pivot are 2 numbers each")
@@ -758,7 +865,9 @@ def apply_motion(m: MapData, motion: Rigid) -> MapData:
         for arr, what in ((pts, "points"), (lns, "lines")):
             if arr is not None:
                 check_data_range(arr, f"transformed {what}")
-        scans.append(_update_scan(s, points=pts, lines=lns) if (pts is not None or lns is not None) else s)
+        scans.append(
+            _update_scan(s, points=pts, lines=lns) if (pts is not None or lns is not None) else s
+        )
     objects = []
     inactive = []
     for o in m.objects:
@@ -795,11 +904,15 @@ def transform(
         >>> m = MapData(scans=(Scan.from_arrays([[1000, 0]], [[0, 0, 1000, 0]]),),
         ...             objects=(MapObject("Dock", 1000, 0, 0, name="D"),))
         >>> t = transform(m, rotate=90, translate=(0, 500))
-        >>> t.points.tolist(), t.lines.tolist(), t.objects[0]
-        ([[0, 1500]], [[0, 500, 0, 1500]], MapObject(type='Dock', x=0.0, y=1500.0, theta=90.0, name='D', description='', icon='ICON', from_to=None))
+        >>> t.points.tolist(), t.lines.tolist()
+        ([[0, 1500]], [[0, 500, 0, 1500]])
+        >>> d = t.objects[0]
+        >>> d.x, d.y, d.theta
+        (0.0, 1500.0, 90.0)
     """
-    return apply_motion(m, transform_motion(m, rotate=rotate, translate=translate, about=about,
-                                            recenter=recenter))
+    return apply_motion(
+        m, transform_motion(m, rotate=rotate, translate=translate, about=about, recenter=recenter)
+    )
 
 
 # -- merge -------------------------------------------------------------------------------------
@@ -874,8 +987,10 @@ def merge(
             i = next((k for k, s in enumerate(scans) if s.name.lower() == os_.name.lower()), None)
         if i is None:
             if any(s.name == "" for s in scans):
-                raise EditError(f"OTHER has a scan source {os_.name!r} that BASE lacks, and BASE's "
-                                "sources have no names to put it beside")
+                raise EditError(
+                    f"OTHER has a scan source {os_.name!r} that BASE lacks, and BASE's "
+                    "sources have no names to put it beside"
+                )
             scans.append(Scan(name=os_.name, display=os_.display, resolution=os_.resolution))
             i = len(scans) - 1
         bs = scans[i]
@@ -894,7 +1009,9 @@ def merge(
         same_p = len(pts) == len(bs.points) and np.array_equal(pts, bs.points)
         same_l = len(lns) == len(bs.lines) and np.array_equal(lns, bs.lines)
         if not (same_p and same_l):
-            scans[i] = _update_scan(bs, points=None if same_p else pts, lines=None if same_l else lns)
+            scans[i] = _update_scan(
+                bs, points=None if same_p else pts, lines=None if same_l else lns
+            )
     # Objects.
     clashes = merge_clashes(base, other)
     if clashes and on_clash == "error":
@@ -921,10 +1038,18 @@ def merge(
         if o.name:
             taken.add(o.name.lower())
     objects.extend(added)
-    inactive = list(base.inactive_objects) + [o for o in other.inactive_objects if o not in base.inactive_objects]
-    children = list(base.child_objects) + [o for o in other.child_objects if o not in base.child_objects]
-    out = base.replace(scans=tuple(scans), objects=tuple(objects), inactive_objects=tuple(inactive),
-                       child_objects=tuple(children))
+    inactive = list(base.inactive_objects) + [
+        o for o in other.inactive_objects if o not in base.inactive_objects
+    ]
+    children = list(base.child_objects) + [
+        o for o in other.child_objects if o not in base.child_objects
+    ]
+    out = base.replace(
+        scans=tuple(scans),
+        objects=tuple(objects),
+        inactive_objects=tuple(inactive),
+        child_objects=tuple(children),
+    )
     # Declarations and parameters the added objects need.
     mapinfo = _merge_mapinfo(base, other)
     if mapinfo != base.info.get("MapInfo", ()):
@@ -933,14 +1058,20 @@ def merge(
         out = out.replace(info=info)
     if on_clash == "other":
         out = _drop_orphan_params(out, [b.name for b, _ in clashes])
-    base_params = {unquote(ln[1]).lower() for ln in out.info.get("CairnInfo", ()) if len(ln) > 1 and ln[0] == "Params"}
+    base_params = {
+        unquote(ln[1]).lower()
+        for ln in out.info.get("CairnInfo", ())
+        if len(ln) > 1 and ln[0] == "Params"
+    }
     added_names = {o.name.lower() for o in added if o.name}
     for line in other.info.get("CairnInfo", ()):
         if len(line) < 2 or line[0] != "Params":
             continue
         n = unquote(line[1]).lower()
         target = renamed.get(n, unquote(line[1]))
-        if target.lower() in added_names and (target.lower() not in base_params or on_clash == "other"):
+        if target.lower() in added_names and (
+            target.lower() not in base_params or on_clash == "other"
+        ):
             out = with_params(out, ("Params", f'"{target}"', *line[2:]))
     for line in other.info.get("CairnInfo", ()):
         if line and line[0] == "GroupMember" and line not in out.info.get("CairnInfo", ()):

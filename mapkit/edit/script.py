@@ -21,7 +21,8 @@ is written.
 
 Examples:
     >>> from mapkit.model import MapData
-    >>> edits = parse_script('[{"add-goal": {"name": "A", "x": 0, "y": 0}}, {"op": "rename", "name": "A", "new-name": "B"}]')
+    >>> edits = parse_script('[{"add-goal": {"name": "A", "x": 0, "y": 0}},'
+    ...                      ' {"op": "rename", "name": "A", "new-name": "B"}]')
     >>> [e.op for e in edits]
     ['add-goal', 'rename']
     >>> [o.name for o in apply_script(MapData(), edits).objects]
@@ -75,7 +76,9 @@ class Edit:
 # -- operations --------------------------------------------------------------------------------
 
 
-def _region(box: Sequence[float] | None, polygon: Sequence[Sequence[float]] | None, *, required: bool) -> Region | None:
+def _region(
+    box: Sequence[float] | None, polygon: Sequence[Sequence[float]] | None, *, required: bool
+) -> Region | None:
     if box is not None and polygon is not None:
         raise EditError("give either box or polygon, not both")
     if box is not None:
@@ -89,99 +92,236 @@ def _region(box: Sequence[float] | None, polygon: Sequence[Sequence[float]] | No
     return None
 
 
-def _add_goal(m: MapData, *, name: str, x: float, y: float, heading: float | None = None,
-              description: str = "", type: str = "Goal", params: dict[str, Any] | None = None,
-              allow_undeclared: bool = False, allow_duplicate: bool = False) -> MapData:
-    return ops.add_goal(m, name, x, y, heading=heading, description=description, type=type, params=params,
-                        allow_undeclared=allow_undeclared, allow_duplicate=allow_duplicate)
+def _add_goal(
+    m: MapData,
+    *,
+    name: str,
+    x: float,
+    y: float,
+    heading: float | None = None,
+    description: str = "",
+    type: str = "Goal",
+    params: dict[str, Any] | None = None,
+    allow_undeclared: bool = False,
+    allow_duplicate: bool = False,
+) -> MapData:
+    return ops.add_goal(
+        m,
+        name,
+        x,
+        y,
+        heading=heading,
+        description=description,
+        type=type,
+        params=params,
+        allow_undeclared=allow_undeclared,
+        allow_duplicate=allow_duplicate,
+    )
 
 
-def _add_dock(m: MapData, *, name: str, x: float, y: float, heading: float | None = None,
-              description: str = "", type: str = "Dock", params: dict[str, Any] | None = None,
-              allow_undeclared: bool = False, allow_duplicate: bool = False) -> MapData:
-    return ops.add_dock(m, name, x, y, heading=heading, description=description, type=type, params=params,
-                        allow_undeclared=allow_undeclared, allow_duplicate=allow_duplicate)
+def _add_dock(
+    m: MapData,
+    *,
+    name: str,
+    x: float,
+    y: float,
+    heading: float | None = None,
+    description: str = "",
+    type: str = "Dock",
+    params: dict[str, Any] | None = None,
+    allow_undeclared: bool = False,
+    allow_duplicate: bool = False,
+) -> MapData:
+    return ops.add_dock(
+        m,
+        name,
+        x,
+        y,
+        heading=heading,
+        description=description,
+        type=type,
+        params=params,
+        allow_undeclared=allow_undeclared,
+        allow_duplicate=allow_duplicate,
+    )
 
 
-def _add_home(m: MapData, *, x: float | None = None, y: float | None = None, heading: float | None = None,
-              area: Sequence[float] | None = None, angle: float = 0.0, rotate_about_centre: bool = False,
-              name: str = "", description: str = "", allow_duplicate: bool = False) -> MapData:
-    return ops.add_home(m, x, y, heading=heading, area=area, angle=angle,
-                        rotate_about_centre=rotate_about_centre, name=name, description=description,
-                        allow_duplicate=allow_duplicate)
+def _add_home(
+    m: MapData,
+    *,
+    x: float | None = None,
+    y: float | None = None,
+    heading: float | None = None,
+    area: Sequence[float] | None = None,
+    angle: float = 0.0,
+    rotate_about_centre: bool = False,
+    name: str = "",
+    description: str = "",
+    allow_duplicate: bool = False,
+) -> MapData:
+    return ops.add_home(
+        m,
+        x,
+        y,
+        heading=heading,
+        area=area,
+        angle=angle,
+        rotate_about_centre=rotate_about_centre,
+        name=name,
+        description=description,
+        allow_duplicate=allow_duplicate,
+    )
 
 
-def _forbid(m: MapData, *, area: Sequence[float] | None = None, line: Sequence[float] | None = None,
-            angle: float = 0.0, rotate_about_centre: bool = False, name: str = "", description: str = "",
-            allow_duplicate: bool = False) -> MapData:
+def _forbid(
+    m: MapData,
+    *,
+    area: Sequence[float] | None = None,
+    line: Sequence[float] | None = None,
+    angle: float = 0.0,
+    rotate_about_centre: bool = False,
+    name: str = "",
+    description: str = "",
+    allow_duplicate: bool = False,
+) -> MapData:
     if (area is None) == (line is None):
         raise EditError("forbid takes either area [x1, y1, x2, y2] or line [x1, y1, x2, y2]")
     if area is not None:
-        return ops.add_object(m, "ForbiddenArea", area=area, angle=angle, rotate_about_centre=rotate_about_centre,
-                              name=name, description=description, allow_duplicate=allow_duplicate)
+        return ops.add_object(
+            m,
+            "ForbiddenArea",
+            area=area,
+            angle=angle,
+            rotate_about_centre=rotate_about_centre,
+            name=name,
+            description=description,
+            allow_duplicate=allow_duplicate,
+        )
     assert line is not None
     if angle:
         raise EditError("a forbidden line has no angle")
-    return ops.add_object(m, "ForbiddenLine", line=line, name=name, description=description,
-                          allow_duplicate=allow_duplicate)
+    return ops.add_object(
+        m,
+        "ForbiddenLine",
+        line=line,
+        name=name,
+        description=description,
+        allow_duplicate=allow_duplicate,
+    )
 
 
-def _add_object(m: MapData, *, type: str, at: Sequence[float] | None = None, heading: float | None = None,
-                area: Sequence[float] | None = None, angle: float = 0.0, rotate_about_centre: bool = False,
-                line: Sequence[float] | None = None, name: str = "", description: str = "",
-                params: dict[str, Any] | None = None, allow_undeclared: bool = False,
-                allow_duplicate: bool = False) -> MapData:
-    return ops.add_object(m, type, at=at, heading=heading, area=area, angle=angle,
-                          rotate_about_centre=rotate_about_centre, line=line, name=name,
-                          description=description, params=params, allow_undeclared=allow_undeclared,
-                          allow_duplicate=allow_duplicate)
+def _add_object(
+    m: MapData,
+    *,
+    type: str,
+    at: Sequence[float] | None = None,
+    heading: float | None = None,
+    area: Sequence[float] | None = None,
+    angle: float = 0.0,
+    rotate_about_centre: bool = False,
+    line: Sequence[float] | None = None,
+    name: str = "",
+    description: str = "",
+    params: dict[str, Any] | None = None,
+    allow_undeclared: bool = False,
+    allow_duplicate: bool = False,
+) -> MapData:
+    return ops.add_object(
+        m,
+        type,
+        at=at,
+        heading=heading,
+        area=area,
+        angle=angle,
+        rotate_about_centre=rotate_about_centre,
+        line=line,
+        name=name,
+        description=description,
+        params=params,
+        allow_undeclared=allow_undeclared,
+        allow_duplicate=allow_duplicate,
+    )
 
 
-def _remove(m: MapData, *, names: str | Sequence[str], type: str | None = None, all: bool = False) -> MapData:
+def _remove(
+    m: MapData, *, names: str | Sequence[str], type: str | None = None, all: bool = False
+) -> MapData:
     if isinstance(names, str):
         names = [names]
     return ops.remove(m, *names, type=type, all_matches=all)
 
 
-def _rename(m: MapData, *, name: str, new_name: str, type: str | None = None,
-            allow_duplicate: bool = False) -> MapData:
+def _rename(
+    m: MapData, *, name: str, new_name: str, type: str | None = None, allow_duplicate: bool = False
+) -> MapData:
     return ops.rename(m, name, new_name, type=type, allow_duplicate=allow_duplicate)
 
 
-def _move(m: MapData, *, name: str, x: float | None = None, y: float | None = None,
-          by: Sequence[float] | None = None, heading: float | None = None, type: str | None = None) -> MapData:
+def _move(
+    m: MapData,
+    *,
+    name: str,
+    x: float | None = None,
+    y: float | None = None,
+    by: Sequence[float] | None = None,
+    heading: float | None = None,
+    type: str | None = None,
+) -> MapData:
     return ops.move(m, name, x, y, by=by, heading=heading, type=type)
 
 
-def _erase(m: MapData, *, box: Sequence[float] | None = None, polygon: Sequence[Sequence[float]] | None = None,
-           sources: Sequence[str] | None = None) -> MapData:
+def _erase(
+    m: MapData,
+    *,
+    box: Sequence[float] | None = None,
+    polygon: Sequence[Sequence[float]] | None = None,
+    sources: Sequence[str] | None = None,
+) -> MapData:
     region = _region(box, polygon, required=True)
     assert region is not None
     return ops.erase(m, region, sources=sources)
 
 
-def _draw_line(m: MapData, *, line: Sequence[float], source: str | None = None,
-               as_points: bool = False) -> MapData:
+def _draw_line(
+    m: MapData, *, line: Sequence[float], source: str | None = None, as_points: bool = False
+) -> MapData:
     if not isinstance(line, (list, tuple)) or len(line) != 4:
         raise EditError(f"line is [x1, y1, x2, y2], got {line!r}")
     return ops.draw_line(m, *line, source=source, as_points=as_points)
 
 
-def _transform(m: MapData, *, rotate: float = 0.0, translate: Sequence[float] = (0.0, 0.0),
-               about: Sequence[float] = (0.0, 0.0), recenter: bool = False) -> MapData:
+def _transform(
+    m: MapData,
+    *,
+    rotate: float = 0.0,
+    translate: Sequence[float] = (0.0, 0.0),
+    about: Sequence[float] = (0.0, 0.0),
+    recenter: bool = False,
+) -> MapData:
     return ops.transform(m, rotate=rotate, translate=translate, about=about, recenter=recenter)
 
 
-def _crop(m: MapData, *, box: Sequence[float] | None = None, polygon: Sequence[Sequence[float]] | None = None,
-          keep_objects: bool = False) -> MapData:
+def _crop(
+    m: MapData,
+    *,
+    box: Sequence[float] | None = None,
+    polygon: Sequence[Sequence[float]] | None = None,
+    keep_objects: bool = False,
+) -> MapData:
     region = _region(box, polygon, required=True)
     assert region is not None
     return ops.crop(m, region, keep_objects=keep_objects)
 
 
-def _merge(m: MapData, *, other: str, box: Sequence[float] | None = None,
-           polygon: Sequence[Sequence[float]] | None = None, on_clash: str = "keep",
-           _base_dir: str = ".") -> MapData:
+def _merge(
+    m: MapData,
+    *,
+    other: str,
+    box: Sequence[float] | None = None,
+    polygon: Sequence[Sequence[float]] | None = None,
+    on_clash: str = "keep",
+    _base_dir: str = ".",
+) -> MapData:
     from mapkit.formats.map import load
 
     path = other if os.path.isabs(other) else os.path.join(_base_dir, other)
@@ -212,16 +352,16 @@ OPERATIONS: dict[str, Callable[..., MapData]] = {
 def _yaml_with_lines(text: str) -> Any:
     import yaml
 
-    class Loader(yaml.SafeLoader):
+    class Loader(yaml.SafeLoader):  # type: ignore[misc]
         pass
 
     def mapping(loader: yaml.SafeLoader, node: yaml.MappingNode) -> dict[Any, Any]:
-        out = loader.construct_mapping(node, deep=True)
+        out: dict[Any, Any] = loader.construct_mapping(node, deep=True)
         out["__line__"] = node.start_mark.line + 1
         return out
 
     Loader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, mapping)
-    return yaml.load(text, Loader=Loader)  # noqa: S506 - a SafeLoader subclass
+    return yaml.load(text, Loader=Loader)
 
 
 def _strip_lines(v: Any) -> Any:
@@ -255,8 +395,10 @@ def parse_script(text: str, *, source: str = "<script>", yaml: bool | None = Non
     if isinstance(doc, dict):
         extra = sorted(k for k in doc if k not in ("edits", "__line__"))
         if extra or "edits" not in doc:
-            raise EditError(f"{source}: a script is a list of edits or a mapping with 'edits:' "
-                            f"(unexpected keys: {', '.join(map(str, extra)) or 'no edits key'})")
+            raise EditError(
+                f"{source}: a script is a list of edits or a mapping with 'edits:' "
+                f"(unexpected keys: {', '.join(map(str, extra)) or 'no edits key'})"
+            )
         doc = doc["edits"]
     if not isinstance(doc, list):
         raise EditError(f"{source}: a script is a list of edits, got {type(doc).__name__}")
@@ -266,7 +408,9 @@ def parse_script(text: str, *, source: str = "<script>", yaml: bool | None = Non
         item = _strip_lines(item)
         where = f"{source}: edit {i}" + (f" (line {line})" if line else "")
         if not isinstance(item, dict) or not item:
-            raise EditError(f"{where}: an edit is a mapping like {{add-goal: {{...}}}} or {{op: add-goal, ...}}")
+            raise EditError(
+                f"{where}: an edit is a mapping like {{add-goal: {{...}}}} or {{op: add-goal, ...}}"
+            )
         if "op" in item:
             op = item.pop("op")
             args = item
@@ -275,7 +419,9 @@ def parse_script(text: str, *, source: str = "<script>", yaml: bool | None = Non
             if args is None:
                 args = {}
         else:
-            raise EditError(f"{where}: name the operation with 'op:' or as the only key, got {sorted(item)}")
+            raise EditError(
+                f"{where}: name the operation with 'op:' or as the only key, got {sorted(item)}"
+            )
         if op not in OPERATIONS:
             raise EditError(f"{where}: unknown operation {op!r}; known: {', '.join(OPERATIONS)}")
         if not isinstance(args, dict):
@@ -297,7 +443,9 @@ def load_script(path: PathLike) -> list[Edit]:
     """
     p = Path(path)
     text = p.read_text(encoding="utf-8")
-    return parse_script(text, source=os.fspath(path), yaml=None if p.suffix.lower() != ".json" else False)
+    return parse_script(
+        text, source=os.fspath(path), yaml=None if p.suffix.lower() != ".json" else False
+    )
 
 
 def _call(edit: Edit, m: MapData, base_dir: str) -> MapData:
@@ -306,11 +454,19 @@ def _call(edit: Edit, m: MapData, base_dir: str) -> MapData:
     allowed = [p for p in sig.parameters if p not in ("m",) and not p.startswith("_")]
     unknown = [k for k in edit.args if k not in allowed]
     if unknown:
-        raise EditError(f"{edit.where}: unknown argument(s) {', '.join(unknown)}; {edit.op} takes "
-                        f"{', '.join(a.replace('_', '-') for a in allowed)}")
-    missing = [p for p in allowed if sig.parameters[p].default is inspect.Parameter.empty and p not in edit.args]
+        raise EditError(
+            f"{edit.where}: unknown argument(s) {', '.join(unknown)}; {edit.op} takes "
+            f"{', '.join(a.replace('_', '-') for a in allowed)}"
+        )
+    missing = [
+        p
+        for p in allowed
+        if sig.parameters[p].default is inspect.Parameter.empty and p not in edit.args
+    ]
     if missing:
-        raise EditError(f"{edit.where}: missing argument(s) {', '.join(a.replace('_', '-') for a in missing)}")
+        raise EditError(
+            f"{edit.where}: missing argument(s) {', '.join(a.replace('_', '-') for a in missing)}"
+        )
     kwargs = dict(edit.args)
     if "_base_dir" in sig.parameters:
         kwargs["_base_dir"] = base_dir

@@ -56,7 +56,10 @@ class Region:
         Raises:
             EditError: A non-finite or out-of-range coordinate, or a box without area.
         """
-        x1, y1, x2, y2 = (check_coord(v, f"box {n}") for v, n in zip((x1, y1, x2, y2), ("x1", "y1", "x2", "y2")))
+        x1, y1, x2, y2 = (
+            check_coord(v, f"box {n}")
+            for v, n in zip((x1, y1, x2, y2), ("x1", "y1", "x2", "y2"), strict=True)
+        )
         if x1 == x2 or y1 == y2:
             raise EditError(f"the box ({x1:g}, {y1:g}) - ({x2:g}, {y2:g}) has no area")
         lo_x, hi_x, lo_y, hi_y = min(x1, x2), max(x1, x2), min(y1, y2), max(y1, y2)
@@ -103,7 +106,10 @@ class Region:
     def area(self) -> float:
         """Area in mm² (shoelace formula)."""
         v = self.vertices
-        s = sum(v[i][0] * v[(i + 1) % len(v)][1] - v[(i + 1) % len(v)][0] * v[i][1] for i in range(len(v)))
+        s = sum(
+            v[i][0] * v[(i + 1) % len(v)][1] - v[(i + 1) % len(v)][0] * v[i][1]
+            for i in range(len(v))
+        )
         return abs(s) / 2.0
 
     def geometry(self) -> Any:
@@ -178,7 +184,7 @@ def _overlap(rows: np.ndarray[Any, Any], geom: Any) -> np.ndarray[Any, np.dtype[
 
 
 def lines_overlapping(lines: LineArray, region: Region) -> np.ndarray[Any, np.dtype[np.bool_]]:
-    """Mask of the segments that run inside the closed region for some length (touching is not enough)."""
+    """Mask of the segments that run inside the closed region for some length (not just touch)."""
     mask = np.zeros(len(lines), dtype=bool)
     idx = _near(lines, region)
     if len(idx):
@@ -186,7 +192,9 @@ def lines_overlapping(lines: LineArray, region: Region) -> np.ndarray[Any, np.dt
     return mask
 
 
-def _pieces(geoms: Any, parents: np.ndarray[Any, Any]) -> tuple[np.ndarray[Any, Any], np.ndarray[Any, Any]]:
+def _pieces(
+    geoms: Any, parents: np.ndarray[Any, Any]
+) -> tuple[np.ndarray[Any, Any], np.ndarray[Any, Any]]:
     """Each linear part's first and last vertex ``(P, 4)`` and the index of its parent row."""
     import shapely
 
@@ -237,7 +245,11 @@ def _round_pieces(
                 break
             rows = np.flatnonzero(pending)
             c = cand[rows, k]
-            seg = np.concatenate([other[rows], c], axis=1) if end == 1 else np.concatenate([c, other[rows]], axis=1)
+            seg = (
+                np.concatenate([other[rows], c], axis=1)
+                if end == 1
+                else np.concatenate([c, other[rows]], axis=1)
+            )
             segs = _segments(seg)
             op = shapely.difference if inside else shapely.intersection
             good = np.asarray(shapely.length(op(segs, geom)), dtype=float) <= TOUCH
@@ -262,7 +274,7 @@ def _split(lines: LineArray, region: Region, inside: bool) -> LineArray:
     geom = region.geometry()
     keep_rows = np.zeros(len(lines), dtype=bool) if inside else np.ones(len(lines), dtype=bool)
     if len(idx) == 0:
-        return lines[keep_rows]
+        return lines[keep_rows]  # type: ignore[no-any-return]
     segs = _segments(lines[idx])
     overlap = np.asarray(shapely.length(shapely.intersection(segs, geom)), dtype=float)
     covered = np.asarray(shapely.covered_by(segs, geom), dtype=bool)
@@ -275,12 +287,16 @@ def _split(lines: LineArray, region: Region, inside: bool) -> LineArray:
         keep_rows[idx[touching]] = False
     part_idx = idx[partial]
     if len(part_idx) == 0:
-        return lines[keep_rows]
+        return lines[keep_rows]  # type: ignore[no-any-return]
     op = shapely.intersection if inside else shapely.difference
     ends, parent = _pieces(op(segs[partial], geom), part_idx)
     orig = lines[parent].astype(float)
-    start_is_orig = ((ends[:, 0:2] == orig[:, 0:2]).all(axis=1) | (ends[:, 0:2] == orig[:, 2:4]).all(axis=1))
-    end_is_orig = ((ends[:, 2:4] == orig[:, 0:2]).all(axis=1) | (ends[:, 2:4] == orig[:, 2:4]).all(axis=1))
+    start_is_orig = (ends[:, 0:2] == orig[:, 0:2]).all(axis=1) | (ends[:, 0:2] == orig[:, 2:4]).all(
+        axis=1
+    )
+    end_is_orig = (ends[:, 2:4] == orig[:, 0:2]).all(axis=1) | (ends[:, 2:4] == orig[:, 2:4]).all(
+        axis=1
+    )
     rounded, ok = _round_pieces(ends, np.stack([start_is_orig, end_is_orig], axis=1), geom, inside)
     # Keep file order: each surviving row, with a cut row's pieces in its place.
     kept_idx = np.flatnonzero(keep_rows)
@@ -293,7 +309,8 @@ def cut_lines(lines: LineArray, region: Region) -> LineArray:
     """The segments with every part inside the closed region removed (pieces outside kept).
 
     Examples:
-        >>> cut_lines(np.array([[-10, 5, 20, 5], [0, 20, 5, 20]]), Region.box(0, 0, 10, 10)).tolist()
+        >>> lines = np.array([[-10, 5, 20, 5], [0, 20, 5, 20]])
+        >>> cut_lines(lines, Region.box(0, 0, 10, 10)).tolist()
         [[-10, 5, 0, 5], [10, 5, 20, 5], [0, 20, 5, 20]]
     """
     return _split(lines, region, inside=False)
@@ -303,7 +320,8 @@ def clip_lines(lines: LineArray, region: Region) -> LineArray:
     """The parts of the segments inside the closed region.
 
     Examples:
-        >>> clip_lines(np.array([[-10, 5, 20, 5], [0, 20, 5, 20]]), Region.box(0, 0, 10, 10)).tolist()
+        >>> lines = np.array([[-10, 5, 20, 5], [0, 20, 5, 20]])
+        >>> clip_lines(lines, Region.box(0, 0, 10, 10)).tolist()
         [[0, 5, 10, 5]]
     """
     return _split(lines, region, inside=True)

@@ -43,7 +43,7 @@ def _middle_box(path: Path) -> tuple[int, int, int, int]:
     return x0 + (x1 - x0) // 4, y0 + (y1 - y0) // 4, x1 - (x1 - x0) // 4, y1 - (y1 - y0) // 4
 
 
-# -- on every real sample -------------------------------------------------------------------------
+# -- on every real sample --
 
 
 def test_erase_then_diff(runner: CliRunner, copy: Path, tmp_path: Path) -> None:
@@ -53,7 +53,9 @@ def test_erase_then_diff(runner: CliRunner, copy: Path, tmp_path: Path) -> None:
     assert r.exit_code == 0, r.output
     m = load(erased)
     region = Region.box(*box)
-    assert not points_inside(m.points, region).any() and not lines_overlapping(m.lines, region).any()
+    assert (
+        not points_inside(m.points, region).any() and not lines_overlapping(m.lines, region).any()
+    )
     r = run(runner, "diff", copy, erased)
     assert r.exit_code == 1 and "objects: 0 added, 0 removed, 0 moved, 0 changed" in r.stdout
 
@@ -61,7 +63,12 @@ def test_erase_then_diff(runner: CliRunner, copy: Path, tmp_path: Path) -> None:
 def test_transform_and_back(runner: CliRunner, columbia: Path, tmp_path: Path) -> None:
     canonical = dumpb(load(columbia))
     turned = tmp_path / "turned.map"
-    assert run(runner, "transform", columbia, "--rotate", 90, "--translate", -20, 40, "-o", turned).exit_code == 0
+    assert (
+        run(
+            runner, "transform", columbia, "--rotate", 90, "--translate", -20, 40, "-o", turned
+        ).exit_code
+        == 0
+    )
     assert run(runner, "transform", turned, "--translate", 20, -40).exit_code == 0
     assert run(runner, "transform", turned, "--rotate", -90).exit_code == 0
     assert turned.read_bytes() == canonical
@@ -69,7 +76,7 @@ def test_transform_and_back(runner: CliRunner, columbia: Path, tmp_path: Path) -
     assert r.exit_code == 0 and json.loads(r.stdout)["equal"] is True
 
 
-# -- each command -----------------------------------------------------------------------------------
+# -- each command --
 
 
 def test_erase_polygon_and_errors(runner: CliRunner, columbia: Path) -> None:
@@ -79,7 +86,10 @@ def test_erase_polygon_and_errors(runner: CliRunner, columbia: Path) -> None:
     assert r.exit_code == 1 and "at least 3 vertices" in r.stderr
     assert run(runner, "erase", columbia, "--polygon", "0,0 10").exit_code == 2
     assert run(runner, "erase", columbia, "--polygon", "a,b c,d e,f").exit_code == 2
-    assert run(runner, "erase", columbia, "--box", 0, 0, 1, 1, "--polygon", "0,0 1,0 0,1").exit_code == 2
+    assert (
+        run(runner, "erase", columbia, "--box", 0, 0, 1, 1, "--polygon", "0,0 1,0 0,1").exit_code
+        == 2
+    )
     r = run(runner, "erase", columbia, "--box", 0, 0, 1000, 1000, "--source", "Sonar")
     assert r.exit_code == 1 and "no scan source 'Sonar'" in r.stderr
     assert columbia.read_bytes() == before
@@ -109,7 +119,20 @@ def test_draw_line_and_crop(runner: CliRunner, columbia: Path, tmp_path: Path) -
     assert (m.points[:, 1] <= 0).all() and (m.lines[:, [1, 3]] <= 0).all()
     assert all(o.y <= 0 for o in m.objects if o.from_to is None)
     assert "removed Goal 'Hallway 1'" in r.stdout
-    r = run(runner, "crop", columbia, "--box", -6000, -28000, 21000, 0, "--keep-objects", "-o", out, "--force")
+    r = run(
+        runner,
+        "crop",
+        columbia,
+        "--box",
+        -6000,
+        -28000,
+        21000,
+        0,
+        "--keep-objects",
+        "-o",
+        out,
+        "--force",
+    )
     assert r.exit_code == 0 and len(load(out).objects) == len(load(columbia).objects)
     assert run(runner, "crop", columbia).exit_code == 2
 
@@ -122,7 +145,9 @@ def test_transform_options_and_notes(runner: CliRunner, columbia: Path, tmp_path
     assert "OriginLatLongAlt" in r.stderr and "motion: turn 0 degrees" in r.stderr
     b = load(out).scan.data_bounds()
     assert b is not None and abs(b[0][0] + b[1][0]) <= 40 and abs(b[0][1] + b[1][1]) <= 40
-    r = run(runner, "transform", columbia, "--rotate", 12.5, "--about", 1000, 2000, "-o", out, "--force")
+    r = run(
+        runner, "transform", columbia, "--rotate", 12.5, "--about", 1000, 2000, "-o", out, "--force"
+    )
     assert r.exit_code == 0 and "off their 20 mm grid" in r.stderr
     assert "more changes (mapkit diff shows them all)" in r.stdout
     r = run(runner, "transform", columbia, "--translate", 3_000_000, 0)
@@ -136,7 +161,9 @@ def test_merge_commands(runner: CliRunner, shared_dir: Path, tmp_path: Path) -> 
     m = load(base)
     from mapkit import edit
 
-    save(edit.add_goal(edit.add_goal(m, "Home", 10, 10, allow_duplicate=True), "Extra", 0, 0), other)
+    save(
+        edit.add_goal(edit.add_goal(m, "Home", 10, 10, allow_duplicate=True), "Extra", 0, 0), other
+    )
     before = base.read_bytes()
     r = run(runner, "merge", base, other, "--on-clash", "error")
     assert r.exit_code == 1 and "name clash" in r.stderr and base.read_bytes() == before
@@ -146,7 +173,12 @@ def test_merge_commands(runner: CliRunner, shared_dir: Path, tmp_path: Path) -> 
     r = run(runner, "merge", base, other, "--region", -5000, -5000, 5000, 5000, "-o", out)
     assert r.exit_code == 0, r.output
     assert [o.name for o in load(out).objects] == ["Home", "Home", "Extra"]
-    assert run(runner, "merge", base, other, "--region", 0, 0, 1, 1, "--polygon", "0,0 1,0 0,1").exit_code == 2
+    assert (
+        run(
+            runner, "merge", base, other, "--region", 0, 0, 1, 1, "--polygon", "0,0 1,0 0,1"
+        ).exit_code
+        == 2
+    )
 
 
 def test_diff_exit_codes(runner: CliRunner, columbia: Path, tmp_path: Path) -> None:
@@ -161,7 +193,12 @@ def test_diff_exit_codes(runner: CliRunner, columbia: Path, tmp_path: Path) -> N
     run(runner, "add-goal", columbia, "New", 1, 2, "-o", other)
     r = run(runner, "diff", columbia, other, "--json")
     doc = json.loads(r.stdout)
-    assert r.exit_code == 1 and doc["counts"] == {"added": 1, "removed": 0, "moved": 0, "changed": 0}
+    assert r.exit_code == 1 and doc["counts"] == {
+        "added": 1,
+        "removed": 0,
+        "moved": 0,
+        "changed": 0,
+    }
     assert doc["objects"][0]["after"]["name"] == "New"
 
 
@@ -178,7 +215,9 @@ def test_edit_script(runner: CliRunner, columbia: Path, tmp_path: Path) -> None:
     assert "3 edit(s)" in r.stderr and "added GoalWithHeading 'Kitchen'" in r.stdout
     assert "changed Goal 'Goal 2': name 'Goal 2' -> 'Reception'" in r.stdout
     m = load(columbia)
-    assert m.find("Reception") and not points_inside(m.points, Region.box(-500, -500, 500, 500)).any()
+    assert (
+        m.find("Reception") and not points_inside(m.points, Region.box(-500, -500, 500, 500)).any()
+    )
     before = columbia.read_bytes()
     script.write_text("- add-goal: {name: Second, x: 0, y: 0}\n- remove: [Nobody]\n")
     r = run(runner, "edit", columbia, "--script", script)

@@ -57,7 +57,18 @@ def omron(shared_dir: Path, tmp_path: Path) -> Path:
 
 def test_add_goal_then_remove_gives_the_canonical_bytes(runner: CliRunner, copy: Path) -> None:
     canonical = dumpb(load(copy))
-    r = run(runner, "add-goal", copy, "CLI goal", -1500, -250.5, "--heading", -90, "--description", "near the lab")
+    r = run(
+        runner,
+        "add-goal",
+        copy,
+        "CLI goal",
+        -1500,
+        -250.5,
+        "--heading",
+        -90,
+        "--description",
+        "near the lab",
+    )
     assert r.exit_code == 0, r.output
     assert "added GoalWithHeading 'CLI goal' at (-1500, -250.5) heading -90" in r.stdout
     assert f"wrote {copy}" in r.stdout
@@ -113,9 +124,12 @@ def test_backup_output_and_dry_run(runner: CliRunner, columbia: Path, tmp_path: 
 
 def test_add_commands(runner: CliRunner, columbia: Path) -> None:
     before = columbia.read_bytes()
-    for args in (("add-goal", columbia, "far", 3_000_000, 0), ("move", columbia, "#999", 0, 0),
-                 ("add-object", columbia, "NotAType", "--at", 0, 0, "--name", "x"),
-                 ("add-goal", columbia, "Goal 1", 0, 0)):
+    for args in (
+        ("add-goal", columbia, "far", 3_000_000, 0),
+        ("move", columbia, "#999", 0, 0),
+        ("add-object", columbia, "NotAType", "--at", 0, 0, "--name", "x"),
+        ("add-goal", columbia, "Goal 1", 0, 0),
+    ):
         r = run(runner, *args)
         assert r.exit_code == 1 and r.stderr.startswith("Error: ")
     assert columbia.read_bytes() == before
@@ -123,40 +137,125 @@ def test_add_commands(runner: CliRunner, columbia: Path) -> None:
     assert r.exit_code == 0
     r = run(runner, "add-dock", columbia, "Dock A", -100, -200, "--heading", 180)
     assert r.exit_code == 0 and load(columbia).find("Dock A")[0].theta == 180
-    r = run(runner, "add-home", columbia, "--area", -500, -500, 500, 500, "--angle", 45,
-            "--rotate-about-centre", "--name", "Start")
+    r = run(
+        runner,
+        "add-home",
+        columbia,
+        "--area",
+        -500,
+        -500,
+        500,
+        500,
+        "--angle",
+        45,
+        "--rotate-about-centre",
+        "--name",
+        "Start",
+    )
     assert r.exit_code == 0, r.output
     home = load(columbia).find("Start")[0]
-    assert home.theta == 45 and round(home.corners()[0][0] ** 2 + home.corners()[0][1] ** 2) == 500_000
+    assert (
+        home.theta == 45 and round(home.corners()[0][0] ** 2 + home.corners()[0][1] ** 2) == 500_000
+    )
     assert run(runner, "add-home", columbia, 1, 2, "--area", 0, 0, 1, 1).exit_code == 1
     r = run(runner, "forbid", columbia, "--line", -5000, 100, 5000, 100, "--name", "No pass")
     assert r.exit_code == 0 and load(columbia).find("No pass")[0].from_to == (-5000, 100, 5000, 100)
-    for bad in (("forbid", columbia), ("forbid", columbia, "--area", 0, 0, 1, 1, "--line", 0, 0, 1, 1),
-                ("forbid", columbia, "--line", 0, 0, 1, 1, "--angle", 3)):
+    for bad in (
+        ("forbid", columbia),
+        ("forbid", columbia, "--area", 0, 0, 1, 1, "--line", 0, 0, 1, 1),
+        ("forbid", columbia, "--line", 0, 0, 1, 1, "--angle", 3),
+    ):
         r = run(runner, *bad)
         assert r.exit_code == 2 and "Usage" in r.stderr
-    r = run(runner, "add-object", columbia, "BadGPSSector", "--area", 0, 0, 1000, 1000, "--name", "No GPS")
+    r = run(
+        runner,
+        "add-object",
+        columbia,
+        "BadGPSSector",
+        "--area",
+        0,
+        0,
+        1000,
+        1000,
+        "--name",
+        "No GPS",
+    )
     assert r.exit_code == 0 and load(columbia).find("No GPS")[0].type == "BadGPSSector"
     r = run(runner, "add-object", columbia, "Measure", "--line", 0, 0, 5000, 0)
     assert r.exit_code == 0
     r = run(runner, "add-object", columbia, "Sim.BoxObstacle", "--area", 0, 0, 500, 500)
     assert r.exit_code == 1 and "--allow-undeclared" in r.stderr
-    r = run(runner, "add-object", columbia, "Sim.BoxObstacle", "--area", 0, 0, 500, 500, "--allow-undeclared")
+    r = run(
+        runner,
+        "add-object",
+        columbia,
+        "Sim.BoxObstacle",
+        "--area",
+        0,
+        0,
+        500,
+        500,
+        "--allow-undeclared",
+    )
     assert r.exit_code == 0
 
 
 def test_add_object_with_params(runner: CliRunner, omron: Path) -> None:
-    r = run(runner, "add-object", omron, "MovementParametersSector", "--area", 0, 0, 4000, 2000,
-            "--name", "Slow", "--param", "TransVelMax=300", "--angle", 30, "--rotate-about-centre")
+    r = run(
+        runner,
+        "add-object",
+        omron,
+        "MovementParametersSector",
+        "--area",
+        0,
+        0,
+        4000,
+        2000,
+        "--name",
+        "Slow",
+        "--param",
+        "TransVelMax=300",
+        "--angle",
+        30,
+        "--rotate-about-centre",
+    )
     assert r.exit_code == 0, r.output
     assert '+ CairnInfo: Params "Slow" "Normal" 300' in r.stdout
-    rows = json.loads(run(runner, "objects", omron, "--type", "MovementParametersSector", "--json").stdout)
+    rows = json.loads(
+        run(runner, "objects", omron, "--type", "MovementParametersSector", "--json").stdout
+    )
     assert rows[0]["params"]["TransVelMax"] == "300" and rows[0]["theta"] == 30
-    r = run(runner, "add-object", omron, "MovementParametersSector", "--area", 0, 0, 1, 1, "--name", "S2",
-            "--param", "nonsense")
+    r = run(
+        runner,
+        "add-object",
+        omron,
+        "MovementParametersSector",
+        "--area",
+        0,
+        0,
+        1,
+        1,
+        "--name",
+        "S2",
+        "--param",
+        "nonsense",
+    )
     assert r.exit_code == 2 and "NAME=VALUE" in r.stderr
-    r = run(runner, "add-object", omron, "MovementParametersSector", "--area", 0, 0, 1, 1, "--name", "S2",
-            "--param", "TransVelMax=-5")
+    r = run(
+        runner,
+        "add-object",
+        omron,
+        "MovementParametersSector",
+        "--area",
+        0,
+        0,
+        1,
+        1,
+        "--name",
+        "S2",
+        "--param",
+        "TransVelMax=-5",
+    )
     assert r.exit_code == 1 and "below its minimum" in r.stderr
     r = run(runner, "objects", omron, "--all")
     assert "ChildDoorForEnter101" in r.stdout
@@ -189,8 +288,12 @@ def test_remove_rename_move(runner: CliRunner, columbia: Path, omron: Path) -> N
     assert r.exit_code == 1 and "nothing to do" in r.stderr
 
 
-def test_nothing_changed_leaves_the_file(runner: CliRunner, shared_dir: Path, tmp_path: Path) -> None:
-    p = _copy(shared_dir, tmp_path, "aria-office.map")  # not ARIA-canonical: a rewrite would change it
+def test_nothing_changed_leaves_the_file(
+    runner: CliRunner, shared_dir: Path, tmp_path: Path
+) -> None:
+    p = _copy(
+        shared_dir, tmp_path, "aria-office.map"
+    )  # not ARIA-canonical: a rewrite would change it
     before = p.read_bytes()
     r = run(runner, "erase", p, "--box", 900000, 900000, 900100, 900100)
     assert r.exit_code == 0 and "nothing changed" in r.stdout

@@ -33,17 +33,25 @@ def objects(draw: st.DrawFn, max_size: int = 8) -> tuple[MapObject, ...]:
     used: set[str] = set()
     out = []
     for _ in range(n):
-        kind = draw(st.sampled_from(["Goal", "GoalWithHeading", "Dock", "ForbiddenLine", "ForbiddenArea"]))
+        kind = draw(
+            st.sampled_from(["Goal", "GoalWithHeading", "Dock", "ForbiddenLine", "ForbiddenArea"])
+        )
         name = draw(names)
         if name.lower() in used:
             name = ""
         if name:
             used.add(name.lower())
         if kind == "ForbiddenLine":
-            x1, y1, x2, y2 = draw(st.tuples(coord, coord, coord, coord).filter(lambda t: t[:2] != t[2:]))
+            x1, y1, x2, y2 = draw(
+                st.tuples(coord, coord, coord, coord).filter(lambda t: t[:2] != t[2:])
+            )
             out.append(MapObject(kind, x1, y1, 0, name=name, from_to=(x1, y1, x2, y2)))
         elif kind == "ForbiddenArea":
-            x1, y1, x2, y2 = draw(st.tuples(coord, coord, coord, coord).filter(lambda t: t[0] != t[2] and t[1] != t[3]))
+            x1, y1, x2, y2 = draw(
+                st.tuples(coord, coord, coord, coord).filter(
+                    lambda t: t[0] != t[2] and t[1] != t[3]
+                )
+            )
             theta = draw(st.sampled_from([0, 90, 180, -90, 30, -45.5]))
             out.append(MapObject(kind, 0, 0, theta, name=name, from_to=(x1, y1, x2, y2)))
         else:
@@ -76,7 +84,10 @@ def regions(draw: st.DrawFn) -> Region:
     cx, cy = draw(coord), draw(coord)
     angles = sorted(draw(st.lists(st.floats(0, 6.2), min_size=n, max_size=n, unique=True)))
     radii = draw(st.lists(st.integers(200, SPAN), min_size=n, max_size=n))
-    pts = [(round(cx + r * np.cos(a)), round(cy + r * np.sin(a))) for a, r in zip(angles, radii)]
+    pts = [
+        (round(cx + r * np.cos(a)), round(cy + r * np.sin(a)))
+        for a, r in zip(angles, radii, strict=True)
+    ]
     try:
         return Region.polygon(pts)
     except EditError:  # degenerate (collinear) draws: fall back to a box

@@ -13,8 +13,7 @@ from mapkit.edit.selection import TOUCH, clip_lines, cut_lines, lines_overlappin
 from mapkit.errors import EditError
 from mapkit.formats.map import dumpb, loads
 from mapkit.model import MapData, MapObject, Scan
-
-from edit_strategies import lines_arrays, maps, points_arrays, regions
+from tests.edit.edit_strategies import lines_arrays, maps, regions
 
 
 def _segments(lines: np.ndarray) -> np.ndarray:
@@ -37,8 +36,15 @@ def _outside_length(lines: np.ndarray, region: edit.Region) -> np.ndarray:
 def _look(m: MapData, region: edit.Region) -> tuple[int, int]:
     """How many points and how many line parts a person would find inside the region."""
     poly = shapely.Polygon(region.vertices)
-    pts = sum(int(shapely.intersects_xy(poly, s.points[:, 0].astype(float), s.points[:, 1].astype(float)).sum())
-              for s in m.scans if s.num_points)
+    pts = sum(
+        int(
+            shapely.intersects_xy(
+                poly, s.points[:, 0].astype(float), s.points[:, 1].astype(float)
+            ).sum()
+        )
+        for s in m.scans
+        if s.num_points
+    )
     lines = sum(int((_inside_length(s.lines, region) > TOUCH).sum()) for s in m.scans)
     return pts, lines
 
@@ -66,7 +72,9 @@ def test_bad_regions_are_refused(make, message: str) -> None:  # type: ignore[no
 
 def test_polygon_closed_ring_and_json() -> None:
     r = edit.Region.polygon([(0, 0), (10, 0), (0, 10), (0, 0)])
-    assert len(r.vertices) == 3 and r.to_json() == {"polygon": [[0.0, 0.0], [10.0, 0.0], [0.0, 10.0]]}
+    assert len(r.vertices) == 3 and r.to_json() == {
+        "polygon": [[0.0, 0.0], [10.0, 0.0], [0.0, 10.0]]
+    }
     assert edit.Region.box(5, 5, 0, 0).to_json() == {"box": [0.0, 0.0, 5.0, 5.0]}
     assert "polygon of 3" in r.describe() and "box (0, 0)" in edit.Region.box(5, 5, 0, 0).describe()
 
@@ -75,13 +83,18 @@ def test_polygon_closed_ring_and_json() -> None:
 
 
 @given(lines=lines_arrays(40), region=regions())
-def test_cut_leaves_nothing_inside_and_keeps_what_was_outside(lines: np.ndarray, region: edit.Region) -> None:
+def test_cut_leaves_nothing_inside_and_keeps_what_was_outside(
+    lines: np.ndarray, region: edit.Region
+) -> None:
     cut = cut_lines(lines, region)
     assert cut.dtype == np.int64 and cut.shape[1] == 4
     assert not (_inside_length(cut, region) > TOUCH).any()
     # What lay outside survives, up to the rounding of each new end (< 1.5 mm per end).
     pieces_budget = 3.0 * (len(cut) + len(lines))
-    assert abs(_outside_length(lines, region).sum() - _outside_length(cut, region).sum()) <= pieces_budget
+    assert (
+        abs(_outside_length(lines, region).sum() - _outside_length(cut, region).sum())
+        <= pieces_budget
+    )
 
 
 @given(lines=lines_arrays(40), region=regions())
@@ -89,13 +102,23 @@ def test_clip_keeps_only_what_is_inside(lines: np.ndarray, region: edit.Region) 
     clip = clip_lines(lines, region)
     assert not (_outside_length(clip, region) > TOUCH).any()
     pieces_budget = 3.0 * (len(clip) + len(lines))
-    assert abs(_inside_length(lines, region).sum() - _inside_length(clip, region).sum()) <= pieces_budget
+    assert (
+        abs(_inside_length(lines, region).sum() - _inside_length(clip, region).sum())
+        <= pieces_budget
+    )
 
 
 def test_cut_and_clip_examples() -> None:
     box = edit.Region.box(0, 0, 10, 10)
-    lines = np.array([[-10, 5, 20, 5], [2, 2, 8, 8], [20, 20, 30, 30], [0, 0, 0, 10], [10, 0, 20, 0]])
-    assert cut_lines(lines, box).tolist() == [[-10, 5, 0, 5], [10, 5, 20, 5], [20, 20, 30, 30], [10, 0, 20, 0]]
+    lines = np.array(
+        [[-10, 5, 20, 5], [2, 2, 8, 8], [20, 20, 30, 30], [0, 0, 0, 10], [10, 0, 20, 0]]
+    )
+    assert cut_lines(lines, box).tolist() == [
+        [-10, 5, 0, 5],
+        [10, 5, 20, 5],
+        [20, 20, 30, 30],
+        [10, 0, 20, 0],
+    ]
     assert clip_lines(lines, box).tolist() == [[0, 5, 10, 5], [2, 2, 8, 8], [0, 0, 0, 10]]
     assert lines_overlapping(lines, box).tolist() == [True, True, False, True, False]
     assert cut_lines(np.zeros((0, 4), np.int64), box).shape == (0, 4)
@@ -123,7 +146,9 @@ def test_erase_on_real_samples(sample: MapData, canonical: bytes) -> None:
     b = sample.scan.data_bounds()
     assert b is not None
     (x0, y0), (x1, y1) = b
-    region = edit.Region.box(x0 + (x1 - x0) // 3, y0 + (y1 - y0) // 3, x1 - (x1 - x0) // 3, y1 - (y1 - y0) // 3)
+    region = edit.Region.box(
+        x0 + (x1 - x0) // 3, y0 + (y1 - y0) // 3, x1 - (x1 - x0) // 3, y1 - (y1 - y0) // 3
+    )
     out = edit.erase(sample, region)
     assert _look(out, region) == (0, 0)
     assert out.objects == sample.objects and dict(out.info) == dict(sample.info)
@@ -158,25 +183,32 @@ def test_crop_keeps_only_the_inside(m: MapData, region: edit.Region) -> None:
     out = edit.crop(m, region)
     poly = shapely.Polygon(region.vertices)
     if out.scan.num_points:
-        assert shapely.intersects_xy(poly, out.points[:, 0].astype(float), out.points[:, 1].astype(float)).all()
+        assert shapely.intersects_xy(
+            poly, out.points[:, 0].astype(float), out.points[:, 1].astype(float)
+        ).all()
     assert not (_outside_length(out.lines, region) > TOUCH).any()
     kept = [o for o in m.objects if o in out.objects]
     for o in m.objects:
         shape = m.object_shape(o)
-        geom = (shapely.Point(o.x, o.y) if shape == "point"
-                else shapely.LineString([o.from_to[:2], o.from_to[2:]]) if shape == "line"
-                else shapely.Polygon(o.corners()))
+        geom = (
+            shapely.Point(o.x, o.y)
+            if shape == "point"
+            else shapely.LineString([o.from_to[:2], o.from_to[2:]])
+            if shape == "line"
+            else shapely.Polygon(o.corners())
+        )
         assert (o in kept) == bool(poly.intersects(geom))
     assert edit.crop(m, region, keep_objects=True).objects == m.objects
 
 
 def test_crop_drops_params_of_removed_objects_and_keeps_anchors() -> None:
     m = loads(
-        "2D-Map-Ex2\nMapInfo: SectorType Name=S\nMapInfo: ArgDesc Name=V Parent=S Type=int Value=1\n"
-        "CairnInfo: Params \"Far\" 5\n"
-        "Cairn: S 0 0 0.000000 \"\" ICON \"Far\" 50000 50000 51000 51000\n"
-        "Cairn: S 0 0 0.000000 \"\" ICON \"Anchor\" 0 0 0 0\n"
-        "Cairn: Goal 10 10 0.000000 \"\" ICON \"Near\"\nDATA\n5 5\n90000 0\n"
+        "2D-Map-Ex2\nMapInfo: SectorType Name=S\n"
+        "MapInfo: ArgDesc Name=V Parent=S Type=int Value=1\n"
+        'CairnInfo: Params "Far" 5\n'
+        'Cairn: S 0 0 0.000000 "" ICON "Far" 50000 50000 51000 51000\n'
+        'Cairn: S 0 0 0.000000 "" ICON "Anchor" 0 0 0 0\n'
+        'Cairn: Goal 10 10 0.000000 "" ICON "Near"\nDATA\n5 5\n90000 0\n'
     )
     out = edit.crop(m, edit.Region.box(-1000, -1000, 1000, 1000))
     assert [o.name for o in out.objects] == ["Anchor", "Near"]
@@ -193,13 +225,20 @@ def test_draw_line_adds_a_segment_or_lattice_points(sample: MapData) -> None:
     assert [-1000, -1000, 1000, 1500] in out.lines.tolist()
     res = sample.scan.resolution or 20
     pts = edit.draw_line(sample, -1000, -1000, 1000, 1500, as_points=True)
-    new = pts.points[~np.isin(pts.points.view([("x", "i8"), ("y", "i8")]), sample.points.view([("x", "i8"), ("y", "i8")])).ravel()]
+    new = pts.points[
+        ~np.isin(
+            pts.points.view([("x", "i8"), ("y", "i8")]),
+            sample.points.view([("x", "i8"), ("y", "i8")]),
+        ).ravel()
+    ]
     assert len(new) > 0 and (new % res == 0).all()
     assert len(np.unique(pts.points, axis=0)) == len(np.unique(sample.points, axis=0)) + len(new)
     if sample.scan.points_sorted:
         p = pts.points
         assert np.all(np.lexsort((p[:, 1], p[:, 0])) == np.arange(len(p)))
-    assert edit.draw_line(pts, -1000, -1000, 1000, 1500, as_points=True) is pts  # nothing new to add
+    assert (
+        edit.draw_line(pts, -1000, -1000, 1000, 1500, as_points=True) is pts
+    )  # nothing new to add
 
 
 def test_draw_line_checks() -> None:
@@ -220,16 +259,17 @@ def test_draw_line_checks() -> None:
 def _two() -> tuple[MapData, MapData]:
     base = loads(
         "2D-Map-Ex2\nMapInfo: GoalType Name=Goal\n"
-        "Cairn: Goal 0 0 0.000000 \"\" ICON \"Shared\"\n"
-        "Cairn: Goal 100 0 0.000000 \"\" ICON \"Same\"\n"
+        'Cairn: Goal 0 0 0.000000 "" ICON "Shared"\n'
+        'Cairn: Goal 100 0 0.000000 "" ICON "Same"\n'
         "LINES\n-1000 0 1000 0\nDATA\n0 0\n500 500\n5000 5000\n"
     )
     other = loads(
-        "2D-Map-Ex2\nMapInfo: SectorType Name=Slow\nMapInfo: ArgDesc Name=V Parent=Slow Type=int Value=1\n"
-        "CairnInfo: Params \"Zone\" 7\n"
-        "Cairn: Goal 999 0 0.000000 \"\" ICON \"shared\"\n"
-        "Cairn: Goal 100 0 0.000000 \"\" ICON \"Same\"\n"
-        "Cairn: Slow 0 0 0.000000 \"\" ICON \"Zone\" 0 0 10 10\n"
+        "2D-Map-Ex2\nMapInfo: SectorType Name=Slow\n"
+        "MapInfo: ArgDesc Name=V Parent=Slow Type=int Value=1\n"
+        'CairnInfo: Params "Zone" 7\n'
+        'Cairn: Goal 999 0 0.000000 "" ICON "shared"\n'
+        'Cairn: Goal 100 0 0.000000 "" ICON "Same"\n'
+        'Cairn: Slow 0 0 0.000000 "" ICON "Zone" 0 0 10 10\n'
         "LINES\n0 -1000 0 1000\nDATA\n0 0\n600 600\n9000 9000\n"
     )
     return base, other
@@ -238,7 +278,13 @@ def _two() -> tuple[MapData, MapData]:
 def test_merge_without_region_adds_everything_once() -> None:
     base, other = _two()
     out = edit.merge(base, other)
-    assert sorted(map(tuple, out.points.tolist())) == [(0, 0), (500, 500), (600, 600), (5000, 5000), (9000, 9000)]
+    assert sorted(map(tuple, out.points.tolist())) == [
+        (0, 0),
+        (500, 500),
+        (600, 600),
+        (5000, 5000),
+        (9000, 9000),
+    ]
     assert out.lines.tolist() == [[-1000, 0, 1000, 0], [0, -1000, 0, 1000]]
     assert [o.name for o in out.objects] == ["Shared", "Same", "shared", "Zone"]
     assert out.declared_types()["Slow"] == "SectorType"
@@ -251,7 +297,11 @@ def test_merge_region_takes_other_inside_base_outside() -> None:
     region = edit.Region.box(-100, -100, 700, 700)
     out = edit.merge(base, other, region=region)
     assert sorted(map(tuple, out.points.tolist())) == [(0, 0), (600, 600), (5000, 5000)]
-    assert sorted(map(tuple, out.lines.tolist())) == [(-1000, 0, -100, 0), (0, -100, 0, 700), (700, 0, 1000, 0)]
+    assert sorted(map(tuple, out.lines.tolist())) == [
+        (-1000, 0, -100, 0),
+        (0, -100, 0, 700),
+        (700, 0, 1000, 0),
+    ]
 
 
 @pytest.mark.parametrize(
@@ -280,10 +330,14 @@ def test_merge_refusals() -> None:
 
 
 def test_merge_renamed_params_follow() -> None:
-    base = loads("2D-Map-Ex2\nMapInfo: SectorType Name=Slow\nMapInfo: ArgDesc Name=V Parent=Slow Type=int\n"
-                 "CairnInfo: Params \"Zone\" 1\nCairn: Slow 0 0 0.000000 \"\" ICON \"Zone\" 0 0 10 10\nDATA\n")
-    other = loads("2D-Map-Ex2\nMapInfo: SectorType Name=Slow\nMapInfo: ArgDesc Name=V Parent=Slow Type=int\n"
-                  "CairnInfo: Params \"Zone\" 2\nCairn: Slow 0 0 0.000000 \"\" ICON \"Zone\" 0 0 20 20\nDATA\n")
+    base = loads(
+        "2D-Map-Ex2\nMapInfo: SectorType Name=Slow\nMapInfo: ArgDesc Name=V Parent=Slow Type=int\n"
+        'CairnInfo: Params "Zone" 1\nCairn: Slow 0 0 0.000000 "" ICON "Zone" 0 0 10 10\nDATA\n'
+    )
+    other = loads(
+        "2D-Map-Ex2\nMapInfo: SectorType Name=Slow\nMapInfo: ArgDesc Name=V Parent=Slow Type=int\n"
+        'CairnInfo: Params "Zone" 2\nCairn: Slow 0 0 0.000000 "" ICON "Zone" 0 0 20 20\nDATA\n'
+    )
     out = edit.merge(base, other, on_clash="rename")
     params = [ln for ln in out.info["CairnInfo"] if ln[0] == "Params"]
     assert params == [("Params", '"Zone"', "1"), ("Params", '"Zone 2"', "2")]
@@ -297,9 +351,9 @@ def test_merge_keeps_every_point_of_both(a: MapData, b: MapData, policy: str) ->
     assert have == set(map(tuple, a.points.tolist())) | set(map(tuple, b.points.tolist()))
     assert all(o in out.objects for o in a.objects if policy != "other")
     names = [o.name.lower() for o in out.objects if o.name]
-    if policy in ("rename", "base", "other") and len(set(o.name.lower() for o in a.objects if o.name)) == len(
-        [o for o in a.objects if o.name]
-    ):
+    if policy in ("rename", "base", "other") and len(
+        set(o.name.lower() for o in a.objects if o.name)
+    ) == len([o for o in a.objects if o.name]):
         assert len(names) == len(set(names))
 
 
@@ -316,8 +370,10 @@ def test_merge_two_real_columbias(shared_dir) -> None:  # type: ignore[no-untype
 
 def test_merge_other_sources() -> None:
     base = MapData(category="2D-Map-Ex", scans=(Scan.from_arrays([[0, 0]], name="Laser"),))
-    other = MapData(category="2D-Map-Ex", scans=(Scan.from_arrays([[1, 1]], name="Laser"),
-                                                 Scan.from_arrays([[2, 2]], name="Sonar")))
+    other = MapData(
+        category="2D-Map-Ex",
+        scans=(Scan.from_arrays([[1, 1]], name="Laser"), Scan.from_arrays([[2, 2]], name="Sonar")),
+    )
     out = edit.merge(base, other)
     assert [s.name for s in out.scans] == ["Laser", "Sonar"]
     assert out.scans[1].points.tolist() == [[2, 2]]

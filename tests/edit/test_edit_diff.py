@@ -11,8 +11,7 @@ from hypothesis import strategies as st
 from mapkit import edit
 from mapkit.formats.map import dumpb, loads
 from mapkit.model import MapData, MapObject, Scan
-
-from edit_strategies import coord, maps
+from tests.edit.edit_strategies import coord, maps
 
 
 @given(m=maps())
@@ -37,7 +36,9 @@ def test_diff_names_an_added_goal_exactly(m: MapData, x: int, y: int) -> None:
 
 
 @given(m=maps(), data=st.data())
-def test_diff_names_a_removed_moved_or_renamed_object_exactly(m: MapData, data: st.DataObject) -> None:
+def test_diff_names_a_removed_moved_or_renamed_object_exactly(
+    m: MapData, data: st.DataObject
+) -> None:
     named = [i for i, o in enumerate(m.objects) if o.name and len(m.find(o.name)) == 1]
     if not named:
         return
@@ -64,14 +65,16 @@ def test_diff_names_an_erase_as_data_only(sample: MapData) -> None:
     assert removed == sample.scan.num_points - out.scan.num_points
     for c in d.data:
         if c.kind == "points" and c.removed:
-            (x0, y0), (x1, y1) = c.removed_box
+            (x0, _y0), (x1, _y1) = c.removed_box
             assert region.bounds[0] <= x0 and x1 <= region.bounds[2]
 
 
 def test_diff_reports_info_values_and_sources() -> None:
     a = loads("2D-Map\nMapInfo: GoalType Name=Goal\n# note\nDATA\n1 1\n")
-    b = loads("2D-Map-Ex2\nMapInfo: GoalType Name=Goal\nMapInfo: DockType Name=Dock\n"
-              "OriginLatLongAlt: 1 2 3\nResolution: 20\nDATA\n1 1\n")
+    b = loads(
+        "2D-Map-Ex2\nMapInfo: GoalType Name=Goal\nMapInfo: DockType Name=Dock\n"
+        "OriginLatLongAlt: 1 2 3\nResolution: 20\nDATA\n1 1\n"
+    )
     d = edit.diff(a, b)
     assert [(c.section, c.added) for c in d.info] == [("MapInfo", (("DockType", "Name=Dock"),))]
     what = {v.what: (v.before, v.after) for v in d.values}
@@ -81,8 +84,10 @@ def test_diff_reports_info_values_and_sources() -> None:
     assert what["unknown line"] == ("# note", None)
     doc = json.loads(json.dumps(d.to_json()))
     assert doc["equal"] is False and doc["info"][0]["added"] == ["DockType Name=Dock"]
-    two = MapData(category="2D-Map-Ex", scans=(Scan.from_arrays([[1, 1]], name="Laser"),
-                                               Scan.from_arrays([[2, 2]], name="Sonar")))
+    two = MapData(
+        category="2D-Map-Ex",
+        scans=(Scan.from_arrays([[1, 1]], name="Laser"), Scan.from_arrays([[2, 2]], name="Sonar")),
+    )
     one = MapData(category="2D-Map-Ex", scans=(Scan.from_arrays([[1, 1]], name="Laser"),))
     d = edit.diff(one, two)
     assert ("source", None, "Sonar") in [(v.what, v.before, v.after) for v in d.values]
@@ -101,7 +106,9 @@ def test_diff_pairs_unnamed_and_retyped_objects() -> None:
     assert [(x.kind, x.fields) for x in c] == [("changed", ("type", "theta"))]
     assert "type 'Goal' -> 'GoalWithHeading'" in c[0].describe()
     inactive = MapData(inactive_objects=(MapObject("Goal", 0, 0, name="I"),))
-    assert edit.diff(MapData(), inactive).objects[0].describe() == "added inactive Goal 'I' at (0, 0)"
+    assert (
+        edit.diff(MapData(), inactive).objects[0].describe() == "added inactive Goal 'I' at (0, 0)"
+    )
 
 
 def test_data_change_of_reordered_rows() -> None:

@@ -16,8 +16,7 @@ from mapkit.edit.declared import object_params, type_args
 from mapkit.errors import EditError
 from mapkit.formats.map import dumpb, loads
 from mapkit.model import MapData, MapObject
-
-from edit_strategies import coord, maps
+from tests.edit.edit_strategies import coord, maps
 
 
 def _map(text: str) -> MapData:
@@ -26,7 +25,7 @@ def _map(text: str) -> MapData:
 
 OMRON_LIKE = (
     "2D-Map-Ex4\n"
-    "MapInfo: SectorType Name=Slow \"Label=Slow sector\" NameRequired=1\n"
+    'MapInfo: SectorType Name=Slow "Label=Slow sector" NameRequired=1\n'
     "MapInfo: ArgDesc Name=Importance Parent=Slow Type=string Value=Normal\n"
     "MapInfo: ArgDesc Name=TransVelMax Parent=Slow Type=int Value=0 Min=0 Max=2000\n"
     "MapInfo: ArgDesc Name=Enabled Parent=Slow Type=bool Value=true\n"
@@ -36,13 +35,13 @@ OMRON_LIKE = (
     "MapInfo: DockType Name=DockLynx\n"
     "MapInfo: LocationType Name=Label Heading=Never\n"
     "MapInfo: CairnGroupType Name=Group\n"
-    "CairnInfo: GroupMember \"c1\" \"Goal\" \"Group\" \"x\"\n"
-    "CairnInfo: Params \"Alpha\" \"Normal\" 10 true\n"
-    "CairnInfo: Params \"Zulu\" \"Normal\" 20 false\n"
-    "RouteInfo: GoalAfter \"Goal1\"\n"
-    "Cairn: Slow 0 0 0.000000 \"\" ICON \"Alpha\" 0 0 1000 1000\n"
-    "Cairn: Slow 0 0 0.000000 \"\" ICON \"Zulu\" 2000 0 3000 1000\n"
-    "Cairn: GoalWithHeading 1240 8152 90.000000 \"\" ICON \"Goal1\"\n"
+    'CairnInfo: GroupMember "c1" "Goal" "Group" "x"\n'
+    'CairnInfo: Params "Alpha" "Normal" 10 true\n'
+    'CairnInfo: Params "Zulu" "Normal" 20 false\n'
+    'RouteInfo: GoalAfter "Goal1"\n'
+    'Cairn: Slow 0 0 0.000000 "" ICON "Alpha" 0 0 1000 1000\n'
+    'Cairn: Slow 0 0 0.000000 "" ICON "Zulu" 2000 0 3000 1000\n'
+    'Cairn: GoalWithHeading 1240 8152 90.000000 "" ICON "Goal1"\n'
     "DATA\n"
 )
 
@@ -50,18 +49,24 @@ OMRON_LIKE = (
 # -- the rule the lead asked for: an edit and its undo give back the original bytes -------------
 
 
-def test_add_goal_then_remove_gives_back_the_canonical_bytes(sample: MapData, canonical: bytes) -> None:
+def test_add_goal_then_remove_gives_back_the_canonical_bytes(
+    sample: MapData, canonical: bytes
+) -> None:
     m = edit.add_goal(sample, "mapkit test goal", 1234, -567, heading=45)
     assert m.scans is sample.scans  # objects-only edits keep the scans themselves
     assert dumpb(m) != canonical
     assert dumpb(edit.remove(m, "mapkit test goal")) == canonical
 
 
-def test_every_object_kind_added_and_removed_restores_the_bytes(sample: MapData, canonical: bytes) -> None:
+def test_every_object_kind_added_and_removed_restores_the_bytes(
+    sample: MapData, canonical: bytes
+) -> None:
     m = edit.add_dock(sample, "t dock", 100, 200, heading=-90)
     m = edit.add_home(m, 0, 0, heading=10, name="t home")
     m = edit.add_home(m, area=(0, 0, 1000, 500), angle=30, name="t home area")
-    m = edit.forbid_area(m, -1000, -1000, 1000, 1000, angle=15, rotate_about_centre=True, name="t area")
+    m = edit.forbid_area(
+        m, -1000, -1000, 1000, 1000, angle=15, rotate_about_centre=True, name="t area"
+    )
     m = edit.forbid_line(m, 0, 0, 5000, 0, name="t line")
     assert len(m.objects) == len(sample.objects) + 5
     assert m.objects[: len(sample.objects)] == sample.objects  # order of existing objects kept
@@ -89,19 +94,22 @@ def test_add_remove_is_identity_property(m: MapData, x: int, y: int, heading: in
     assert dumpb(again) == dumpb(added)
 
 
-# -- rectangles ---------------------------------------------------------------------------------
+# -- rectangles --
 
 
 @given(
     box=st.tuples(coord, coord, coord, coord).filter(lambda t: t[0] != t[2] and t[1] != t[3]),
     angle=st.floats(-360, 360, allow_nan=False),
 )
-def test_rotate_about_centre_gives_the_box_turned_in_place(box: tuple[int, int, int, int], angle: float) -> None:
+def test_rotate_about_centre_gives_the_box_turned_in_place(
+    box: tuple[int, int, int, int], angle: float
+) -> None:
     x1, y1, x2, y2 = box
     m = edit.forbid_area(MapData(), x1, y1, x2, y2, angle=angle, rotate_about_centre=True)
     seen = shapely.Polygon(m.objects[0].corners())
-    drawn = affinity.rotate(shapely.box(min(x1, x2), min(y1, y2), max(x1, x2), max(y1, y2)), angle,
-                            origin="centroid")
+    drawn = affinity.rotate(
+        shapely.box(min(x1, x2), min(y1, y2), max(x1, x2), max(y1, y2)), angle, origin="centroid"
+    )
     assert seen.symmetric_difference(drawn).area < 1e-6 * max(drawn.area, 1)
 
 
@@ -112,7 +120,7 @@ def test_plain_angle_turns_about_the_origin_as_aria_does() -> None:
     assert (xs[0], xs[-1], ys[0], ys[-1]) == (-6001, 21124, -7648, -1564)  # FORMATS.md T24
 
 
-# -- checks ---------------------------------------------------------------------------------------
+# -- checks --
 
 
 @pytest.mark.parametrize(
@@ -130,7 +138,10 @@ def test_plain_angle_turns_about_the_origin_as_aria_does() -> None:
         (lambda m: edit.add_goal(m, "A", 0, 0, description='a "b'), "description"),
         (lambda m: edit.forbid_area(m, 0, 0, 0, 100), "degenerate"),
         (lambda m: edit.forbid_area(m, 0, 0, 100, 100, angle=float("nan")), "angle"),
-        (lambda m: edit.forbid_area(m, 1_900_000, 1_900_000, 1_950_000, 1_950_000, angle=45), "corner y"),
+        (
+            lambda m: edit.forbid_area(m, 1_900_000, 1_900_000, 1_950_000, 1_950_000, angle=45),
+            "corner y",
+        ),
         (lambda m: edit.forbid_line(m, 5, 5, 5, 5), "no length"),
         (lambda m: edit.add_object(m, "Nope", at=(0, 0), name="x"), "not declared"),
         (lambda m: edit.add_object(m, "Slow", at=(0, 0), name="x"), "takes an area"),
@@ -138,8 +149,14 @@ def test_plain_angle_turns_about_the_origin_as_aria_does() -> None:
         (lambda m: edit.add_object(m, "Slow", area=(0, 0, 1, 1)), "needs a name"),
         (lambda m: edit.add_object(m, "Group", at=(0, 0), name="g"), "group template"),
         (lambda m: edit.add_object(m, "Label", at=(0, 0), heading=5, name="l"), "Heading=Never"),
-        (lambda m: edit.add_object(m, "Goal", at=(0, 0), area=(0, 0, 1, 1), name="g"), "exactly one"),
-        (lambda m: edit.add_object(m, "Slow", area=(0, 0, 1, 1), heading=3, name="s"), "only point objects"),
+        (
+            lambda m: edit.add_object(m, "Goal", at=(0, 0), area=(0, 0, 1, 1), name="g"),
+            "exactly one",
+        ),
+        (
+            lambda m: edit.add_object(m, "Slow", area=(0, 0, 1, 1), heading=3, name="s"),
+            "only point objects",
+        ),
         (lambda m: edit.add_object(m, "Bad Type", at=(0, 0)), "one word"),
         (lambda m: edit.add_object(m, "Goal", at=(0, 0), name="g", icon="A B"), "icon"),
         (lambda m: edit.add_goal(m, "A", 0, 0, type="Slow"), "not a goal type"),
@@ -168,18 +185,23 @@ def test_declared_goal_type_with_heading_becomes_with_heading() -> None:
     assert edit.add_goal(m, "Door B", 0, 0, type="DoorGoal").objects[-1].type == "DoorGoal"
 
 
-# -- parameters -----------------------------------------------------------------------------------
+# -- parameters --
 
 
 def test_params_line_is_written_in_name_order_with_defaults() -> None:
-    m = edit.add_object(_map(OMRON_LIKE), "Slow", area=(0, 0, 500, 500), name="Mike",
-                        params={"transvelmax": 300})
+    m = edit.add_object(
+        _map(OMRON_LIKE), "Slow", area=(0, 0, 500, 500), name="Mike", params={"transvelmax": 300}
+    )
     lines = m.info["CairnInfo"]
     params = [ln for ln in lines if ln[0] == "Params"]
     assert [p[1] for p in params] == ['"Alpha"', '"Mike"', '"Zulu"']
     assert params[1] == ("Params", '"Mike"', '"Normal"', "300", "true")
     assert lines[0][0] == "GroupMember"  # other lines stay where they were
-    assert object_params(m, m.objects[-1]) == {"Importance": "Normal", "TransVelMax": "300", "Enabled": "true"}
+    assert object_params(m, m.objects[-1]) == {
+        "Importance": "Normal",
+        "TransVelMax": "300",
+        "Enabled": "true",
+    }
 
 
 @pytest.mark.parametrize(
@@ -213,7 +235,7 @@ def test_type_args_read_the_real_omron_declarations(shared_dir) -> None:  # type
     assert object_params(m, door)["WaitTime"] == "10"
 
 
-# -- selection, remove, rename ----------------------------------------------------------------------
+# -- selection, remove, rename --
 
 
 def test_select_by_name_index_and_type() -> None:
@@ -240,7 +262,9 @@ def test_remove_drops_params_and_refuses_ambiguity() -> None:
         edit.remove(twice, "alpha")
     assert len(edit.remove(twice, "alpha", all_matches=True).objects) == len(m.objects) - 1
     one = edit.remove(twice, "#4")
-    assert one.objects == m.objects and dict(one.info) == dict(m.info)  # Alpha's Params stay: Alpha is still there
+    assert one.objects == m.objects and dict(one.info) == dict(
+        m.info
+    )  # Alpha's Params stay: Alpha is still there
     with pytest.raises(EditError, match="at least one"):
         edit.remove(m)
 
@@ -259,7 +283,7 @@ def test_rename_moves_params_and_reports_references() -> None:
     assert edit.rename(m, "alpha", "ALPHA").info["CairnInfo"][1][1] == '"ALPHA"'
 
 
-# -- move ---------------------------------------------------------------------------------------------
+# -- move --
 
 
 def test_move_point_line_and_area() -> None:

@@ -76,7 +76,9 @@ def test_merge_in_a_script_reads_other_relative_to_the_script(tmp_path: Path) ->
     out = edit.apply_script(MapData(), edits, base_dir=tmp_path)
     assert [o.name for o in out.objects] == ["From other"]
     with pytest.raises(EditError, match=r"edit 1 \(merge, line 1\): .*missing.map: No such file"):
-        edit.apply_script(MapData(), edit.parse_script("- merge: {other: missing.map}"), base_dir=tmp_path)
+        edit.apply_script(
+            MapData(), edit.parse_script("- merge: {other: missing.map}"), base_dir=tmp_path
+        )
 
 
 @pytest.mark.parametrize(
@@ -91,8 +93,10 @@ def test_merge_in_a_script_reads_other_relative_to_the_script(tmp_path: Path) ->
         ("- add-goal: {name: A, x: 1}", r"missing argument\(s\) y"),
         ("- add-goal: {name: A, x: 1, y: 2, colour: red}", r"unknown argument\(s\) colour"),
         ("- add-goal: {name: A, x: one, y: 2}", "x must be a number"),
-        ("- add-goal: {name: A, x: 1, y: 2}\n- add-goal: {name: a, x: 1, y: 2}",
-         r"s\.yaml: edit 2 \(add-goal, line 2\): an object named 'a' already exists"),
+        (
+            "- add-goal: {name: A, x: 1, y: 2}\n- add-goal: {name: a, x: 1, y: 2}",
+            r"s\.yaml: edit 2 \(add-goal, line 2\): an object named 'a' already exists",
+        ),
         ("- erase: {}", "give a region"),
         ("- erase: {box: [1, 2, 3]}", r"box is \[x1, y1, x2, y2\]"),
         ("- crop: {box: [0, 0, 1, 1], polygon: [[0, 0], [1, 0], [0, 1]]}", "not both"),

@@ -15,14 +15,15 @@ from mapkit.edit.geometry import Rigid, is_anchor
 from mapkit.errors import EditError
 from mapkit.formats.map import dumpb, loads
 from mapkit.model import MapData, MapObject, Scan
-
-from edit_strategies import coord, maps
+from tests.edit.edit_strategies import coord, maps
 
 quarter = st.sampled_from([0, 90, 180, 270, -90, 360, 450])
 angle = st.floats(-720, 720, allow_nan=False, allow_infinity=False)
 
 
-def _inverse(m: MapData, rotate: float, dx: float, dy: float, about: tuple[float, float]) -> MapData:
+def _inverse(
+    m: MapData, rotate: float, dx: float, dy: float, about: tuple[float, float]
+) -> MapData:
     motion = edit.transform_motion(m, rotate=rotate, translate=(dx, dy), about=about)
     return edit.apply_motion(edit.apply_motion(m, motion), motion.inverse())
 
@@ -35,15 +36,17 @@ def test_transform_then_inverse_is_the_identity_for_right_angles(
 
 
 @given(m=maps(sorted_data=False), rotate=angle, dx=coord, dy=coord)
-def test_transform_then_inverse_is_the_identity_within_rounding(m: MapData, rotate: float, dx: int, dy: int) -> None:
+def test_transform_then_inverse_is_the_identity_within_rounding(
+    m: MapData, rotate: float, dx: int, dy: int
+) -> None:
     back = _inverse(m, rotate, dx, dy, (0.0, 0.0))
-    # Data is integer millimetres: each of the two motions rounds once (unsorted data keeps its order;
-    # sorted data is re-sorted, which the right-angle test above covers exactly).
+    # Data is integer millimetres: each of the two motions rounds once (unsorted data keeps its
+    # order; sorted data is re-sorted, which the right-angle test above covers exactly).
     assert back.points.shape == m.points.shape and back.lines.shape == m.lines.shape
     assert np.abs(back.points - m.points).max(initial=0) <= 1
     assert np.abs(back.lines - m.lines).max(initial=0) <= 1
     # Objects keep full precision: the identity up to float error, rectangles included.
-    for a, b in zip(m.objects, back.objects):
+    for a, b in zip(m.objects, back.objects, strict=False):
         assert (a.type, a.name) == (b.type, b.name)
         assert math.isclose(a.x, b.x, abs_tol=1e-6) and math.isclose(a.y, b.y, abs_tol=1e-6)
         assert abs(((a.theta - b.theta) + 180) % 360 - 180) < 1e-9
@@ -52,27 +55,33 @@ def test_transform_then_inverse_is_the_identity_within_rounding(m: MapData, rota
 
 
 @given(m=maps(), rotate=angle, dx=coord, dy=coord, px=coord, py=coord)
-def test_objects_move_with_the_world(m: MapData, rotate: float, dx: int, dy: int, px: int, py: int) -> None:
+def test_objects_move_with_the_world(
+    m: MapData, rotate: float, dx: int, dy: int, px: int, py: int
+) -> None:
     out = edit.transform(m, rotate=rotate, translate=(dx, dy), about=(px, py))
     motion = Rigid.about(rotate, (px, py)).then(Rigid(0, dx, dy))
-    for a, b in zip(m.objects, out.objects):
+    for a, b in zip(m.objects, out.objects, strict=False):
         shape = m.object_shape(a)
         if shape == "rect":
             # The exact rectangle, not a box around it: world corners move with the world.
             want = [motion.apply_xy(x, y) for x, y in a.corners()]
             assert np.allclose(b.corners(), want, atol=1e-6)
         elif shape == "line":
-            assert np.allclose(b.from_to, [*motion.apply_xy(*a.from_to[:2]), *motion.apply_xy(*a.from_to[2:])])
+            assert np.allclose(
+                b.from_to, [*motion.apply_xy(*a.from_to[:2]), *motion.apply_xy(*a.from_to[2:])]
+            )
         else:
             assert np.allclose((b.x, b.y), motion.apply_xy(a.x, a.y))
             assert abs(((b.theta - a.theta - rotate) + 180) % 360 - 180) < 1e-9
 
 
 @given(m=maps(), rotate=quarter, dx=coord, dy=coord)
-def test_transformed_maps_round_trip_through_write_and_read(m: MapData, rotate: int, dx: int, dy: int) -> None:
+def test_transformed_maps_round_trip_through_write_and_read(
+    m: MapData, rotate: int, dx: int, dy: int
+) -> None:
     out = edit.transform(m, rotate=rotate, translate=(dx, dy))
     again = loads(dumpb(out))
-    for a, b in zip(out.objects, again.objects):
+    for a, b in zip(out.objects, again.objects, strict=False):
         if a.from_to is None or a.theta % 90 == 0:
             assert a == b  # integer in, integer out
         else:  # a rectangle turned off the axes: its shifted corners are written to the mm (%.0f)
@@ -81,7 +90,9 @@ def test_transformed_maps_round_trip_through_write_and_read(m: MapData, rotate: 
     assert dumpb(again) == dumpb(out)
 
 
-def test_real_samples_turned_four_times_and_shifted_back_are_byte_identical(sample: MapData, canonical: bytes) -> None:
+def test_real_samples_turned_four_times_and_shifted_back_are_byte_identical(
+    sample: MapData, canonical: bytes
+) -> None:
     m = sample
     for _ in range(4):
         m = edit.transform(m, rotate=90, about=(1000, -2000))
@@ -148,4 +159,6 @@ def test_rigid_algebra() -> None:
     pts = np.array([[1, 2], [3, 4]])
     assert Rigid(90).apply_array(pts).tolist() == [[-2, 1], [-4, 3]]
     assert Rigid(180, 1, 1).apply_array(np.array([[1, 2, 3, 4]])).tolist() == [[0, -1, -2, -3]]
-    assert shapely.Polygon(MapObject("A", 0, 0, 30, from_to=(0, 0, 10, 10)).corners()).area == pytest.approx(100)
+    assert shapely.Polygon(
+        MapObject("A", 0, 0, 30, from_to=(0, 0, 10, 10)).corners()
+    ).area == pytest.approx(100)
