@@ -33,6 +33,7 @@ from typing import Any
 
 import numpy as np
 
+from mapkit.edit.rows import isin_rows
 from mapkit.model import INFO_KEYWORDS, MapData, MapObject, Scan
 
 __all__ = [
@@ -359,11 +360,6 @@ def _pair_objects(a: Sequence[MapObject], b: Sequence[MapObject], where: str) ->
 # -- data --------------------------------------------------------------------------------------
 
 
-def _keys(a: np.ndarray[Any, Any]) -> np.ndarray[Any, Any]:
-    a = np.ascontiguousarray(np.asarray(a, dtype=np.int64))
-    return a.view(np.dtype((np.void, a.dtype.itemsize * a.shape[1]))).ravel()
-
-
 def _box(rows: np.ndarray[Any, Any]) -> _Box | None:
     if len(rows) == 0:
         return None
@@ -378,9 +374,8 @@ def _data_change(
     if a is b or (a.shape == b.shape and np.array_equal(a, b)):
         return None
     if len(a) and len(b):
-        ka, kb = _keys(a), _keys(b)
-        only_a = a[~np.isin(ka, kb)]
-        only_b = b[~np.isin(kb, ka)]
+        only_a = a[~isin_rows(a, b)]
+        only_b = b[~isin_rows(b, a)]
     else:
         only_a, only_b = a, b
     return DataChange(

@@ -53,6 +53,7 @@ from mapkit.edit.declared import (
     without_params,
 )
 from mapkit.edit.geometry import Rigid, is_anchor, object_centre, rect_about_centre
+from mapkit.edit.rows import first_occurrences, isin_rows
 from mapkit.edit.selection import Region, clip_lines, cut_lines, points_inside
 from mapkit.errors import EditError
 from mapkit.model import INFO_KEYWORDS, MapData, MapObject, Scan
@@ -674,19 +675,11 @@ def _scan_indices(m: MapData, sources: Iterable[str] | None) -> list[int]:
     return sorted(set(out))
 
 
-def _row_keys(a: np.ndarray[Any, Any]) -> np.ndarray[Any, Any]:
-    """One comparable value per row (for set operations on points and lines)."""
-    a = np.ascontiguousarray(np.asarray(a, dtype=np.int64))
-    return a.view(np.dtype((np.void, a.dtype.itemsize * a.shape[1]))).ravel()
-
-
 def rows_not_in(
     a: np.ndarray[Any, Any], b: np.ndarray[Any, Any]
 ) -> np.ndarray[Any, np.dtype[np.bool_]]:
     """Mask of the rows of ``a`` that do not occur in ``b`` (vectorised)."""
-    if len(a) == 0 or len(b) == 0:
-        return np.ones(len(a), dtype=bool)
-    return ~np.isin(_row_keys(a), _row_keys(b))
+    return ~isin_rows(a, b)
 
 
 # -- data: erase, draw, crop -------------------------------------------------------------------
@@ -745,8 +738,7 @@ def draw_line(
         t = np.linspace(0.0, 1.0, n)
         pts = np.stack([ax + t * (bx - ax), ay + t * (by_ - ay)], axis=1)
         pts = (np.rint(pts / res) * res).astype(np.int64)
-        _, first = np.unique(_row_keys(pts), return_index=True)
-        pts = pts[np.sort(first)]
+        pts = pts[first_occurrences(pts)]
         pts = pts[rows_not_in(pts, s.points)]
         if len(pts) == 0:
             return m
