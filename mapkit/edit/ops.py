@@ -106,6 +106,21 @@ def _check_unique(m: MapData, name: str, *, allow_duplicate: bool, skip: int | N
             )
 
 
+def as_written(obj: MapObject) -> MapObject:
+    """The object as ARIA writes it: coordinates to whole mm (``%.0f``), heading to 6 decimals.
+
+    New and moved objects are stored this way, so what an edit reports is what the file holds.
+
+    Examples:
+        >>> g = as_written(MapObject("Goal", 1.5, 2.5, 0.1234567, name="g"))
+        >>> g.x, g.y, g.theta
+        (2.0, 2.0, 0.123457)
+    """
+    ft = None if obj.from_to is None else tuple(float(round(v)) for v in obj.from_to)
+    return replace(obj, x=float(round(obj.x)), y=float(round(obj.y)), theta=round(obj.theta, 6),
+                   from_to=ft)  # type: ignore[arg-type]
+
+
 def _check_object_range(obj: MapObject, shape: str) -> None:
     check_coord(obj.x, f"{_label(obj)}: x")
     check_coord(obj.y, f"{_label(obj)}: y")
@@ -271,6 +286,7 @@ def add_object(
         obj = MapObject(
             type, x1, y1, 0, name=name, description=description, icon=icon, from_to=(x1, y1, x2, y2)
         )
+    obj = as_written(obj)
     _check_object_range(obj, shape)
     _check_unique(m, name, allow_duplicate=allow_duplicate)
     params_line = params_for_new_object(m, obj.type, name, params)
@@ -608,6 +624,7 @@ def move(
         else:
             ncx, ncy = object_centre(new, shape)
             new = Rigid.about(h - new.theta, (ncx, ncy)).apply_object(new, shape)
+    new = as_written(new)
     _check_object_range(new, shape)
     objects = list(m.objects)
     objects[i] = new
