@@ -18,74 +18,82 @@ from typing import Any
 
 import click
 
+from mapkit import edit as editing
 from mapkit.cli.options import backup_option, echo_json, err, force_option, json_option
-from mapkit.edit import (
-    CLASH_POLICIES,
-    Region,
-    add_dock,
-    add_goal,
-    add_home,
-    add_object,
-    apply_script,
-    crop,
-    diff,
-    draw_line,
-    erase,
-    list_objects,
-    load_script,
-    merge,
-    merge_clashes,
-    move,
-    name_references,
-    remove,
-    rename,
-    select,
-    transform,
-    transform_motion,
-)
 from mapkit.errors import MapkitError
 from mapkit.formats.map import load, save
 from mapkit.model import MapData
 
-__all__ = [
-    "add_dock_cmd",
-    "add_goal_cmd",
-    "add_home_cmd",
-    "add_object_cmd",
-    "crop_cmd",
-    "diff_cmd",
-    "draw_line_cmd",
-    "edit_cmd",
-    "erase_cmd",
-    "forbid_cmd",
-    "merge_cmd",
-    "move_cmd",
-    "objects_cmd",
-    "remove_cmd",
-    "rename_cmd",
-    "transform_cmd",
-]
+__all__ = ["COMMANDS"]
 
 # Negative numbers as arguments: click would take "-1000" for an option otherwise.
 _SETTINGS = {"ignore_unknown_options": True}
-
 _MAX_LINES = 25
+_Notes = Callable[[MapData, MapData], list[str]]
+
+F = Callable[..., Any]
+
+
+def _stack(*decorators: Callable[[F], F]) -> Callable[[F], F]:
+    """Several click decorators as one (applied in the order listed, top first)."""
+
+    def apply(f: F) -> F:
+        for d in reversed(decorators):
+            f = d(f)
+        return f
+
+    return apply
+
 
 _map_arg = click.argument("map_file", metavar="MAP", type=click.Path(exists=True, dir_okay=False))
-
-
-def _writes(f: Callable[..., Any]) -> Callable[..., Any]:
-    """The options every editing command shares."""
-    f = click.option("--dry-run", is_flag=True, help="Show what would change; write nothing.")(f)
-    f = force_option(f)
-    f = backup_option(f)
-    f = click.option(
+_writes = _stack(
+    click.option(
         "-o",
         "--output",
         type=click.Path(dir_okay=False),
         help="Write the result to OUTPUT instead of changing MAP.",
-    )(f)
-    return f
+    ),
+    backup_option,
+    force_option,
+    click.option("--dry-run", is_flag=True, help="Show what would change; write nothing."),
+)
+_type_opt = click.option("--type", "type_", help="Only objects of this type.")
+_allow_dup = click.option(
+    "--allow-duplicate", is_flag=True, help="Accept a name another object has."
+)
+_allow_undeclared = click.option(
+    "--allow-undeclared", is_flag=True, help="Accept a type the map does not declare."
+)
+_param_opt = click.option(
+    "--param",
+    "params",
+    multiple=True,
+    metavar="NAME=VALUE",
+    help="A parameter the type declares (MapInfo: ArgDesc); repeat. Others take their defaults.",
+)
+_description = click.option("--description", default="", help="Free text stored with the object.")
+_area_opts = _stack(
+    click.option(
+        "--area", nargs=4, type=float, metavar="X1 Y1 X2 Y2", help="Opposite corners of an area."
+    ),
+    click.option(
+        "--angle",
+        type=float,
+        default=0.0,
+        help="Angle of the area in degrees (ARIA turns it about the map origin).",
+    ),
+    click.option(
+        "--rotate-about-centre",
+        is_flag=True,
+        help="Turn the area about its own centre instead of the origin.",
+    ),
+)
+_region_opts = _stack(
+    click.option("--box", nargs=4, type=float, metavar="X1 Y1 X2 Y2", help="A box region."),
+    click.option(
+        "--polygon", metavar="'X1,Y1 X2,Y2 ...'", help="A polygon region (3 or more vertices)."
+    ),
+)
 
 
 def _params(values: Sequence[str]) -> dict[str, str]:
@@ -98,9 +106,7 @@ def _params(values: Sequence[str]) -> dict[str, str]:
     return out
 
 
-def _polygon(text: str | None) -> list[tuple[float, float]] | None:
-    if text is None:
-        return None
+def _polygon(text: str) -> list[tuple[float, float]]:
     nums = [t for t in re.split(r"[\s,;]+", text.strip()) if t]
     try:
         vals = [float(t) for t in nums]
@@ -112,37 +118,29 @@ def _polygon(text: str | None) -> list[tuple[float, float]] | None:
         raise click.BadParameter(
             f"{text!r}: an odd count of numbers; give X,Y pairs", param_hint="--polygon"
         )
-    return list(zip(vals[0::2], vals[1::2], strict=False))
+    return list(zip(vals[0::2], vals[1::2], strict=True))
 
 
 def _region(
     box: Sequence[float] | None, polygon: str | None, *, required: bool, box_name: str = "--box"
-) -> Region | None:
+) -> editing.Region | None:
     if box and polygon is not None:
         raise click.UsageError(f"give {box_name} or --polygon, not both")
-    if box:
-        return Region.box(*box)
-    if polygon is not None:
-        pts = _polygon(polygon)
-        assert pts is not None
-        return Region.polygon(pts)
-    if required:
+    if required and not box and polygon is None:
         raise click.UsageError(
             f"give a region: {box_name} X1 Y1 X2 Y2 or --polygon 'X1,Y1 X2,Y2 X3,Y3 ...'"
         )
-    return None
+    return editing.Region.from_spec(box or None, None if polygon is None else _polygon(polygon))
 
 
 def _apply(
     map_file: str,
-    output: str | None,
-    backup: bool,
-    force: bool,
-    dry_run: bool,
+    opts: dict[str, Any],
     edit: Callable[[MapData], MapData],
-    notes: Callable[[MapData, MapData], list[str]] | None = None,
-) -> MapData:
+    notes: _Notes | None = None,
+) -> None:
     """Load, edit, report the changes, write atomically (unless nothing changed or a dry run)."""
+    output, backup, force, dry_run = opts["output"], opts["backup"], opts["force"], opts["dry_run"]
     if (
         output
         and os.path.exists(output)
@@ -152,7 +150,7 @@ def _apply(
         raise click.UsageError(f"{output} exists; add --force to overwrite it")
     m = load(map_file)
     new = edit(m)
-    d = diff(m, new)
+    d = editing.diff(m, new)
     lines = d.summary()
     for line in lines[:_MAX_LINES]:
         click.echo(line)
@@ -162,27 +160,24 @@ def _apply(
         err(f"note: {n}")
     if dry_run:
         click.echo("dry run: nothing written")
-        return new
+        return
     if d.equal and output is None:
         click.echo(f"nothing changed; {map_file} left as it was")
-        return new
+        return
     target = output or map_file
     md5 = save(new, target, backup=backup)
     click.echo(
         f"wrote {target} (MD5 {md5})" + (f", previous file kept as {target}.bak" if backup else "")
     )
-    return new
 
 
-def _reference_notes(
-    names: Callable[[MapData], list[str]],
-) -> Callable[[MapData, MapData], list[str]]:
+def _reference_notes(names: Callable[[MapData], list[str]]) -> _Notes:
     def notes(before: MapData, after: MapData) -> list[str]:
-        out = []
-        for n in names(before):
-            for section, _, line in name_references(after, n):
-                out.append(f"{section}: {' '.join(line)} still names {n!r}")
-        return out
+        return [
+            f"{section}: {' '.join(line)} still names {n!r}"
+            for n in names(before)
+            for section, _, line in editing.name_references(after, n)
+        ]
 
     return notes
 
@@ -190,130 +185,87 @@ def _reference_notes(
 # -- objects -----------------------------------------------------------------------------------
 
 
-@click.command("add-goal", context_settings=_SETTINGS)
-@_map_arg
-@click.argument("name")
-@click.argument("x", type=float)
-@click.argument("y", type=float)
-@click.option("--heading", type=float, help="Heading in degrees (makes a GoalWithHeading).")
-@click.option("--description", default="", help="Free text stored with the goal.")
-@click.option(
-    "--type", "type_", default="Goal", show_default=True, help="A goal type the map declares."
-)
-@click.option(
-    "--param",
-    "params",
-    multiple=True,
-    metavar="NAME=VALUE",
-    help="A parameter of the type (repeat).",
-)
-@click.option("--allow-duplicate", is_flag=True, help="Accept a name another object has.")
-@click.option("--allow-undeclared", is_flag=True, help="Accept a type the map does not declare.")
-@_writes
-def add_goal_cmd(
-    map_file: str,
-    name: str,
-    x: float,
-    y: float,
-    heading: float | None,
-    description: str,
-    type_: str,
-    params: tuple[str, ...],
-    allow_duplicate: bool,
-    allow_undeclared: bool,
-    output: str | None,
-    backup: bool,
-    force: bool,
-    dry_run: bool,
-) -> None:
+def _point_command(
+    name: str, fn: Callable[..., MapData], default_type: str, help: str
+) -> click.Command:
+    """``add-goal`` and ``add-dock``: NAME X Y and the options of a typed point object."""
+
+    @click.command(name, context_settings=_SETTINGS, help=help)
+    @_map_arg
+    @click.argument("name")
+    @click.argument("x", type=float)
+    @click.argument("y", type=float)
+    @click.option("--heading", type=float, help="Heading in degrees.")
+    @_description
+    @click.option(
+        "--type",
+        "type_",
+        default=default_type,
+        show_default=True,
+        help="A type of this kind the map declares.",
+    )
+    @_param_opt
+    @_allow_dup
+    @_allow_undeclared
+    @_writes
+    def command(
+        map_file: str,
+        name: str,
+        x: float,
+        y: float,
+        heading: float | None,
+        description: str,
+        type_: str,
+        params: tuple[str, ...],
+        allow_duplicate: bool,
+        allow_undeclared: bool,
+        **opts: Any,
+    ) -> None:
+        _apply(
+            map_file,
+            opts,
+            lambda m: fn(
+                m,
+                name,
+                x,
+                y,
+                heading=heading,
+                description=description,
+                type=type_,
+                params=_params(params),
+                allow_duplicate=allow_duplicate,
+                allow_undeclared=allow_undeclared,
+            ),
+        )
+
+    return command
+
+
+add_goal_cmd = _point_command(
+    "add-goal",
+    editing.add_goal,
+    "Goal",
     """Add a goal NAME at X Y (millimetres).
+
+    With --heading it is a GoalWithHeading (a declared goal type T becomes TWithHeading).
 
     \b
     Example:
       mapkit add-goal office.map Kitchen 12000 -3500 --heading 90
-    """
-    _apply(
-        map_file,
-        output,
-        backup,
-        force,
-        dry_run,
-        lambda m: add_goal(
-            m,
-            name,
-            x,
-            y,
-            heading=heading,
-            description=description,
-            type=type_,
-            params=_params(params),
-            allow_duplicate=allow_duplicate,
-            allow_undeclared=allow_undeclared,
-        ),
-    )
-
-
-@click.command("add-dock", context_settings=_SETTINGS)
-@_map_arg
-@click.argument("name")
-@click.argument("x", type=float)
-@click.argument("y", type=float)
-@click.option("--heading", type=float, help="Docking heading in degrees (default 0).")
-@click.option("--description", default="", help="Free text stored with the dock.")
-@click.option(
-    "--type", "type_", default="Dock", show_default=True, help="A dock type the map declares."
+    """,
 )
-@click.option(
-    "--param",
-    "params",
-    multiple=True,
-    metavar="NAME=VALUE",
-    help="A parameter of the type (repeat).",
-)
-@click.option("--allow-duplicate", is_flag=True, help="Accept a name another object has.")
-@click.option("--allow-undeclared", is_flag=True, help="Accept a type the map does not declare.")
-@_writes
-def add_dock_cmd(
-    map_file: str,
-    name: str,
-    x: float,
-    y: float,
-    heading: float | None,
-    description: str,
-    type_: str,
-    params: tuple[str, ...],
-    allow_duplicate: bool,
-    allow_undeclared: bool,
-    output: str | None,
-    backup: bool,
-    force: bool,
-    dry_run: bool,
-) -> None:
-    """Add a dock NAME at X Y.
+
+add_dock_cmd = _point_command(
+    "add-dock",
+    editing.add_dock,
+    "Dock",
+    """Add a dock NAME at X Y (heading: the docking direction, default 0).
 
     \b
     Example:
       mapkit add-dock office.map "Dock 1" -2800 -2900 --heading -90
-    """
-    _apply(
-        map_file,
-        output,
-        backup,
-        force,
-        dry_run,
-        lambda m: add_dock(
-            m,
-            name,
-            x,
-            y,
-            heading=heading,
-            description=description,
-            type=type_,
-            params=_params(params),
-            allow_duplicate=allow_duplicate,
-            allow_undeclared=allow_undeclared,
-        ),
-    )
+    """,
+)
 
 
 @click.command("add-home", context_settings=_SETTINGS)
@@ -321,34 +273,23 @@ def add_dock_cmd(
 @click.argument("x", type=float, required=False)
 @click.argument("y", type=float, required=False)
 @click.option("--heading", type=float, help="Start heading in degrees (default 0).")
-@click.option(
-    "--area", nargs=4, type=float, metavar="X1 Y1 X2 Y2", help="A start region instead of a pose."
-)
-@click.option("--angle", type=float, default=0.0, help="Angle of the area in degrees.")
-@click.option(
-    "--rotate-about-centre",
-    is_flag=True,
-    help="Turn the area about its own centre (not the origin).",
-)
+@_area_opts
 @click.option("--name", default="", help="Name of the home.")
-@click.option("--description", default="", help="Free text.")
-@click.option("--allow-duplicate", is_flag=True, help="Accept a name another object has.")
+@_description
+@_allow_dup
 @_writes
 def add_home_cmd(
     map_file: str,
     x: float | None,
     y: float | None,
     heading: float | None,
-    area: tuple[float, ...] | None,
+    area: tuple[float, ...],
     angle: float,
     rotate_about_centre: bool,
     name: str,
     description: str,
     allow_duplicate: bool,
-    output: str | None,
-    backup: bool,
-    force: bool,
-    dry_run: bool,
+    **opts: Any,
 ) -> None:
     """Add a RobotHome: a start pose X Y [--heading] or a start region --area.
 
@@ -359,11 +300,8 @@ def add_home_cmd(
     """
     _apply(
         map_file,
-        output,
-        backup,
-        force,
-        dry_run,
-        lambda m: add_home(
+        opts,
+        lambda m: editing.add_home(
             m,
             x,
             y,
@@ -380,42 +318,24 @@ def add_home_cmd(
 
 @click.command("forbid", context_settings=_SETTINGS)
 @_map_arg
-@click.option(
-    "--area",
-    nargs=4,
-    type=float,
-    metavar="X1 Y1 X2 Y2",
-    help="A forbidden area (opposite corners).",
-)
+@_area_opts
 @click.option(
     "--line", nargs=4, type=float, metavar="X1 Y1 X2 Y2", help="A forbidden line (its ends)."
 )
-@click.option(
-    "--angle",
-    type=float,
-    default=0.0,
-    help="Angle of the area in degrees (ARIA turns it about the map origin).",
-)
-@click.option(
-    "--rotate-about-centre", is_flag=True, help="Turn the area about its own centre instead."
-)
 @click.option("--name", default="", help="Name (forbidden areas and lines are usually unnamed).")
-@click.option("--description", default="", help="Free text.")
-@click.option("--allow-duplicate", is_flag=True, help="Accept a name another object has.")
+@_description
+@_allow_dup
 @_writes
 def forbid_cmd(
     map_file: str,
-    area: tuple[float, ...] | None,
-    line: tuple[float, ...] | None,
+    area: tuple[float, ...],
     angle: float,
     rotate_about_centre: bool,
+    line: tuple[float, ...],
     name: str,
     description: str,
     allow_duplicate: bool,
-    output: str | None,
-    backup: bool,
-    force: bool,
-    dry_run: bool,
+    **opts: Any,
 ) -> None:
     """Add a ForbiddenArea (--area) or a ForbiddenLine (--line).
 
@@ -432,40 +352,22 @@ def forbid_cmd(
         raise click.UsageError("give --area X1 Y1 X2 Y2 or --line X1 Y1 X2 Y2")
     if line and (angle or rotate_about_centre):
         raise click.UsageError("--angle and --rotate-about-centre are for --area")
-    if area:
-        _apply(
-            map_file,
-            output,
-            backup,
-            force,
-            dry_run,
-            lambda m: add_object(
-                m,
-                "ForbiddenArea",
-                area=area,
-                angle=angle,
-                rotate_about_centre=rotate_about_centre,
-                name=name,
-                description=description,
-                allow_duplicate=allow_duplicate,
-            ),
-        )
-    else:
-        _apply(
-            map_file,
-            output,
-            backup,
-            force,
-            dry_run,
-            lambda m: add_object(
-                m,
-                "ForbiddenLine",
-                line=line,
-                name=name,
-                description=description,
-                allow_duplicate=allow_duplicate,
-            ),
-        )
+    kind = "ForbiddenArea" if area else "ForbiddenLine"
+    _apply(
+        map_file,
+        opts,
+        lambda m: editing.add_object(
+            m,
+            kind,
+            area=area or None,
+            line=line or None,
+            angle=angle,
+            rotate_about_centre=rotate_about_centre,
+            name=name,
+            description=description,
+            allow_duplicate=allow_duplicate,
+        ),
+    )
 
 
 @click.command("add-object", context_settings=_SETTINGS)
@@ -473,48 +375,31 @@ def forbid_cmd(
 @click.argument("type_", metavar="TYPE")
 @click.option("--at", nargs=2, type=float, metavar="X Y", help="Position of a point object.")
 @click.option("--heading", type=float, help="Heading of a point object in degrees.")
-@click.option(
-    "--area", nargs=4, type=float, metavar="X1 Y1 X2 Y2", help="Corners of a sector (rectangle)."
-)
-@click.option("--angle", type=float, default=0.0, help="Angle of the area in degrees.")
-@click.option(
-    "--rotate-about-centre",
-    is_flag=True,
-    help="Turn the area about its own centre (not the origin).",
-)
+@_area_opts
 @click.option(
     "--line", nargs=4, type=float, metavar="X1 Y1 X2 Y2", help="Ends of a boundary (line)."
 )
 @click.option("--name", default="", help="Object name.")
-@click.option("--description", default="", help="Free text.")
-@click.option(
-    "--param",
-    "params",
-    multiple=True,
-    metavar="NAME=VALUE",
-    help="A parameter the type declares (MapInfo: ArgDesc); repeat. Others take their defaults.",
-)
-@click.option("--allow-undeclared", is_flag=True, help="Accept a type the map does not declare.")
-@click.option("--allow-duplicate", is_flag=True, help="Accept a name another object has.")
+@_description
+@_param_opt
+@_allow_undeclared
+@_allow_dup
 @_writes
 def add_object_cmd(
     map_file: str,
     type_: str,
-    at: tuple[float, ...] | None,
+    at: tuple[float, ...],
     heading: float | None,
-    area: tuple[float, ...] | None,
+    area: tuple[float, ...],
     angle: float,
     rotate_about_centre: bool,
-    line: tuple[float, ...] | None,
+    line: tuple[float, ...],
     name: str,
     description: str,
     params: tuple[str, ...],
     allow_undeclared: bool,
     allow_duplicate: bool,
-    output: str | None,
-    backup: bool,
-    force: bool,
-    dry_run: bool,
+    **opts: Any,
 ) -> None:
     """Add an object of any TYPE the map declares: sectors, boundaries, goal/dock/location types.
 
@@ -529,11 +414,8 @@ def add_object_cmd(
     """
     _apply(
         map_file,
-        output,
-        backup,
-        force,
-        dry_run,
-        lambda m: add_object(
+        opts,
+        lambda m: editing.add_object(
             m,
             type_,
             at=at or None,
@@ -551,10 +433,17 @@ def add_object_cmd(
     )
 
 
-def _cell(v: Any) -> str:
-    if isinstance(v, float):
-        return f"{v:.0f}"
-    return str(v)
+def _where(r: dict[str, Any]) -> str:
+    if r["shape"] == "rect":
+        where = "area " + " ".join(f"({x:.0f}, {y:.0f})" for x, y in r["corners"])
+    elif r["shape"] == "line":
+        (ax, ay), (bx, by) = r["corners"]
+        where = f"line ({ax:.0f}, {ay:.0f}) -> ({bx:.0f}, {by:.0f})"
+    else:
+        where = "point"
+    return where + (
+        "  " + " ".join(f"{k}={v}" for k, v in r["params"].items()) if r["params"] else ""
+    )
 
 
 @click.command("objects")
@@ -571,54 +460,36 @@ def objects_cmd(map_file: str, type_: str | None, all_: bool, as_json: bool) -> 
     Example:
       mapkit objects columbia.map --type Goal
     """
-    rows = list_objects(load(map_file), type=type_, inactive=all_)
+    rows = editing.list_objects(load(map_file), type=type_, inactive=all_)
     if as_json:
         echo_json(rows)
         return
     if not rows:
         click.echo("no objects" + (f" of type {type_}" if type_ else ""))
         return
-    width_t = max(4, *(len(r["type"]) for r in rows))
-    width_n = max(4, *(len(r["name"]) + 2 for r in rows))
-    click.echo(
-        f"{'#':>4}  {'type':<{width_t}}  {'name':<{width_n}}  {'x':>8} {'y':>8} {'theta':>8}  where"
-    )
+    wt = max(4, *(len(r["type"]) for r in rows))
+    wn = max(4, *(len(r["name"]) + 2 for r in rows))
+    click.echo(f"{'#':>4}  {'type':<{wt}}  {'name':<{wn}}  {'x':>8} {'y':>8} {'theta':>8}  where")
     for r in rows:
         idx = (
             str(r["index"])
             if r["index"]
             else {"inactive_objects": "_", "child_objects": "c"}[r["list"]]
         )
-        if r["shape"] == "rect":
-            where = "area " + " ".join(f"({x:.0f}, {y:.0f})" for x, y in r["corners"])
-        elif r["shape"] == "line":
-            (ax, ay), (bx, by) = r["corners"]
-            where = f"line ({ax:.0f}, {ay:.0f}) -> ({bx:.0f}, {by:.0f})"
-        else:
-            where = "point"
-        if r["params"]:
-            where += "  " + " ".join(f"{k}={v}" for k, v in r["params"].items())
         click.echo(
-            f"{idx:>4}  {r['type']:<{width_t}}  {r['name']!r:<{width_n}}  {_cell(r['x']):>8} "
-            f"{_cell(r['y']):>8} {r['theta']:>8.2f}  {where}"
+            f"{idx:>4}  {r['type']:<{wt}}  {r['name']!r:<{wn}}  {r['x']:>8.0f} {r['y']:>8.0f} "
+            f"{r['theta']:>8.2f}  {_where(r)}"
         )
 
 
 @click.command("remove", context_settings=_SETTINGS)
 @_map_arg
 @click.argument("names", nargs=-1, required=True)
-@click.option("--type", "type_", help="Only objects of this type.")
+@_type_opt
 @click.option("--all", "all_", is_flag=True, help="Remove every object a shared name picks.")
 @_writes
 def remove_cmd(
-    map_file: str,
-    names: tuple[str, ...],
-    type_: str | None,
-    all_: bool,
-    output: str | None,
-    backup: bool,
-    force: bool,
-    dry_run: bool,
+    map_file: str, names: tuple[str, ...], type_: str | None, all_: bool, **opts: Any
 ) -> None:
     """Remove objects by NAME (case-insensitive) or #N (see mapkit objects).
 
@@ -629,11 +500,8 @@ def remove_cmd(
     """
     _apply(
         map_file,
-        output,
-        backup,
-        force,
-        dry_run,
-        lambda m: remove(m, *names, type=type_, all_matches=all_),
+        opts,
+        lambda m: editing.remove(m, *names, type=type_, all_matches=all_),
         _reference_notes(lambda m: [n for n in names if not n.startswith("#")]),
     )
 
@@ -642,19 +510,11 @@ def remove_cmd(
 @_map_arg
 @click.argument("name")
 @click.argument("new_name")
-@click.option("--type", "type_", help="Only objects of this type.")
-@click.option("--allow-duplicate", is_flag=True, help="Accept a name another object has.")
+@_type_opt
+@_allow_dup
 @_writes
 def rename_cmd(
-    map_file: str,
-    name: str,
-    new_name: str,
-    type_: str | None,
-    allow_duplicate: bool,
-    output: str | None,
-    backup: bool,
-    force: bool,
-    dry_run: bool,
+    map_file: str, name: str, new_name: str, type_: str | None, allow_duplicate: bool, **opts: Any
 ) -> None:
     """Rename the object NAME (or #N) to NEW_NAME; its CairnInfo: Params follow.
 
@@ -666,12 +526,11 @@ def rename_cmd(
     """
     _apply(
         map_file,
-        output,
-        backup,
-        force,
-        dry_run,
-        lambda m: rename(m, name, new_name, type=type_, allow_duplicate=allow_duplicate),
-        _reference_notes(lambda m: [m.objects[i].name for i in select(m, name, type=type_)]),
+        opts,
+        lambda m: editing.rename(m, name, new_name, type=type_, allow_duplicate=allow_duplicate),
+        _reference_notes(
+            lambda m: [m.objects[i].name for i in editing.select(m, name, type=type_)]
+        ),
     )
 
 
@@ -684,20 +543,17 @@ def rename_cmd(
 @click.option(
     "--heading", type=float, help="New heading in degrees (areas turn about their centre)."
 )
-@click.option("--type", "type_", help="Only objects of this type.")
+@_type_opt
 @_writes
 def move_cmd(
     map_file: str,
     name: str,
     x: float | None,
     y: float | None,
-    by: tuple[float, ...] | None,
+    by: tuple[float, ...],
     heading: float | None,
     type_: str | None,
-    output: str | None,
-    backup: bool,
-    force: bool,
-    dry_run: bool,
+    **opts: Any,
 ) -> None:
     """Move the object NAME (or #N) to X Y, or --by DX DY; and/or set its --heading.
 
@@ -710,11 +566,8 @@ def move_cmd(
     """
     _apply(
         map_file,
-        output,
-        backup,
-        force,
-        dry_run,
-        lambda m: move(m, name, x, y, by=by or None, heading=heading, type=type_),
+        opts,
+        lambda m: editing.move(m, name, x, y, by=by or None, heading=heading, type=type_),
     )
 
 
@@ -723,23 +576,17 @@ def move_cmd(
 
 @click.command("erase", context_settings=_SETTINGS)
 @_map_arg
-@click.option("--box", nargs=4, type=float, metavar="X1 Y1 X2 Y2", help="Erase inside this box.")
-@click.option(
-    "--polygon", metavar="'X1,Y1 X2,Y2 ...'", help="Erase inside this polygon (3 or more vertices)."
-)
+@_region_opts
 @click.option(
     "--source", "sources", multiple=True, help="Only this scan source (repeat; default all)."
 )
 @_writes
 def erase_cmd(
     map_file: str,
-    box: tuple[float, ...] | None,
+    box: tuple[float, ...],
     polygon: str | None,
     sources: tuple[str, ...],
-    output: str | None,
-    backup: bool,
-    force: bool,
-    dry_run: bool,
+    **opts: Any,
 ) -> None:
     """Remove the points inside a region and cut away the parts of lines inside it.
 
@@ -753,14 +600,7 @@ def erase_cmd(
     """
     region = _region(box, polygon, required=True)
     assert region is not None
-    _apply(
-        map_file,
-        output,
-        backup,
-        force,
-        dry_run,
-        lambda m: erase(m, region, sources=sources or None),
-    )
+    _apply(map_file, opts, lambda m: editing.erase(m, region, sources=sources or None))
 
 
 @click.command("draw-line", context_settings=_SETTINGS)
@@ -784,10 +624,7 @@ def draw_line_cmd(
     y2: float,
     source: str | None,
     as_points: bool,
-    output: str | None,
-    backup: bool,
-    force: bool,
-    dry_run: bool,
+    **opts: Any,
 ) -> None:
     """Add a line segment from X1 Y1 to X2 Y2 to the map data (a wall the scan missed).
 
@@ -797,15 +634,12 @@ def draw_line_cmd(
     """
     _apply(
         map_file,
-        output,
-        backup,
-        force,
-        dry_run,
-        lambda m: draw_line(m, x1, y1, x2, y2, source=source, as_points=as_points),
+        opts,
+        lambda m: editing.draw_line(m, x1, y1, x2, y2, source=source, as_points=as_points),
     )
 
 
-def _transform_notes(rotate: float) -> Callable[[MapData, MapData], list[str]]:
+def _transform_notes(rotate: float) -> _Notes:
     def notes(before: MapData, after: MapData) -> list[str]:
         out = []
         if before.origin_lla is not None:
@@ -816,8 +650,7 @@ def _transform_notes(rotate: float) -> Callable[[MapData, MapData], list[str]]:
         if rotate % 90 and any(s.resolution > 0 and s.num_points for s in before.scans):
             out.append(
                 f"a turn of {rotate:g} degrees takes the points off their "
-                f"{before.scan.resolution} mm "
-                "grid (rounded to whole mm)"
+                f"{before.scan.resolution} mm grid (rounded to whole mm)"
             )
         if before.child_objects:
             out.append(
@@ -845,14 +678,11 @@ def _transform_notes(rotate: float) -> Callable[[MapData, MapData], list[str]]:
 @_writes
 def transform_cmd(
     map_file: str,
-    translate: tuple[float, ...] | None,
+    translate: tuple[float, ...],
     rotate: float,
-    about: tuple[float, ...] | None,
+    about: tuple[float, ...],
     recenter: bool,
-    output: str | None,
-    backup: bool,
-    force: bool,
-    dry_run: bool,
+    **opts: Any,
 ) -> None:
     """Move the whole map: points, lines and every object together; headings follow.
 
@@ -869,7 +699,7 @@ def transform_cmd(
         raise click.UsageError("give --translate, --rotate or --recenter")
 
     def edit(m: MapData) -> MapData:
-        motion = transform_motion(
+        motion = editing.transform_motion(
             m,
             rotate=rotate,
             translate=translate or (0.0, 0.0),
@@ -877,35 +707,21 @@ def transform_cmd(
             recenter=recenter,
         )
         err(
-            f"motion: turn {motion.angle:g} degrees, then shift "
-            f"({motion.tx:.1f}, {motion.ty:.1f}) mm"
+            f"motion: turn {motion.angle:g} degrees, "
+            f"then shift ({motion.tx:.1f}, {motion.ty:.1f}) mm"
         )
-        return transform(
-            m,
-            rotate=rotate,
-            translate=translate or (0.0, 0.0),
-            about=about or (0.0, 0.0),
-            recenter=recenter,
-        )
+        return editing.apply_motion(m, motion)
 
-    _apply(map_file, output, backup, force, dry_run, edit, _transform_notes(rotate))
+    _apply(map_file, opts, edit, _transform_notes(rotate))
 
 
 @click.command("crop", context_settings=_SETTINGS)
 @_map_arg
-@click.option("--box", nargs=4, type=float, metavar="X1 Y1 X2 Y2", help="Keep this box.")
-@click.option("--polygon", metavar="'X1,Y1 X2,Y2 ...'", help="Keep this polygon.")
+@_region_opts
 @click.option("--keep-objects", is_flag=True, help="Keep objects outside the region too.")
 @_writes
 def crop_cmd(
-    map_file: str,
-    box: tuple[float, ...] | None,
-    polygon: str | None,
-    keep_objects: bool,
-    output: str | None,
-    backup: bool,
-    force: bool,
-    dry_run: bool,
+    map_file: str, box: tuple[float, ...], polygon: str | None, keep_objects: bool, **opts: Any
 ) -> None:
     """Keep only the data inside a region; objects wholly outside it are removed.
 
@@ -915,38 +731,33 @@ def crop_cmd(
     """
     region = _region(box, polygon, required=True)
     assert region is not None
-    _apply(
-        map_file,
-        output,
-        backup,
-        force,
-        dry_run,
-        lambda m: crop(m, region, keep_objects=keep_objects),
-    )
+    _apply(map_file, opts, lambda m: editing.crop(m, region, keep_objects=keep_objects))
 
 
-def _merge_notes(other: MapData, on_clash: str) -> Callable[[MapData, MapData], list[str]]:
+def _merge_notes(other: MapData, on_clash: str) -> _Notes:
+    what = {
+        "keep": "both kept",
+        "rename": "OTHER's renamed",
+        "base": "BASE's kept",
+        "other": "OTHER's kept",
+        "error": "",
+    }[on_clash]
+
     def notes(before: MapData, after: MapData) -> list[str]:
-        out = []
-        what = {
-            "keep": "both kept",
-            "rename": "OTHER's renamed",
-            "base": "BASE's kept",
-            "other": "OTHER's kept",
-            "error": "",
-        }[on_clash]
-        for b, o in merge_clashes(before, other):
-            out.append(
-                f"name clash: {b.type} {b.name!r} in BASE and {o.type} {o.name!r} in OTHER ({what})"
-            )
+        out = [
+            f"name clash: {b.type} {b.name!r} in BASE and {o.type} {o.name!r} in OTHER ({what})"
+            for b, o in editing.merge_clashes(before, other)
+        ]
         if other.scan.resolution != before.scan.resolution:
             out.append(
                 f"resolutions differ: BASE {before.scan.resolution} mm, "
                 f"OTHER {other.scan.resolution} mm"
             )
-        for key, lines in other.info.items():
-            if key not in ("MapInfo", "CairnInfo") and lines != before.info.get(key, ()):
-                out.append(f"OTHER's {key}: lines were not merged (BASE's kept)")
+        out.extend(
+            f"OTHER's {key}: lines were not merged (BASE's kept)"
+            for key, lines in other.info.items()
+            if key not in ("MapInfo", "CairnInfo") and lines != before.info.get(key, ())
+        )
         return out
 
     return notes
@@ -965,7 +776,7 @@ def _merge_notes(other: MapData, on_clash: str) -> Callable[[MapData, MapData], 
 @click.option("--polygon", metavar="'X1,Y1 X2,Y2 ...'", help="The same with a polygon.")
 @click.option(
     "--on-clash",
-    type=click.Choice(CLASH_POLICIES),
+    type=click.Choice(editing.CLASH_POLICIES),
     default="keep",
     show_default=True,
     help="Same name in both maps: keep both, rename OTHER's, keep BASE's or OTHER's, or refuse.",
@@ -974,13 +785,10 @@ def _merge_notes(other: MapData, on_clash: str) -> Callable[[MapData, MapData], 
 def merge_cmd(
     base: str,
     other: str,
-    region: tuple[float, ...] | None,
+    region: tuple[float, ...],
     polygon: str | None,
     on_clash: str,
-    output: str | None,
-    backup: bool,
-    force: bool,
-    dry_run: bool,
+    **opts: Any,
 ) -> None:
     """Insert map OTHER into BASE (Mapper3's Insert Map); BASE changes unless -o.
 
@@ -995,11 +803,8 @@ def merge_cmd(
     other_map = load(other)
     _apply(
         base,
-        output,
-        backup,
-        force,
-        dry_run,
-        lambda m: merge(m, other_map, region=reg, on_clash=on_clash),
+        opts,
+        lambda m: editing.merge(m, other_map, region=reg, on_clash=on_clash),
         _merge_notes(other_map, on_clash),
     )
 
@@ -1024,7 +829,7 @@ def diff_cmd(a: str, b: str, as_json: bool) -> None:
         message = f"{e.filename}: {e.strerror}" if isinstance(e, OSError) and e.strerror else str(e)
         click.echo(f"Error: {message}", err=True)
         sys.exit(2)
-    d = diff(ma, mb)
+    d = editing.diff(ma, mb)
     if as_json:
         echo_json(d.to_json())
     elif d.equal:
@@ -1050,9 +855,7 @@ def diff_cmd(a: str, b: str, as_json: bool) -> None:
     help="A YAML or JSON file of edits (see docs/edit.md).",
 )
 @_writes
-def edit_cmd(
-    map_file: str, script: str, output: str | None, backup: bool, force: bool, dry_run: bool
-) -> None:
+def edit_cmd(map_file: str, script: str, **opts: Any) -> None:
     """Apply a batch of edits from a YAML or JSON file as one atomic change.
 
     If any edit is refused, nothing is written.
@@ -1061,19 +864,13 @@ def edit_cmd(
     Example:
       mapkit edit office.map --script edits.yaml --backup
     """
-    edits = load_script(script)
+    edits = editing.load_script(script)
     base_dir = os.path.dirname(os.path.abspath(script))
     err(f"{len(edits)} edit(s) from {script}")
-    _apply(
-        map_file,
-        output,
-        backup,
-        force,
-        dry_run,
-        lambda m: apply_script(m, edits, base_dir=base_dir),
-    )
+    _apply(map_file, opts, lambda m: editing.apply_script(m, edits, base_dir=base_dir))
 
 
+#: Every command of this module, for ``mapkit/cli/main.py`` to register.
 COMMANDS = [
     add_goal_cmd,
     add_dock_cmd,

@@ -288,50 +288,42 @@ def _differing(a: MapObject, b: MapObject) -> tuple[str, ...]:
     return tuple(f.name for f in fields(MapObject) if getattr(a, f.name) != getattr(b, f.name))
 
 
-def _pair_objects(a: Sequence[MapObject], b: Sequence[MapObject], where: str) -> list[ObjectChange]:
-    left = list(range(len(a)))
-    pool: dict[MapObject, list[int]] = defaultdict(list)
-    for j, o in enumerate(b):
-        pool[o].append(j)
-    taken_b: set[int] = set()
-    rest_a = []
-    for i in left:
-        js = pool.get(a[i])
-        if js:
-            taken_b.add(js.pop(0))
-        else:
-            rest_a.append(i)
-    rest_b = [j for j in range(len(b)) if j not in taken_b]
-    pairs: list[tuple[int, int]] = []
-    for key in (lambda o: (o.type.lower(), o.name.lower()), lambda o: o.name.lower()):
-        by_key: dict[Any, list[int]] = defaultdict(list)
-        for j in rest_b:
-            if b[j].name:
-                by_key[key(b[j])].append(j)
-        still = []
-        for i in rest_a:
-            js = by_key.get(key(a[i])) if a[i].name else None
-            if js:
-                j = js.pop(0)
-                pairs.append((i, j))
-                rest_b.remove(j)
-            else:
-                still.append(i)
-        rest_a = still
-    # Renamed (or re-described) in place: same type and same geometry.
-    by_place: dict[Any, list[int]] = defaultdict(list)
+def _pair_by(
+    key: Any, a: Sequence[MapObject], b: Sequence[MapObject], rest_a: list[int], rest_b: list[int]
+) -> tuple[list[tuple[int, int]], list[int], list[int]]:
+    """Pair the left-over objects whose keys agree, in order (a ``None`` key never pairs)."""
+    by_key: dict[Any, list[int]] = defaultdict(list)
     for j in rest_b:
-        by_place[(b[j].type.lower(), b[j].x, b[j].y, b[j].theta, b[j].from_to)].append(j)
-    still = []
+        k = key(b[j])
+        if k is not None:
+            by_key[k].append(j)
+    pairs, still_a = [], []
     for i in rest_a:
-        js = by_place.get((a[i].type.lower(), a[i].x, a[i].y, a[i].theta, a[i].from_to))
+        k = key(a[i])
+        js = by_key.get(k) if k is not None else None
         if js:
-            j = js.pop(0)
-            pairs.append((i, j))
-            rest_b.remove(j)
+            pairs.append((i, js.pop(0)))
         else:
-            still.append(i)
-    rest_a = still
+            still_a.append(i)
+    taken = {j for _, j in pairs}
+    return pairs, still_a, [j for j in rest_b if j not in taken]
+
+
+_PASSES = (
+    lambda o: o,  # identical: not a change
+    lambda o: (o.type.lower(), o.name.lower()) if o.name else None,
+    lambda o: o.name.lower() if o.name else None,  # a retyped object (Goal -> GoalWithHeading)
+    lambda o: (o.type.lower(), o.x, o.y, o.theta, o.from_to),  # renamed or re-described in place
+)
+
+
+def _pair_objects(a: Sequence[MapObject], b: Sequence[MapObject], where: str) -> list[ObjectChange]:
+    rest_a, rest_b = list(range(len(a))), list(range(len(b)))
+    pairs: list[tuple[int, int]] = []
+    for n, key in enumerate(_PASSES):
+        found, rest_a, rest_b = _pair_by(key, a, b, rest_a, rest_b)
+        if n:
+            pairs.extend(found)
     # Unnamed leftovers: pair by type in file order when the counts agree.
     by_type_a: dict[str, list[int]] = defaultdict(list)
     by_type_b: dict[str, list[int]] = defaultdict(list)
@@ -344,7 +336,7 @@ def _pair_objects(a: Sequence[MapObject], b: Sequence[MapObject], where: str) ->
     for t, ia in by_type_a.items():
         jb = by_type_b.get(t, [])
         if len(ia) == len(jb):
-            pairs.extend(zip(ia, jb, strict=False))
+            pairs.extend(zip(ia, jb, strict=True))
             rest_a = [i for i in rest_a if i not in ia]
             rest_b = [j for j in rest_b if j not in jb]
     out = []

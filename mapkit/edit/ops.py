@@ -116,9 +116,12 @@ def as_written(obj: MapObject) -> MapObject:
         >>> g.x, g.y, g.theta
         (2.0, 2.0, 0.123457)
     """
-    ft = None if obj.from_to is None else tuple(float(round(v)) for v in obj.from_to)
-    return replace(obj, x=float(round(obj.x)), y=float(round(obj.y)), theta=round(obj.theta, 6),
-                   from_to=ft)  # type: ignore[arg-type]
+    ft = None
+    if obj.from_to is not None:
+        fx, fy, tx, ty = (float(round(v)) for v in obj.from_to)
+        ft = (fx, fy, tx, ty)
+    x, y = float(round(obj.x)), float(round(obj.y))
+    return replace(obj, x=x, y=y, theta=round(obj.theta, 6), from_to=ft)
 
 
 def _check_object_range(obj: MapObject, shape: str) -> None:
@@ -133,6 +136,13 @@ def _check_object_range(obj: MapObject, shape: str) -> None:
         for cx, cy in corners:
             check_coord(cx, f"{_label(obj)}: corner x")
             check_coord(cy, f"{_label(obj)}: corner y")
+
+
+def _needs_name(m: MapData, type: str) -> bool:
+    """Goals and docks need a name (ARIA finds them by it), as do types with NameRequired=1."""
+    return (
+        type_class(m, type) in ("GoalType", "DockType") or type_key(m, type, "NameRequired") == "1"
+    )
 
 
 def _declared_list(m: MapData) -> str:
@@ -257,7 +267,7 @@ def add_object(
     description = check_text(description, "description")
     if not isinstance(icon, str) or not icon or any(c.isspace() or c == '"' for c in icon):
         raise EditError(f"icon {icon!r} must be one word without spaces or quotes")
-    if not name and (cls in ("GoalType", "DockType") or type_key(m, type, "NameRequired") == "1"):
+    if not name and _needs_name(m, type):
         raise EditError(f"a {type} needs a name")
     if heading is not None and shape != "point":
         raise EditError(f"only point objects have a heading; use angle for an area ({type!r})")
@@ -315,18 +325,18 @@ def add_goal(
         >>> g.type, g.x, g.y, g.theta, g.name
         ('GoalWithHeading', 1000.0, 0.0, -90.0, 'Desk')
     """
-    if _resolve_type(m, type, allow_undeclared) not in ("GoalType", None):
-        raise EditError(f"{type!r} is not a goal type ({type_class(m, type)})")
-    return add_object(
+    return _add_point(
         m,
+        "GoalType",
         type,
-        at=(x, y),
-        heading=heading,
-        name=name,
-        description=description,
-        params=params,
-        allow_undeclared=allow_undeclared,
-        allow_duplicate=allow_duplicate,
+        name,
+        x,
+        y,
+        heading,
+        description,
+        params,
+        allow_undeclared,
+        allow_duplicate,
     )
 
 
@@ -344,13 +354,42 @@ def add_dock(
     allow_duplicate: bool = False,
 ) -> MapData:
     """Add a dock (``Dock`` or a declared dock type); the heading is the docking direction."""
-    if _resolve_type(m, type, allow_undeclared) not in ("DockType", None):
-        raise EditError(f"{type!r} is not a dock type ({type_class(m, type)})")
+    return _add_point(
+        m,
+        "DockType",
+        type,
+        name,
+        x,
+        y,
+        0.0 if heading is None else heading,
+        description,
+        params,
+        allow_undeclared,
+        allow_duplicate,
+    )
+
+
+def _add_point(
+    m: MapData,
+    cls: str,
+    type: str,
+    name: str,
+    x: float,
+    y: float,
+    heading: float | None,
+    description: str,
+    params: Mapping[str, Any] | None,
+    allow_undeclared: bool,
+    allow_duplicate: bool,
+) -> MapData:
+    """A point object whose type must be of class ``cls`` (or undeclared, when allowed)."""
+    if _resolve_type(m, type, allow_undeclared) not in (cls, None):
+        raise EditError(f"{type!r} is not a {cls[:-4].lower()} type ({type_class(m, type)})")
     return add_object(
         m,
         type,
         at=(x, y),
-        heading=0.0 if heading is None else heading,
+        heading=heading,
         name=name,
         description=description,
         params=params,
@@ -541,24 +580,21 @@ def remove(
 
 def rename(
     m: MapData,
-    selector: str,
+    name: str,
     new_name: str,
     *,
     type: str | None = None,
     allow_duplicate: bool = False,
 ) -> MapData:
-    """Rename one object; its ``CairnInfo: Params`` line follows the new name.
+    """Rename one object (``name`` or ``#N``); its ``CairnInfo: Params`` line follows the new name.
 
     Other info lines that mention the old name (routes, tasks) are left as they are: see
     :func:`name_references`.
     """
-    i = _select_one(m, selector, type)
+    i = _select_one(m, name, type)
     new_name = check_name(new_name, "new name")
     obj = m.objects[i]
-    cls = type_class(m, obj.type)
-    if not new_name and (
-        cls in ("GoalType", "DockType") or type_key(m, obj.type, "NameRequired") == "1"
-    ):
+    if not new_name and _needs_name(m, obj.type):
         raise EditError(f"a {obj.type} needs a name")
     _check_unique(m, new_name, allow_duplicate=allow_duplicate, skip=i)
     objects = list(m.objects)
@@ -576,7 +612,7 @@ def rename(
 
 def move(
     m: MapData,
-    selector: str,
+    name: str,
     x: float | None = None,
     y: float | None = None,
     *,
@@ -584,7 +620,7 @@ def move(
     heading: float | None = None,
     type: str | None = None,
 ) -> MapData:
-    """Move one object to ``(x, y)`` or by ``by = (dx, dy)``, and/or set its heading.
+    """Move one object (``name`` or ``#N``) to ``(x, y)`` or by ``by = (dx, dy)``; set its heading.
 
     A point object's position is ``(x, y)``; a line or rectangle is moved so that its centre is
     there (its size and turn kept). A rectangle's ``heading`` turns it about its own centre to that
@@ -593,7 +629,7 @@ def move(
     Raises:
         EditError: Unknown or ambiguous selector, bad numbers, or both ``(x, y)`` and ``by``.
     """
-    i = _select_one(m, selector, type)
+    i = _select_one(m, name, type)
     obj = m.objects[i]
     shape = m.object_shape(obj)
     if (x is None) != (y is None):

@@ -74,103 +74,15 @@ class Edit:
 
 
 # -- operations --------------------------------------------------------------------------------
+# Most operations are the library functions themselves (their keyword names are the CLI's); the
+# adapters below only turn a script's lists into the functions' arguments.
 
 
-def _region(
-    box: Sequence[float] | None, polygon: Sequence[Sequence[float]] | None, *, required: bool
-) -> Region | None:
-    if box is not None and polygon is not None:
-        raise EditError("give either box or polygon, not both")
-    if box is not None:
-        if not isinstance(box, (list, tuple)) or len(box) != 4:
-            raise EditError(f"box is [x1, y1, x2, y2], got {box!r}")
-        return Region.box(*box)
-    if polygon is not None:
-        return Region.polygon(polygon)
-    if required:
+def _region(box: Any, polygon: Any) -> Region:
+    region = Region.from_spec(box, polygon)
+    if region is None:
         raise EditError("give a region: box [x1, y1, x2, y2] or polygon [[x, y], ...]")
-    return None
-
-
-def _add_goal(
-    m: MapData,
-    *,
-    name: str,
-    x: float,
-    y: float,
-    heading: float | None = None,
-    description: str = "",
-    type: str = "Goal",
-    params: dict[str, Any] | None = None,
-    allow_undeclared: bool = False,
-    allow_duplicate: bool = False,
-) -> MapData:
-    return ops.add_goal(
-        m,
-        name,
-        x,
-        y,
-        heading=heading,
-        description=description,
-        type=type,
-        params=params,
-        allow_undeclared=allow_undeclared,
-        allow_duplicate=allow_duplicate,
-    )
-
-
-def _add_dock(
-    m: MapData,
-    *,
-    name: str,
-    x: float,
-    y: float,
-    heading: float | None = None,
-    description: str = "",
-    type: str = "Dock",
-    params: dict[str, Any] | None = None,
-    allow_undeclared: bool = False,
-    allow_duplicate: bool = False,
-) -> MapData:
-    return ops.add_dock(
-        m,
-        name,
-        x,
-        y,
-        heading=heading,
-        description=description,
-        type=type,
-        params=params,
-        allow_undeclared=allow_undeclared,
-        allow_duplicate=allow_duplicate,
-    )
-
-
-def _add_home(
-    m: MapData,
-    *,
-    x: float | None = None,
-    y: float | None = None,
-    heading: float | None = None,
-    area: Sequence[float] | None = None,
-    angle: float = 0.0,
-    rotate_about_centre: bool = False,
-    name: str = "",
-    description: str = "",
-    allow_duplicate: bool = False,
-) -> MapData:
-    return ops.add_home(
-        m,
-        x,
-        y,
-        heading=heading,
-        area=area,
-        angle=angle,
-        rotate_about_centre=rotate_about_centre,
-        name=name,
-        description=description,
-        allow_duplicate=allow_duplicate,
-    )
+    return region
 
 
 def _forbid(
@@ -186,59 +98,18 @@ def _forbid(
 ) -> MapData:
     if (area is None) == (line is None):
         raise EditError("forbid takes either area [x1, y1, x2, y2] or line [x1, y1, x2, y2]")
-    if area is not None:
-        return ops.add_object(
-            m,
-            "ForbiddenArea",
-            area=area,
-            angle=angle,
-            rotate_about_centre=rotate_about_centre,
-            name=name,
-            description=description,
-            allow_duplicate=allow_duplicate,
-        )
-    assert line is not None
-    if angle:
+    if line is not None and angle:
         raise EditError("a forbidden line has no angle")
+    kind = "ForbiddenArea" if area is not None else "ForbiddenLine"
     return ops.add_object(
         m,
-        "ForbiddenLine",
-        line=line,
-        name=name,
-        description=description,
-        allow_duplicate=allow_duplicate,
-    )
-
-
-def _add_object(
-    m: MapData,
-    *,
-    type: str,
-    at: Sequence[float] | None = None,
-    heading: float | None = None,
-    area: Sequence[float] | None = None,
-    angle: float = 0.0,
-    rotate_about_centre: bool = False,
-    line: Sequence[float] | None = None,
-    name: str = "",
-    description: str = "",
-    params: dict[str, Any] | None = None,
-    allow_undeclared: bool = False,
-    allow_duplicate: bool = False,
-) -> MapData:
-    return ops.add_object(
-        m,
-        type,
-        at=at,
-        heading=heading,
+        kind,
         area=area,
+        line=line,
         angle=angle,
         rotate_about_centre=rotate_about_centre,
-        line=line,
         name=name,
         description=description,
-        params=params,
-        allow_undeclared=allow_undeclared,
         allow_duplicate=allow_duplicate,
     )
 
@@ -246,40 +117,21 @@ def _add_object(
 def _remove(
     m: MapData, *, names: str | Sequence[str], type: str | None = None, all: bool = False
 ) -> MapData:
-    if isinstance(names, str):
-        names = [names]
-    return ops.remove(m, *names, type=type, all_matches=all)
-
-
-def _rename(
-    m: MapData, *, name: str, new_name: str, type: str | None = None, allow_duplicate: bool = False
-) -> MapData:
-    return ops.rename(m, name, new_name, type=type, allow_duplicate=allow_duplicate)
-
-
-def _move(
-    m: MapData,
-    *,
-    name: str,
-    x: float | None = None,
-    y: float | None = None,
-    by: Sequence[float] | None = None,
-    heading: float | None = None,
-    type: str | None = None,
-) -> MapData:
-    return ops.move(m, name, x, y, by=by, heading=heading, type=type)
+    return ops.remove(
+        m, *([names] if isinstance(names, str) else names), type=type, all_matches=all
+    )
 
 
 def _erase(
-    m: MapData,
-    *,
-    box: Sequence[float] | None = None,
-    polygon: Sequence[Sequence[float]] | None = None,
-    sources: Sequence[str] | None = None,
+    m: MapData, *, box: Any = None, polygon: Any = None, sources: Sequence[str] | None = None
 ) -> MapData:
-    region = _region(box, polygon, required=True)
-    assert region is not None
-    return ops.erase(m, region, sources=sources)
+    return ops.erase(m, _region(box, polygon), sources=sources)
+
+
+def _crop(
+    m: MapData, *, box: Any = None, polygon: Any = None, keep_objects: bool = False
+) -> MapData:
+    return ops.crop(m, _region(box, polygon), keep_objects=keep_objects)
 
 
 def _draw_line(
@@ -290,57 +142,34 @@ def _draw_line(
     return ops.draw_line(m, *line, source=source, as_points=as_points)
 
 
-def _transform(
-    m: MapData,
-    *,
-    rotate: float = 0.0,
-    translate: Sequence[float] = (0.0, 0.0),
-    about: Sequence[float] = (0.0, 0.0),
-    recenter: bool = False,
-) -> MapData:
-    return ops.transform(m, rotate=rotate, translate=translate, about=about, recenter=recenter)
-
-
-def _crop(
-    m: MapData,
-    *,
-    box: Sequence[float] | None = None,
-    polygon: Sequence[Sequence[float]] | None = None,
-    keep_objects: bool = False,
-) -> MapData:
-    region = _region(box, polygon, required=True)
-    assert region is not None
-    return ops.crop(m, region, keep_objects=keep_objects)
-
-
 def _merge(
     m: MapData,
     *,
     other: str,
-    box: Sequence[float] | None = None,
-    polygon: Sequence[Sequence[float]] | None = None,
+    box: Any = None,
+    polygon: Any = None,
     on_clash: str = "keep",
     _base_dir: str = ".",
 ) -> MapData:
     from mapkit.formats.map import load
 
     path = other if os.path.isabs(other) else os.path.join(_base_dir, other)
-    return ops.merge(m, load(path), region=_region(box, polygon, required=False), on_clash=on_clash)
+    return ops.merge(m, load(path), region=Region.from_spec(box, polygon), on_clash=on_clash)
 
 
 #: Operation name -> function ``(map, **args) -> map``.
 OPERATIONS: dict[str, Callable[..., MapData]] = {
-    "add-goal": _add_goal,
-    "add-dock": _add_dock,
-    "add-home": _add_home,
-    "add-object": _add_object,
+    "add-goal": ops.add_goal,
+    "add-dock": ops.add_dock,
+    "add-home": ops.add_home,
+    "add-object": ops.add_object,
     "forbid": _forbid,
     "remove": _remove,
-    "rename": _rename,
-    "move": _move,
+    "rename": ops.rename,
+    "move": ops.move,
     "erase": _erase,
     "draw-line": _draw_line,
-    "transform": _transform,
+    "transform": ops.transform,
     "crop": _crop,
     "merge": _merge,
 }

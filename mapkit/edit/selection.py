@@ -95,6 +95,21 @@ class Region:
             raise EditError("the polygon has no area")
         return cls(tuple(pts), is_box=False)
 
+    @classmethod
+    def from_spec(cls, box: Any = None, polygon: Any = None) -> Region | None:
+        """A region from ``box = (x1, y1, x2, y2)`` or ``polygon = [(x, y), ...]`` (or ``None``).
+
+        Raises:
+            EditError: Both given, or either malformed.
+        """
+        if box is not None and polygon is not None:
+            raise EditError("give either a box or a polygon, not both")
+        if box is not None:
+            if not isinstance(box, (list, tuple)) or len(box) != 4:
+                raise EditError(f"a box is [x1, y1, x2, y2], got {box!r}")
+            return cls.box(*box)
+        return None if polygon is None else cls.polygon(polygon)
+
     @property
     def bounds(self) -> tuple[float, float, float, float]:
         """``(xmin, ymin, xmax, ymax)``."""

@@ -3,37 +3,24 @@
 from __future__ import annotations
 
 import json
-import shutil
 from pathlib import Path
 
 import numpy as np
 import pytest
-from click.testing import CliRunner, Result
+from click.testing import CliRunner
 
-from mapkit.cli.main import cli
+from mapkit import edit
 from mapkit.edit import Region
 from mapkit.edit.selection import lines_overlapping, points_inside
 from mapkit.formats.map import dumpb, load, save
+from tests.cli.edit_helpers import COLUMBIA, copy, copy_sample, run
 
-COLUMBIA = "aria294-columbia.map"
-
-
-def run(runner: CliRunner, *args: object) -> Result:
-    return runner.invoke(cli, [str(a) for a in args], catch_exceptions=False)
-
-
-@pytest.fixture
-def copy(real_sample: Path, tmp_path: Path) -> Path:
-    dst = tmp_path / real_sample.name
-    shutil.copyfile(real_sample, dst)
-    return dst
+__all__ = ["copy"]  # the fixture, used by name
 
 
 @pytest.fixture
 def columbia(shared_dir: Path, tmp_path: Path) -> Path:
-    dst = tmp_path / COLUMBIA
-    shutil.copyfile(shared_dir / "real" / COLUMBIA, dst)
-    return dst
+    return copy_sample(shared_dir, tmp_path, COLUMBIA)
 
 
 def _middle_box(path: Path) -> tuple[int, int, int, int]:
@@ -155,11 +142,9 @@ def test_transform_options_and_notes(runner: CliRunner, columbia: Path, tmp_path
 
 
 def test_merge_commands(runner: CliRunner, shared_dir: Path, tmp_path: Path) -> None:
-    base = tmp_path / "base.map"
+    base = copy_sample(shared_dir, tmp_path, "aria-office.map")
     other = tmp_path / "other.map"
-    shutil.copyfile(shared_dir / "real" / "aria-office.map", base)
     m = load(base)
-    from mapkit import edit
 
     save(
         edit.add_goal(edit.add_goal(m, "Home", 10, 10, allow_duplicate=True), "Extra", 0, 0), other

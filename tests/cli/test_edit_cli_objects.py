@@ -3,53 +3,26 @@
 from __future__ import annotations
 
 import json
-import shutil
 from pathlib import Path
+from shlex import split
 
 import pytest
-from click.testing import CliRunner, Result
+from click.testing import CliRunner
 
-from mapkit.cli.main import cli
-from mapkit.formats.map import dumpb, load, save
+from mapkit.formats.map import dumpb, load
+from tests.cli.edit_helpers import COLUMBIA, OMRON, copy, copy_sample, light_sample, run
 
-COLUMBIA = "aria294-columbia.map"
-OMRON = "omron-ld-showroom-ex4.map"
-
-
-def run(runner: CliRunner, *args: object) -> Result:
-    return runner.invoke(cli, [str(a) for a in args], catch_exceptions=False)
-
-
-@pytest.fixture
-def copy(real_sample: Path, tmp_path: Path) -> Path:
-    """A writable copy of each real sample."""
-    dst = tmp_path / real_sample.name
-    shutil.copyfile(real_sample, dst)
-    return dst
-
-
-def _copy(shared_dir: Path, tmp_path: Path, name: str) -> Path:
-    dst = tmp_path / name
-    shutil.copyfile(shared_dir / "real" / name, dst)
-    return dst
-
-
-def _light(shared_dir: Path, tmp_path: Path, name: str) -> Path:
-    """A real sample with its header, info and objects but only its lines (quick to load)."""
-    m = load(shared_dir / "real" / name)
-    dst = tmp_path / name
-    save(m.with_scan(m.scan.with_data(points=m.points[:0])), dst)
-    return dst
+__all__ = ["copy"]  # the fixture, used by name
 
 
 @pytest.fixture
 def columbia(shared_dir: Path, tmp_path: Path) -> Path:
-    return _light(shared_dir, tmp_path, COLUMBIA)
+    return light_sample(shared_dir, tmp_path, COLUMBIA)
 
 
 @pytest.fixture
 def omron(shared_dir: Path, tmp_path: Path) -> Path:
-    return _light(shared_dir, tmp_path, OMRON)
+    return light_sample(shared_dir, tmp_path, OMRON)
 
 
 # -- on every real sample -------------------------------------------------------------------------
@@ -202,61 +175,17 @@ def test_add_commands(runner: CliRunner, columbia: Path) -> None:
 
 
 def test_add_object_with_params(runner: CliRunner, omron: Path) -> None:
-    r = run(
-        runner,
-        "add-object",
-        omron,
-        "MovementParametersSector",
-        "--area",
-        0,
-        0,
-        4000,
-        2000,
-        "--name",
-        "Slow",
-        "--param",
-        "TransVelMax=300",
-        "--angle",
-        30,
-        "--rotate-about-centre",
-    )
+    sector = ["add-object", omron, "MovementParametersSector", "--area"]
+    r = run(runner, *sector, *split("0 0 4000 2000 --name Slow --param TransVelMax=300 --angle 30"),
+            "--rotate-about-centre")
     assert r.exit_code == 0, r.output
     assert '+ CairnInfo: Params "Slow" "Normal" 300' in r.stdout
-    rows = json.loads(
-        run(runner, "objects", omron, "--type", "MovementParametersSector", "--json").stdout
-    )
+    listed = run(runner, "objects", omron, "--type", "MovementParametersSector", "--json")
+    rows = json.loads(listed.stdout)
     assert rows[0]["params"]["TransVelMax"] == "300" and rows[0]["theta"] == 30
-    r = run(
-        runner,
-        "add-object",
-        omron,
-        "MovementParametersSector",
-        "--area",
-        0,
-        0,
-        1,
-        1,
-        "--name",
-        "S2",
-        "--param",
-        "nonsense",
-    )
+    r = run(runner, *sector, *split("0 0 1 1 --name S2 --param nonsense"))
     assert r.exit_code == 2 and "NAME=VALUE" in r.stderr
-    r = run(
-        runner,
-        "add-object",
-        omron,
-        "MovementParametersSector",
-        "--area",
-        0,
-        0,
-        1,
-        1,
-        "--name",
-        "S2",
-        "--param",
-        "TransVelMax=-5",
-    )
+    r = run(runner, *sector, *split("0 0 1 1 --name S2 --param TransVelMax=-5"))
     assert r.exit_code == 1 and "below its minimum" in r.stderr
     r = run(runner, "objects", omron, "--all")
     assert "ChildDoorForEnter101" in r.stdout
@@ -292,9 +221,8 @@ def test_remove_rename_move(runner: CliRunner, columbia: Path, omron: Path) -> N
 def test_nothing_changed_leaves_the_file(
     runner: CliRunner, shared_dir: Path, tmp_path: Path
 ) -> None:
-    p = _copy(
-        shared_dir, tmp_path, "aria-office.map"
-    )  # not ARIA-canonical: a rewrite would change it
+    # aria-office.map is not ARIA-canonical: any rewrite would change it.
+    p = copy_sample(shared_dir, tmp_path, "aria-office.map")
     before = p.read_bytes()
     r = run(runner, "erase", p, "--box", 900000, 900000, 900100, 900100)
     assert r.exit_code == 0 and "nothing changed" in r.stdout
