@@ -352,13 +352,11 @@ def forbid_cmd(
         raise click.UsageError("give --area X1 Y1 X2 Y2 or --line X1 Y1 X2 Y2")
     if line and (angle or rotate_about_centre):
         raise click.UsageError("--angle and --rotate-about-centre are for --area")
-    kind = "ForbiddenArea" if area else "ForbiddenLine"
     _apply(
         map_file,
         opts,
-        lambda m: editing.add_object(
+        lambda m: editing.forbid(
             m,
-            kind,
             area=area or None,
             line=line or None,
             angle=angle,

@@ -6,7 +6,7 @@ over unchanged (objects, their order, info sections, unknown lines; the scans to
 objects change). Write the result with :func:`mapkit.save`.
 
 Objects:
-    :func:`add_goal`, :func:`add_dock`, :func:`add_home`, :func:`forbid_area`,
+    :func:`add_goal`, :func:`add_dock`, :func:`add_home`, :func:`forbid`, :func:`forbid_area`,
     :func:`forbid_line`, :func:`add_object` (any declared type, with parameters),
     :func:`remove`, :func:`rename`, :func:`move`, :func:`select`, :func:`name_references`,
     :func:`list_objects`.
@@ -44,6 +44,7 @@ from mapkit.edit.ops import (
     crop,
     draw_line,
     erase,
+    forbid,
     forbid_area,
     forbid_line,
     merge,
@@ -81,6 +82,7 @@ __all__ = [
     "diff",
     "draw_line",
     "erase",
+    "forbid",
     "forbid_area",
     "forbid_line",
     "list_objects",

@@ -68,6 +68,7 @@ __all__ = [
     "crop",
     "draw_line",
     "erase",
+    "forbid",
     "forbid_area",
     "forbid_line",
     "merge",
@@ -438,6 +439,39 @@ def add_home(
     )
 
 
+def forbid(
+    m: MapData,
+    *,
+    area: Sequence[float] | None = None,
+    line: Sequence[float] | None = None,
+    angle: float = 0.0,
+    rotate_about_centre: bool = False,
+    name: str = "",
+    description: str = "",
+    allow_duplicate: bool = False,
+) -> MapData:
+    """Add a ``ForbiddenArea`` (``area``) or a ``ForbiddenLine`` (``line``): ``mapkit forbid``.
+
+    See :func:`add_object` for ``angle`` and ``rotate_about_centre``.
+    """
+    if (area is None) == (line is None):
+        raise EditError("forbid takes either an area or a line (X1 Y1 X2 Y2)")
+    if line is not None and (angle or rotate_about_centre):
+        raise EditError("a forbidden line has no angle")
+    kind = "ForbiddenArea" if area is not None else "ForbiddenLine"
+    return add_object(
+        m,
+        kind,
+        area=area,
+        line=line,
+        angle=angle,
+        rotate_about_centre=rotate_about_centre,
+        name=name,
+        description=description,
+        allow_duplicate=allow_duplicate,
+    )
+
+
 def forbid_area(
     m: MapData,
     x1: float,
@@ -451,10 +485,9 @@ def forbid_area(
     description: str = "",
     allow_duplicate: bool = False,
 ) -> MapData:
-    """Add a ``ForbiddenArea`` (see :func:`add_object` on ``angle``, ``rotate_about_centre``)."""
-    return add_object(
+    """Add a ``ForbiddenArea`` with corners ``(x1, y1)``, ``(x2, y2)`` (see :func:`forbid`)."""
+    return forbid(
         m,
-        "ForbiddenArea",
         area=(x1, y1, x2, y2),
         angle=angle,
         rotate_about_centre=rotate_about_centre,
@@ -476,9 +509,8 @@ def forbid_line(
     allow_duplicate: bool = False,
 ) -> MapData:
     """Add a ``ForbiddenLine`` from ``(x1, y1)`` to ``(x2, y2)``."""
-    return add_object(
+    return forbid(
         m,
-        "ForbiddenLine",
         line=(x1, y1, x2, y2),
         name=name,
         description=description,

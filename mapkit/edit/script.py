@@ -85,35 +85,6 @@ def _region(box: Any, polygon: Any) -> Region:
     return region
 
 
-def _forbid(
-    m: MapData,
-    *,
-    area: Sequence[float] | None = None,
-    line: Sequence[float] | None = None,
-    angle: float = 0.0,
-    rotate_about_centre: bool = False,
-    name: str = "",
-    description: str = "",
-    allow_duplicate: bool = False,
-) -> MapData:
-    if (area is None) == (line is None):
-        raise EditError("forbid takes either area [x1, y1, x2, y2] or line [x1, y1, x2, y2]")
-    if line is not None and angle:
-        raise EditError("a forbidden line has no angle")
-    kind = "ForbiddenArea" if area is not None else "ForbiddenLine"
-    return ops.add_object(
-        m,
-        kind,
-        area=area,
-        line=line,
-        angle=angle,
-        rotate_about_centre=rotate_about_centre,
-        name=name,
-        description=description,
-        allow_duplicate=allow_duplicate,
-    )
-
-
 def _remove(
     m: MapData, *, names: str | Sequence[str], type: str | None = None, all: bool = False
 ) -> MapData:
@@ -163,7 +134,7 @@ OPERATIONS: dict[str, Callable[..., MapData]] = {
     "add-dock": ops.add_dock,
     "add-home": ops.add_home,
     "add-object": ops.add_object,
-    "forbid": _forbid,
+    "forbid": ops.forbid,
     "remove": _remove,
     "rename": ops.rename,
     "move": ops.move,

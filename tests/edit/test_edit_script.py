@@ -101,7 +101,7 @@ def test_merge_in_a_script_reads_other_relative_to_the_script(tmp_path: Path) ->
         ("- erase: {box: [1, 2, 3]}", r"box is \[x1, y1, x2, y2\]"),
         ("- crop: {box: [0, 0, 1, 1], polygon: [[0, 0], [1, 0], [0, 1]]}", "not both"),
         ("- draw-line: {line: 5}", "line is"),
-        ("- forbid: {}", "either area"),
+        ("- forbid: {}", "either an area or a line"),
         ("- forbid: {line: [0, 0, 1, 1], angle: 5}", "has no angle"),
         ("- ok: 1\n- [unclosed", r"s\.yaml:2: not valid YAML"),
         ("- add-home: {x: 1, y: 2, heading: [1]}", "heading must be a number"),
