@@ -54,9 +54,15 @@ def cli(ctx: click.Context, verbose: int, quiet: bool, debug: bool) -> None:
 from mapkit.cli import convert as _convert  # noqa: E402
 from mapkit.cli import edit as _edit  # noqa: E402
 from mapkit.cli import info as _info  # noqa: E402
+from mapkit.cli import rasterize as _rasterize  # noqa: E402
+from mapkit.cli import validate as _validate  # noqa: E402
 
 cli.add_command(_info.info)
 cli.add_command(_convert.convert)
+cli.add_command(_rasterize.rasterize)
+cli.add_command(_rasterize.import_ros)
+cli.add_command(_validate.validate)
+cli.add_command(_validate.codes)
 for _command in _edit.COMMANDS:
     cli.add_command(_command)
 
