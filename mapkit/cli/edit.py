@@ -259,7 +259,9 @@ add_dock_cmd = _point_command(
     "add-dock",
     editing.add_dock,
     "Dock",
-    """Add a dock NAME at X Y (heading: the docking direction, default 0).
+    """Add a dock NAME at X Y (millimetres).
+
+    The heading (default 0) is the direction the robot docks in.
 
     \b
     Example:
