@@ -53,9 +53,11 @@ def cli(ctx: click.Context, verbose: int, quiet: bool, debug: bool) -> None:
 # Commands are registered explicitly, one module per command or command group.
 from mapkit.cli import convert as _convert  # noqa: E402
 from mapkit.cli import info as _info  # noqa: E402
+from mapkit.cli import ros as _ros  # noqa: E402
 
 cli.add_command(_info.info)
 cli.add_command(_convert.convert)
+cli.add_command(_ros.ros)
 
 
 def main() -> None:

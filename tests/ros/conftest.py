@@ -80,8 +80,8 @@ class Ros:
     def run(self, args: Sequence[str], timeout: float = 60, check: bool = True,
             **kw: Any) -> subprocess.CompletedProcess[str]:
         """Run a command against this master and wait for it (text output)."""
-        res = subprocess.run(list(args), env=self.env, capture_output=True, text=True,
-                             timeout=timeout, cwd=kw.pop("cwd", ROOT), **kw)
+        res = subprocess.run(list(args), env=kw.pop("env", self.env), capture_output=True,
+                             text=True, timeout=timeout, cwd=kw.pop("cwd", ROOT), **kw)
         if check and res.returncode != 0:
             raise AssertionError(f"{' '.join(args)} exited {res.returncode}:\n{res.stdout}\n{res.stderr}")
         return res
@@ -94,7 +94,7 @@ class Ros:
     def start(self, args: Sequence[str], **kw: Any) -> subprocess.Popen[bytes]:
         """Start a background process (its own process group); stopped at teardown."""
         log = tempfile.NamedTemporaryFile(dir=self.home, prefix="proc-", suffix=".log", delete=False)
-        proc = subprocess.Popen(list(args), env=self.env, stdout=log, stderr=subprocess.STDOUT,
+        proc = subprocess.Popen(list(args), env=kw.pop("env", self.env), stdout=log, stderr=subprocess.STDOUT,
                                 start_new_session=True, cwd=kw.pop("cwd", ROOT), **kw)
         proc.log_path = Path(log.name)  # type: ignore[attr-defined]
         log.close()
