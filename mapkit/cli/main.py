@@ -54,9 +54,12 @@ def cli(ctx: click.Context, verbose: int, quiet: bool, debug: bool) -> None:
 from mapkit.cli import convert as _convert  # noqa: E402
 from mapkit.cli import info as _info  # noqa: E402
 from mapkit.cli import ros as _ros  # noqa: E402
+from mapkit.cli import transfer as _transfer  # noqa: E402
 
 cli.add_command(_info.info)
 cli.add_command(_convert.convert)
+for _command in _transfer.COMMANDS:
+    cli.add_command(_command)
 cli.add_command(_ros.ros)
 
 

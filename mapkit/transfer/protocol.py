@@ -272,6 +272,7 @@ class Frame:
         flags: Header flags.
         session: The session id.
         authentic: True when the frame carried a valid tag.
+        crc: CRC-32 of the payload alone (computed while checking the frame).
     """
 
     type: int
@@ -281,6 +282,7 @@ class Frame:
     flags: int = 0
     session: int = 0
     authentic: bool = False
+    crc: int = 0
 
     def json(self) -> dict[str, Any]:
         """The payload as a JSON object.
@@ -586,7 +588,7 @@ class Channel:
             self.stats["duplicates"] += 1
             return _AGAIN
         self.stats["frames_in"] += 1
-        return Frame(ftype, seq, ref, payload, flags, session, authentic)
+        return Frame(ftype, seq, ref, payload, flags, session, authentic, crc)
 
     def _replay_ok(self, seq: int) -> bool:
         if seq == 0:
@@ -1253,6 +1255,7 @@ class ChunkReceived:
     index: int
     offset: int
     data: bytes
+    crc: int | None = None  #: CRC-32 of ``data`` when the transport computed it
 
 
 @dataclass(frozen=True, slots=True)
@@ -1614,7 +1617,7 @@ class Receiver(_Machine):
         self.have[i] = 1
         self.held += 1
         self.bytes_received += len(f.payload)
-        self._events.append(ChunkReceived(i, i * self.offer.chunk_size, f.payload))
+        self._events.append(ChunkReceived(i, i * self.offer.chunk_size, f.payload, f.crc))
         in_order = i == self._next
         if in_order:
             nxt = self.have.find(0, i)
