@@ -17,7 +17,7 @@ from typing import Any
 
 from mapkit.ros.errors import ROS_APT_PACKAGES, RosError, RosUnavailableError
 
-__all__ = ["master_uri", "ros_import", "rospy", "shutdown", "spin", "start_node", "wait_until"]
+__all__ = ["master_uri", "ros_import", "rospy", "shutdown", "spin", "start_node", "stop_on_signals", "wait_until"]
 
 
 def ros_import(name: str) -> ModuleType:
@@ -57,6 +57,13 @@ def _master_answers(uri: str, timeout: float) -> bool:
         socket.setdefaulttimeout(old)
 
 
+class _OnlyMapkitBelowWarning:
+    """Pass mapkit's records, and others' from WARNING up (rospy logs its chatter at INFO)."""
+
+    def filter(self, record: Any) -> bool:
+        return record.name.startswith("mapkit") or record.levelno >= 30
+
+
 def start_node(name: str, *, anonymous: bool = True, timeout: float = 5.0) -> str:
     """Start this process's rospy node (once); return its full name.
 
@@ -76,7 +83,20 @@ def start_node(name: str, *, anonymous: bool = True, timeout: float = 5.0) -> st
     if not _master_answers(uri, timeout):
         raise RosError(f"no ROS master answers at {uri}: start roscore or set ROS_MASTER_URI")
     # Our own signal handling: Ctrl-C is a KeyboardInterrupt; rospy shuts down at exit.
+    import logging
+
+    handlers, level = list(logging.root.handlers), logging.root.level
     rp.init_node(name, anonymous=anonymous, disable_signals=True, log_level=rp.WARN)
+    # rospy configures logging with fileConfig, which replaces the root's handlers and disables
+    # every logger made before it: mapkit's log lines must still reach the CLI's stderr handler.
+    for h in handlers:
+        if h not in logging.root.handlers:
+            h.addFilter(_OnlyMapkitBelowWarning())
+            logging.root.addHandler(h)
+    logging.root.setLevel(level)
+    for lname, logger in logging.root.manager.loggerDict.items():
+        if lname.startswith("mapkit") and isinstance(logger, logging.Logger):
+            logger.disabled = False
     return str(rp.get_name())
 
 
@@ -101,22 +121,34 @@ def spin(check: Any = None, interval: float = 0.1) -> None:
     SIGTERM is turned into the same clean stop as Ctrl-C, so the node unregisters its topics and
     services from the master before the process ends.
     """
-    import signal
     import time
 
     rp = rospy()
-
-    def _term(_sig: int, _frame: Any) -> None:
-        raise KeyboardInterrupt
-
-    old = signal.signal(signal.SIGTERM, _term)
+    stop_on_signals()
     try:
         while not rp.is_shutdown() and not (check is not None and check()):
             time.sleep(interval)
     except KeyboardInterrupt:
         pass
-    finally:
-        signal.signal(signal.SIGTERM, old)
+
+
+def stop_on_signals() -> None:
+    """Make SIGINT and SIGTERM raise :class:`KeyboardInterrupt` in the main thread.
+
+    Also when SIGINT was ignored (a background job of a non-interactive shell), so that
+    ``kill -INT`` stops a node as Ctrl-C does.
+    """
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        return
+
+    def _stop(_sig: int, _frame: Any) -> None:
+        raise KeyboardInterrupt
+
+    signal.signal(signal.SIGTERM, _stop)
+    signal.signal(signal.SIGINT, _stop)
 
 
 def shutdown(reason: str = "done") -> None:

@@ -173,9 +173,9 @@ class _RobotSession:
             self.closed = True
             self._release()
             return [Out(FrameType.BYE, b"{}", ref=ev.ref)]
-        if t in (FrameType.DATA, FrameType.DONE):
+        if t in (FrameType.DATA, FrameType.DONE):  # a push: to our receiver
             return self._to_active(ev, now) if isinstance(self.active, Receiver) else []
-        if t == FrameType.ACK:
+        if t in (FrameType.ACCEPT, FrameType.ACK, FrameType.VERIFIED):  # a pull: to our sender
             return self._to_active(ev, now) if isinstance(self.active, Sender) else []
         if t in (FrameType.REJECT, FrameType.CANCEL):
             return self._to_active(ev, now) if self.active is not None else []
