@@ -202,11 +202,13 @@ def _fleet_rows(results: list[Any]) -> list[dict[str, Any]]:
               help="Seconds to wait for robots to announce themselves.")
 @click.option("--load", "and_load", is_flag=True, help="Then make it each robot's active map.")
 @click.option("--chunk-size", type=int, default=256 * 1024, show_default=True, help="Bytes per frame.")
+@click.option("--timeout", type=float, default=30.0, show_default=True,
+              help="Give a robot up after this many seconds without an answer.")
 @_secret_options
 @json_option
 def send(file: str, channel: str, name: str | None, robots: tuple[str, ...], expect: int,
-         wait: float, and_load: bool, chunk_size: int, secret_file: str | None, insecure: bool,
-         as_json: bool) -> None:
+         wait: float, and_load: bool, chunk_size: int, timeout: float, secret_file: str | None,
+         insecure: bool, as_json: bool) -> None:
     """Send FILE to every robot on the channel at once (`mapkit ros receive` or `serve` there).
 
     Each robot checks the file (SHA-256; a .map must parse) and reports back; the table shows
@@ -223,7 +225,8 @@ def send(file: str, channel: str, name: str | None, robots: tuple[str, ...], exp
     start_node("mapkit_send")
     with _progress(name or file, as_json or _quiet(as_json)) as cb:
         results = push(file, channel=channel, secret=secret, name=name, robots=robots,
-                       expect=expect, wait=wait, load=and_load, chunk_size=chunk_size, progress=cb)
+                       expect=expect, wait=wait, load=and_load, chunk_size=chunk_size,
+                       idle_timeout=timeout, progress=cb)
     rows = _fleet_rows(results)
     if as_json:
         echo_json(rows)

@@ -204,8 +204,6 @@ def _read_yaml_grid(p: Path) -> OccupancyGrid:
 
     try:
         return read_ros_map(p)
-    except FileNotFoundError as err:
-        raise MapLoadError(f"{p}: image {err.filename} does not exist", LOAD_NOT_FOUND) from err
     except FormatError as err:
         # A YAML that map_server would not accept is bad metadata; a bad image is bad data.
         code = LOAD_INVALID_METADATA if str(err.source).lower().endswith((".yaml", ".yml")) \

@@ -37,6 +37,7 @@ from mapkit.ros.node import ros_import, rospy, wait_until
 from mapkit.ros.transport import RosLink
 from mapkit.transfer.protocol import (
     DEFAULT_CHUNK_SIZE,
+    AuthenticationError,
     MAGIC,
     MAX_CHUNK_SIZE,
     Channel,
@@ -105,6 +106,8 @@ class _Conn:
         while True:
             try:
                 ev = self.channel.next_event()
+            except AuthenticationError:
+                raise  # a handshake frame made with another secret: the session ends
             except ProtocolError as err:  # a frame this side cannot take: drop the message
                 log.warning("%s: dropped a frame: %s", self.peer, err)
                 return out
@@ -139,7 +142,14 @@ class _RobotSession:
         return str(self.hs.client.get("peer") or self.conn.peer)
 
     def feed(self, data: bytes, now: float) -> None:
-        for ev in self.conn.events(data):
+        try:
+            events = self.conn.events(data)
+        except AuthenticationError as err:
+            log.warning("%s: refused: %s", self.conn.peer, err)
+            self.closed = True
+            self.conn.send([reject_out(err, plain=True)])  # untagged: the client has other keys
+            return
+        for ev in events:
             self.last = now
             try:
                 self.conn.send(self._handle(ev, now))
@@ -473,11 +483,13 @@ Script = Generator[Any, None, None]
 class _ClientSession:
     """A terminal's session with one robot node, driven by a script (a generator of machines)."""
 
-    def __init__(self, link: RosLink, robot_node: str, secret: bytes | None, peer: str) -> None:
+    def __init__(self, link: RosLink, robot_node: str, secret: bytes | None, peer: str,
+                 idle_timeout: float = 30.0) -> None:
         self.conn = _Conn(link, robot_node, Channel(initiator=True, session=secrets.randbits(64) or 1,
                                                      ordered=False))
         self.secret = secret
         self.peer = peer
+        self.idle_timeout = idle_timeout
         self.machine: Any = None
         self.on_events: Callable[[float], list[Out]] | None = None
         self.script: Script | None = None
@@ -485,7 +497,8 @@ class _ClientSession:
         self.error: BaseException | None = None
 
     def handshake(self) -> ClientHandshake:
-        return ClientHandshake(self.conn.channel, self.secret, peer=self.peer)
+        return ClientHandshake(self.conn.channel, self.secret, peer=self.peer,
+                               idle_timeout=self.idle_timeout)
 
     def begin(self, script: Script, now: float) -> None:
         self.script = script
@@ -517,7 +530,14 @@ class _ClientSession:
             self._next(now, m.error)
 
     def feed(self, data: bytes, now: float) -> None:
-        for ev in self.conn.events(data):
+        try:
+            events = self.conn.events(data)
+        except AuthenticationError as err:
+            if self.machine is not None and not self.machine.finished:
+                self.machine._fail(err)
+                self._check(now)
+            return
+        for ev in events:
             if self.done or self.machine is None:
                 return
             self.conn.send(self.machine.handle(ev, now) + self._events(now))
@@ -680,6 +700,7 @@ class PushResult:
 def push(path: str, *, channel: str, secret: bytes | None, name: str | None = None,
          robots: Iterable[str] = (), expect: int = 0, wait: float = 3.0, load: bool = False,
          chunk_size: int = DEFAULT_CHUNK_SIZE, window: int = 16, rto: float = 1.0,
+         idle_timeout: float = 30.0,
          progress: Callable[[int, int], None] | None = None) -> list[PushResult]:
     """Push a file to every robot on ``channel`` that accepts pushes, at once; each verifies it.
 
@@ -695,6 +716,7 @@ def push(path: str, *, channel: str, secret: bytes | None, name: str | None = No
         chunk_size: Bytes per DATA frame.
         window: Frames in flight per robot.
         rto: First resend timeout.
+        idle_timeout: Give a robot up after this many seconds without a frame from it.
         progress: Called with (bytes acknowledged by all robots together, total bytes).
 
     Returns:
@@ -723,9 +745,9 @@ def push(path: str, *, channel: str, secret: bytes | None, name: str | None = No
         peer = _peer_name()
         for r in found:
             res = PushResult(r.robot, r.node)
-            s = _ClientSession(w.link, r.node, secret, peer)
+            s = _ClientSession(w.link, r.node, secret, peer, idle_timeout)
             tx = Sender(offer, lambda i: view[i * chunk_size:(i + 1) * chunk_size], ref=1,
-                        window=window, rto=rto)
+                        window=window, rto=rto, idle_timeout=idle_timeout)
             s.begin(_push_script(s, tx, res, offer, load), time.monotonic())
             results.append(res)
             sessions.append(s)

@@ -38,7 +38,6 @@ import queue
 import random
 import re
 import threading
-import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -271,7 +270,3 @@ class RosLink:
             if t is not None:
                 t.unregister()
 
-
-def settle(seconds: float) -> None:
-    """Sleep briefly (lets rospy finish delivering queued messages before a process exits)."""
-    time.sleep(seconds)

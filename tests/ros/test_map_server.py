@@ -137,6 +137,28 @@ def test_change_map_result_codes_and_republish(ros: Ros, server: Any, sample: Pa
     check_info(echo(ros, "/map_metadata"), expected_grid(sample))
 
 
+def test_change_map_to_a_map_server_yaml(ros: Ros, server: Any, sample: Path, tmp_path: Path) -> None:
+    from mapkit.raster.ros import write_ros_map
+
+    def change(url: str) -> int:
+        out = ros.run(["rosservice", "call", "/change_map", f"map_url: '{url}'"], timeout=60).stdout
+        return int(ros_yaml(out)["result"])
+
+    grid = expected_grid(sample).with_data(np.where(expected_grid(sample).data == 100, 100, 0))
+    files = write_ros_map(grid, tmp_path / "exported.yaml")
+    (tmp_path / "no_origin.yaml").write_text("image: exported.pgm\nresolution: 0.2\nnegate: 0\n")
+    (tmp_path / "no_image.yaml").write_text(files.yaml.read_text().replace("exported.pgm", "gone.pgm"))
+    assert change(str(tmp_path / "no_origin.yaml")) == 3  # invalid metadata, as map_server says
+    assert change(str(tmp_path / "no_image.yaml")) == 2  # the image cannot be read: invalid data
+    try:
+        assert change(str(files.yaml)) == 0
+        msg = echo(ros, "/map")
+        check_info(msg["info"], grid)
+        assert np.array_equal(np.array(msg["data"], dtype=np.int8).reshape(grid.data.shape), grid.data)
+    finally:
+        assert change(str(sample)) == 0
+
+
 def test_served_map_refuses_bad_input_with_loadmap_codes(tmp_path: Path) -> None:
     from mapkit.ros.grids import MapLoadError
 
