@@ -248,8 +248,9 @@ class _RobotSession:
                 raise
             dest = self.node.folder.begin_write(offer)
         self.dest = dest
+        # ack every quarter of the sender's window, so that the pipe never runs dry
         rx = Receiver(offer, ref=f.ref, have=dest.have, window=max(4 * self.node.window, 64),
-                      idle_timeout=self.node.idle_timeout)
+                      ack_every=max(1, self.node.window // 4), idle_timeout=self.node.idle_timeout)
         self.active = rx
         if dest.resumed:
             log.info("%s: resuming %s with %d of %d chunks", self.client, offer.name, dest.resumed,
@@ -311,7 +312,9 @@ class _RobotSession:
         was_finished = m.finished
         out = m.handle(ev, now)
         if isinstance(m, Receiver):
-            out += self._rx_events(now)
+            # the ack leaves first: checking a whole file can take longer than the sender waits
+            self.conn.send(out)
+            out = self._rx_events(now)
         if m.finished and not was_finished:
             self._ended(m)
         return out
@@ -540,7 +543,8 @@ class _ClientSession:
         for ev in events:
             if self.done or self.machine is None:
                 return
-            self.conn.send(self.machine.handle(ev, now) + self._events(now))
+            self.conn.send(self.machine.handle(ev, now))
+            self.conn.send(self._events(now))
             self._check(now)
 
     def poll(self, now: float) -> None:
@@ -734,7 +738,9 @@ def push(path: str, *, channel: str, secret: bytes | None, name: str | None = No
     want = list(robots)
     w = Watcher(channel, window=window, chunk_size=chunk_size)
     try:
+        t_discover = time.monotonic()
         found = w.wait(timeout=wait, expect=expect, feature="push", names=want)
+        log.debug("found %d robots in %.2f s", len(found), time.monotonic() - t_discover)
         missing = set(want) - {r.robot for r in found}
         if not found or missing or len(found) < expect:
             extra = f" (missing: {', '.join(sorted(missing))})" if missing else ""
@@ -889,7 +895,7 @@ def fetch(name: str, dest: str, *, channel: str, secret: bytes | None, robot: st
             dfile = PartialFile.open(folder, target, offer,
                                      validate=validate_map_file if kind_of(name) == "map" else None)
             state["dest"] = dfile
-            rx = Receiver(offer, ref=get.response.ref, have=dfile.have, window=64)
+            rx = Receiver(offer, ref=get.response.ref, have=dfile.have, window=64, ack_every=4)
 
             def on_events(now: float) -> list[Out]:
                 outs: list[Out] = []
