@@ -64,7 +64,9 @@ from mapkit.transfer.store import PartialFile, StoreError
 
 __all__ = [
     "PushResult",
+    "Robot",
     "RobotNode",
+    "Terminal",
     "discover",
     "fetch",
     "list_maps",
@@ -487,12 +489,13 @@ class _ClientSession:
     """A terminal's session with one robot node, driven by a script (a generator of machines)."""
 
     def __init__(self, link: RosLink, robot_node: str, secret: bytes | None, peer: str,
-                 idle_timeout: float = 30.0) -> None:
+                 idle_timeout: float = 30.0, rto: float = 1.0) -> None:
         self.conn = _Conn(link, robot_node, Channel(initiator=True, session=secrets.randbits(64) or 1,
                                                      ordered=False))
         self.secret = secret
         self.peer = peer
         self.idle_timeout = idle_timeout
+        self.rto = rto
         self.machine: Any = None
         self.on_events: Callable[[float], list[Out]] | None = None
         self.script: Script | None = None
@@ -500,7 +503,7 @@ class _ClientSession:
         self.error: BaseException | None = None
 
     def handshake(self) -> ClientHandshake:
-        return ClientHandshake(self.conn.channel, self.secret, peer=self.peer,
+        return ClientHandshake(self.conn.channel, self.secret, peer=self.peer, rto=self.rto,
                                idle_timeout=self.idle_timeout)
 
     def begin(self, script: Script, now: float) -> None:
@@ -560,12 +563,12 @@ class _ClientSession:
             self.conn.send([Out(FrameType.BYE, b"{}", ref=0xFFFF)])
 
 
-def _drive(link: RosLink, sessions: list[_ClientSession], *, tick: Callable[[], None] | None = None) -> None:
+def _drive(link: Any, sessions: list[_ClientSession], *, tick: Callable[[], None] | None = None,
+           stopped: Callable[[], bool] | None = None) -> None:
     """Run client sessions until each is done (every machine has its own timeouts)."""
-    rp = rospy()
     by_id = {s.conn.channel.session: s for s in sessions}
     while not all(s.done for s in sessions):
-        if rp.is_shutdown():
+        if stopped is not None and stopped():
             raise RosError("ROS shut down during the transfer")
         now = time.monotonic()
         dls = [d for d in (s.deadline() for s in sessions) if d is not None]
@@ -584,10 +587,6 @@ def _drive(link: RosLink, sessions: list[_ClientSession], *, tick: Callable[[], 
             tick()
     for s in sessions:
         s.bye()
-
-
-def _peer_name() -> str:
-    return f"{socket.gethostname()}:{rospy().get_name()}"
 
 
 @dataclass
@@ -701,6 +700,195 @@ class PushResult:
         return self.verified and self.loaded is not False and self.error is None
 
 
+class Terminal:
+    """The terminal's side of a channel once the robots are known: push, fetch and requests.
+
+    The ROS-facing functions (:func:`push`, :func:`fetch`, :func:`list_maps`, :func:`load_map`)
+    find the robots from their announcements and use one of these; tests drive it over an
+    in-memory bus.
+
+    Args:
+        link: The client link (:class:`RosLink` or anything with ``send``/``receive``/``node``).
+        secret: Shared secret, or None for an insecure session.
+        peer: This terminal's name, shown in the robots' logs.
+        idle_timeout: Give a robot up after this many seconds without a frame from it.
+        rto: First resend timeout.
+        stopped: Returns True when the node is shutting down (then the transfer stops).
+    """
+
+    def __init__(self, link: Any, secret: bytes | None, *, peer: str = "", idle_timeout: float = 30.0,
+                 rto: float = 1.0, stopped: Callable[[], bool] | None = None) -> None:
+        self.link = link
+        self.secret = secret
+        self.peer = peer or socket.gethostname()
+        self.idle_timeout = idle_timeout
+        self.rto = rto
+        self.stopped = stopped
+
+    def _session(self, robot: Robot) -> _ClientSession:
+        return _ClientSession(self.link, robot.node, self.secret, self.peer, self.idle_timeout,
+                              self.rto)
+
+    def push(self, robots: list[Robot], data: bytes, offer: Offer, *, load: bool = False,
+             window: int = 16, progress: Callable[[int, int], None] | None = None) -> list[PushResult]:
+        """Push ``data`` (described by ``offer``) to every robot at once; one result each."""
+        view = memoryview(data)
+        cs = offer.chunk_size
+        results, sessions, senders = [], [], []
+        for r in robots:
+            res = PushResult(r.robot, r.node)
+            s = self._session(r)
+            tx = Sender(offer, lambda i: view[i * cs:(i + 1) * cs], ref=1, window=window,
+                        rto=self.rto, idle_timeout=self.idle_timeout)
+            s.begin(_push_script(s, tx, res, offer, load), time.monotonic())
+            results.append(res)
+            sessions.append(s)
+            senders.append(tx)
+        total = offer.size * len(sessions)
+
+        def tick() -> None:
+            if progress is not None:
+                progress(sum(t.bytes_acked for t in senders), total)
+
+        _drive(self.link, sessions, tick=tick, stopped=self.stopped)
+        for s, res, tx in zip(sessions, results, senders):
+            res.chunks_sent, res.chunks_resent = tx.chunks_sent, tx.chunks_resent
+            if s.error is not None and res.error is None:
+                res.error = str(s.error)
+        return results
+
+    def request(self, robot: Robot, ftype: FrameType, payload: dict[str, Any],
+                answers: Iterable[FrameType]) -> Frame:
+        """One request (LIST, LOAD ...) in its own session; the answering frame.
+
+        Raises:
+            RemoteTransferError: When the robot refuses.
+            TransferError: When it does not answer.
+        """
+        s = self._session(robot)
+        req = Request(ftype, payload, ref=1, answers=answers, rto=self.rto, idle_timeout=self.idle_timeout)
+
+        def script() -> Script:
+            yield s.handshake()
+            yield req
+
+        s.begin(script(), time.monotonic())
+        _drive(self.link, [s], stopped=self.stopped)
+        if s.error is not None:
+            raise s.error
+        assert req.response is not None
+        return req.response
+
+    def fetch(self, robot: Robot, name: str, dest: str, *, if_changed: bool = True,
+              chunk_size: int = DEFAULT_CHUNK_SIZE,
+              progress: Callable[[int, int], None] | None = None) -> dict[str, Any]:
+        """Pull ``name`` from ``robot`` into the file ``dest`` (see :func:`fetch`)."""
+        from mapkit.transfer.server import validate_map_file
+        from mapkit.transfer.store import file_digests
+
+        folder, target = os.path.split(os.path.abspath(dest))
+        os.makedirs(folder, exist_ok=True)
+        payload: dict[str, Any] = {"name": name, "chunk_size": chunk_size}
+        if if_changed and os.path.isfile(dest):
+            fd = os.open(dest, os.O_RDONLY)
+            try:
+                payload["if_sha256"] = file_digests(fd, os.fstat(fd).st_size, md5=False)[0]
+            finally:
+                os.close(fd)
+        s = self._session(robot)
+        out: dict[str, Any] = {}
+        state: dict[str, Any] = {}
+
+        def script() -> Script:
+            yield s.handshake()
+            get = Request(FrameType.GET, payload, ref=1, answers=[FrameType.OFFER, FrameType.NOT_MODIFIED],
+                          rto=self.rto, idle_timeout=self.idle_timeout)
+            yield get
+            assert get.response is not None
+            offer = Offer.from_json(get.response.json())
+            if get.response.type == FrameType.NOT_MODIFIED:
+                out.update(name=name, path=dest, size=offer.size, sha256=offer.sha256, md5=offer.md5,
+                           changed=False, resumed=0)
+                return
+            offer = Offer(target, offer.size, offer.sha256, offer.chunk_size, offer.md5, offer.kind,
+                          offer.mtime)
+            dfile = PartialFile.open(folder, target, offer,
+                                     validate=validate_map_file if kind_of(name) == "map" else None)
+            state["dest"] = dfile
+            rx = Receiver(offer, ref=get.response.ref, have=dfile.have, window=64, ack_every=4,
+                          idle_timeout=self.idle_timeout)
+
+            def on_events(now: float) -> list[Out]:
+                outs: list[Out] = []
+                for e in rx.pop_events():
+                    try:
+                        if isinstance(e, ChunkReceived):
+                            dfile.write(e.index, e.data)
+                        elif isinstance(e, TransferComplete):
+                            info = dfile.finalize()
+                            state["dest"] = None
+                            out.update(name=name, path=dest, size=offer.size, sha256=offer.sha256,
+                                       md5=info.get("md5", offer.md5), changed=True,
+                                       resumed=dfile.resumed)
+                            outs += rx.verified({"sha256": offer.sha256}, now)
+                    except TransferError as err:
+                        outs += rx.fail(err)
+                        break
+                if progress is not None:
+                    progress(rx.bytes_received, offer.size)
+                return outs
+
+            yield rx, on_events
+
+        s.begin(script(), time.monotonic())
+        try:
+            _drive(self.link, [s], stopped=self.stopped)
+        finally:
+            if state.get("dest") is not None:  # keep what arrived for a resume
+                state["dest"].close(keep=True)
+        if s.error is not None:
+            raise s.error
+        return {"robot": robot.robot, **out}
+
+
+def _push_script(s: _ClientSession, tx: Sender, res: PushResult, offer: Offer, load: bool) -> Script:
+    try:
+        yield s.handshake()
+        yield tx
+    except TransferError as err:
+        res.received = tx.bytes_acked == offer.size and offer.size > 0
+        res.error = str(err)
+        return
+    res.received = True
+    res.skipped = bool(tx.result.get("skipped"))
+    res.verified = res.skipped or tx.result.get("sha256") == offer.sha256
+    res.resumed_chunks = tx.chunks_skipped
+    res.info = dict(tx.result)
+    if not res.verified:
+        res.error = f"the robot reported SHA-256 {tx.result.get('sha256')}, expected {offer.sha256}"
+        return
+    if load:
+        req = Request(FrameType.LOAD, {"name": offer.name, "md5": offer.md5}, ref=2,
+                      answers=[FrameType.LOADED], rto=s.rto, idle_timeout=s.idle_timeout)
+        try:
+            yield req
+        except TransferError as err:
+            res.loaded, res.error = False, str(err)
+            return
+        assert req.response is not None
+        res.loaded = True
+        res.info["load"] = req.response.json()
+
+
+# -- the ROS-facing terminal functions (the node must be started) ----------------------------
+
+
+def _terminal(w: Watcher, secret: bytes | None, **kw: Any) -> Terminal:
+    rp = rospy()
+    return Terminal(w.link, secret, peer=f"{socket.gethostname()}:{rp.get_name()}",
+                    stopped=rp.is_shutdown, **kw)
+
+
 def push(path: str, *, channel: str, secret: bytes | None, name: str | None = None,
          robots: Iterable[str] = (), expect: int = 0, wait: float = 3.0, load: bool = False,
          chunk_size: int = DEFAULT_CHUNK_SIZE, window: int = 16, rto: float = 1.0,
@@ -732,97 +920,20 @@ def push(path: str, *, channel: str, secret: bytes | None, name: str | None = No
     """
     with open(path, "rb") as fh:
         data = fh.read()
-    name = name or os.path.basename(path)
-    offer = Offer.for_bytes(name, data, chunk_size=chunk_size, mtime=os.stat(path).st_mtime)
-    view = memoryview(data)
+    offer = Offer.for_bytes(name or os.path.basename(path), data, chunk_size=chunk_size,
+                            mtime=os.stat(path).st_mtime)
     want = list(robots)
     w = Watcher(channel, window=window, chunk_size=chunk_size)
     try:
-        t_discover = time.monotonic()
         found = w.wait(timeout=wait, expect=expect, feature="push", names=want)
-        log.debug("found %d robots in %.2f s", len(found), time.monotonic() - t_discover)
         missing = set(want) - {r.robot for r in found}
         if not found or missing or len(found) < expect:
             extra = f" (missing: {', '.join(sorted(missing))})" if missing else ""
             raise RosError(f"{len(found)} robot(s) accept pushes on channel {channel!r}{extra}; "
                            f"expected {max(expect, len(want), 1)}. Is `mapkit ros receive` or "
                            "`mapkit ros serve` running there (same channel, same ROS master)?")
-        results, sessions, senders = [], [], []
-        peer = _peer_name()
-        for r in found:
-            res = PushResult(r.robot, r.node)
-            s = _ClientSession(w.link, r.node, secret, peer, idle_timeout)
-            tx = Sender(offer, lambda i: view[i * chunk_size:(i + 1) * chunk_size], ref=1,
-                        window=window, rto=rto, idle_timeout=idle_timeout)
-            s.begin(_push_script(s, tx, res, offer, load), time.monotonic())
-            results.append(res)
-            sessions.append(s)
-            senders.append(tx)
-        total = offer.size * len(sessions)
-
-        def tick() -> None:
-            if progress is not None:
-                progress(sum(t.bytes_acked for t in senders), total)
-
-        _drive(w.link, sessions, tick=tick)
-        for s, res, tx in zip(sessions, results, senders):
-            res.chunks_sent, res.chunks_resent = tx.chunks_sent, tx.chunks_resent
-            if s.error is not None and res.error is None:
-                res.error = str(s.error)
-        return results
-    finally:
-        w.link.close()
-
-
-def _push_script(s: _ClientSession, tx: Sender, res: PushResult, offer: Offer, load: bool) -> Script:
-    try:
-        yield s.handshake()
-        yield tx
-    except TransferError as err:
-        res.received = tx.bytes_acked == offer.size and offer.size > 0
-        res.error = str(err)
-        return
-    res.received = True
-    res.skipped = bool(tx.result.get("skipped"))
-    res.verified = res.skipped or tx.result.get("sha256") == offer.sha256
-    res.resumed_chunks = tx.chunks_skipped
-    res.info = dict(tx.result)
-    if not res.verified:
-        res.error = f"the robot reported SHA-256 {tx.result.get('sha256')}, expected {offer.sha256}"
-        return
-    if load:
-        req = Request(FrameType.LOAD, {"name": offer.name, "md5": offer.md5}, ref=2,
-                      answers=[FrameType.LOADED])
-        try:
-            yield req
-        except TransferError as err:
-            res.loaded, res.error = False, str(err)
-            return
-        assert req.response is not None
-        state = req.response.json()
-        res.loaded = True
-        res.info["load"] = state
-
-
-def _request(channel: str, secret: bytes | None, robot: str | None, feature: str,
-             ftype: FrameType, payload: dict[str, Any], answers: Iterable[FrameType],
-             timeout: float) -> tuple[Robot, Frame]:
-    w = Watcher(channel)
-    try:
-        r = _one_robot(w, robot, feature, timeout)
-        s = _ClientSession(w.link, r.node, secret, _peer_name())
-        req = Request(ftype, payload, ref=1, answers=answers)
-
-        def script() -> Script:
-            yield s.handshake()
-            yield req
-
-        s.begin(script(), time.monotonic())
-        _drive(w.link, [s])
-        if s.error is not None:
-            raise s.error
-        assert req.response is not None
-        return r, req.response
+        term = _terminal(w, secret, rto=rto, idle_timeout=idle_timeout)
+        return term.push(found, data, offer, load=load, window=window, progress=progress)
     finally:
         w.link.close()
 
@@ -830,8 +941,13 @@ def _request(channel: str, secret: bytes | None, robot: str | None, feature: str
 def list_maps(channel: str, *, secret: bytes | None, robot: str | None = None,
               timeout: float = 3.0) -> dict[str, Any]:
     """The maps a robot serves (LIST over an authenticated session), with its name."""
-    r, f = _request(channel, secret, robot, "list", FrameType.LIST, {}, [FrameType.LISTING], timeout)
-    return {"robot": r.robot, "node": r.node, **f.json()}
+    w = Watcher(channel)
+    try:
+        r = _one_robot(w, robot, "list", timeout)
+        f = _terminal(w, secret).request(r, FrameType.LIST, {}, [FrameType.LISTING])
+        return {"robot": r.robot, "node": r.node, **f.json()}
+    finally:
+        w.link.close()
 
 
 def load_map(name: str, *, channel: str, secret: bytes | None, robot: str | None = None,
@@ -842,9 +958,13 @@ def load_map(name: str, *, channel: str, secret: bytes | None, robot: str | None
         payload["md5"] = md5
     if rollback:
         payload["rollback"] = True
-    r, f = _request(channel, secret, robot, "load", FrameType.LOAD, payload, [FrameType.LOADED],
-                    timeout)
-    return {"robot": r.robot, **f.json()}
+    w = Watcher(channel)
+    try:
+        r = _one_robot(w, robot, "load", timeout)
+        f = _terminal(w, secret).request(r, FrameType.LOAD, payload, [FrameType.LOADED])
+        return {"robot": r.robot, **f.json()}
+    finally:
+        w.link.close()
 
 
 def fetch(name: str, dest: str, *, channel: str, secret: bytes | None, robot: str | None = None,
@@ -858,74 +978,14 @@ def fetch(name: str, dest: str, *, channel: str, secret: bytes | None, robot: st
         ``{"robot", "name", "path", "size", "sha256", "md5", "changed", "resumed"}``.
 
     Raises:
+        RosError: When no robot serves the channel.
         RemoteTransferError: When the robot refuses (no such map, bad name ...).
         TransferError: When the transfer fails (timeout, checksum).
     """
-    from mapkit.transfer.server import validate_map_file
-    from mapkit.transfer.store import file_digests
-
-    folder, target = os.path.split(os.path.abspath(dest))
-    os.makedirs(folder, exist_ok=True)
-    payload: dict[str, Any] = {"name": name, "chunk_size": chunk_size}
-    if if_changed and os.path.isfile(dest):
-        fd = os.open(dest, os.O_RDONLY)
-        try:
-            payload["if_sha256"] = file_digests(fd, os.fstat(fd).st_size, md5=False)[0]
-        finally:
-            os.close(fd)
     w = Watcher(channel, chunk_size=chunk_size)
-    out: dict[str, Any] = {}
     try:
         r = _one_robot(w, robot, "pull", timeout)
-        s = _ClientSession(w.link, r.node, secret, _peer_name())
-        state: dict[str, Any] = {}
-
-        def script() -> Script:
-            yield s.handshake()
-            get = Request(FrameType.GET, payload, ref=1, answers=[FrameType.OFFER, FrameType.NOT_MODIFIED])
-            yield get
-            assert get.response is not None
-            offer = Offer.from_json(get.response.json())
-            if get.response.type == FrameType.NOT_MODIFIED:
-                out.update(name=name, path=dest, size=offer.size, sha256=offer.sha256, md5=offer.md5,
-                           changed=False, resumed=0)
-                return
-            offer = Offer(target, offer.size, offer.sha256, offer.chunk_size, offer.md5, offer.kind,
-                          offer.mtime)
-            dfile = PartialFile.open(folder, target, offer,
-                                     validate=validate_map_file if kind_of(name) == "map" else None)
-            state["dest"] = dfile
-            rx = Receiver(offer, ref=get.response.ref, have=dfile.have, window=64, ack_every=4)
-
-            def on_events(now: float) -> list[Out]:
-                outs: list[Out] = []
-                for e in rx.pop_events():
-                    try:
-                        if isinstance(e, ChunkReceived):
-                            dfile.write(e.index, e.data)
-                        elif isinstance(e, TransferComplete):
-                            info = dfile.finalize()
-                            state["dest"] = None
-                            out.update(name=name, path=dest, size=offer.size, sha256=offer.sha256,
-                                       md5=info.get("md5", offer.md5), changed=True,
-                                       resumed=dfile.resumed)
-                            outs += rx.verified({"sha256": offer.sha256}, now)
-                    except TransferError as err:
-                        outs += rx.fail(err)
-                        break
-                if progress is not None:
-                    progress(rx.bytes_received, offer.size)
-                return outs
-
-            yield rx, on_events
-
-        s.begin(script(), time.monotonic())
-        _drive(w.link, [s])
-        # let the VERIFIED frame leave before the node goes
-        if state.get("dest") is not None:
-            state["dest"].close(keep=True)
-        if s.error is not None:
-            raise s.error
-        return {"robot": r.robot, **out}
+        return _terminal(w, secret).fetch(r, name, dest, if_changed=if_changed,
+                                          chunk_size=chunk_size, progress=progress)
     finally:
         w.link.close()
