@@ -53,11 +53,14 @@ def cli(ctx: click.Context, verbose: int, quiet: bool, debug: bool) -> None:
 # Commands are registered explicitly, one module per command or command group.
 from mapkit.cli import convert as _convert  # noqa: E402
 from mapkit.cli import info as _info  # noqa: E402
+from mapkit.cli import rasterize as _rasterize  # noqa: E402
 from mapkit.cli import ros as _ros  # noqa: E402
 from mapkit.cli import transfer as _transfer  # noqa: E402
 
 cli.add_command(_info.info)
 cli.add_command(_convert.convert)
+cli.add_command(_rasterize.rasterize)
+cli.add_command(_rasterize.import_ros)
 for _command in _transfer.COMMANDS:
     cli.add_command(_command)
 cli.add_command(_ros.ros)

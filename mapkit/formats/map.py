@@ -493,11 +493,10 @@ class _Parser:
                 points_sorted=bool(header.points_sorted), lines_sorted=bool(header.lines_sorted),
                 min_pos=pmin, max_pos=pmax, line_min_pos=lmin, line_max_pos=lmax, header=header,
             )
-            boxes = [b for b in ((pmin, pmax), (lmin, lmax)) if b[0] is not None]
-            if boxes:
-                lo = np.min([b[0] for b in boxes], axis=0)
-                hi = np.max([b[1] for b in boxes], axis=0)
-                too_wide = too_wide or bool(np.any(hi - lo > _MAX_SPAN_MM))
+            corners = [c for c in (pmin, pmax, lmin, lmax) if c is not None]
+            if corners:
+                span = np.ptp(np.array(corners), axis=0)
+                too_wide = too_wide or bool(np.any(span > _MAX_SPAN_MM))
             scans.append(scan)
         if too_wide:
             scans = self.recompute_wide(scans)
@@ -520,8 +519,8 @@ class _Parser:
             objects=tuple(self.objects["objects"]),
             inactive_objects=tuple(self.objects["inactive_objects"]),
             child_objects=tuple(self.objects["child_objects"]),
-            info=self.info,
-            inactive_info=self.inactive_info,
+            info={k: tuple(v) for k, v in self.info.items()},
+            inactive_info={k: tuple(v) for k, v in self.inactive_info.items()},
             origin_lla=self.origin_lla,
             remainder=tuple(self.remainder),
             provenance=prov,

@@ -84,3 +84,9 @@ def convert_file(src: PathLike, dst: PathLike) -> str:
     """
     writer: Writer = _lookup(_WRITERS, LAZY_WRITERS, dst, "write")
     return writer(read_any(src), dst)
+
+
+# raster: ROS map_server maps (NAME.yaml + NAME.pgm) both ways.
+LAZY_WRITERS.update({".yaml": "mapkit.raster.export", ".yml": "mapkit.raster.export",
+                     ".pgm": "mapkit.raster.export"})
+LAZY_READERS.update({".yaml": "mapkit.raster.export", ".yml": "mapkit.raster.export"})

@@ -7,7 +7,13 @@ The stable API other packages use:
   ``cell_to_world`` in mm.
 * :func:`rasterize` and its primitives (``mapkit.raster.rasterize``): :func:`grid_for`,
   :func:`burn_points`, :func:`burn_segments`, :func:`burn_polygons`, :func:`inflate`,
-  :func:`flood_fill`, :func:`hull_mask`.
+  :func:`flood_fill`, :func:`hull_mask`, :func:`free_from_rays`.
+* ``mapkit.raster.ros`` (map_server YAML + image, both ways), ``mapkit.raster.masks`` (Nav2
+  keepout/speed masks), ``mapkit.raster.import_ros`` (ROS map → ARIA map),
+  ``mapkit.raster.export`` (one call for ``mapkit rasterize``; registers ``.yaml``/``.pgm``).
+
+Note: ``mapkit.raster.rasterize`` names the function (re-exported here), not the module; import
+the module's names with ``from mapkit.raster.rasterize import ...``.
 """
 
 from mapkit.raster.errors import RasterError, RosMapError
@@ -17,6 +23,7 @@ from mapkit.raster.rasterize import (
     burn_polygons,
     burn_segments,
     flood_fill,
+    free_from_rays,
     grid_for,
     grid_for_bounds,
     hull_mask,
@@ -40,6 +47,7 @@ __all__ = [
     "burn_polygons",
     "burn_segments",
     "flood_fill",
+    "free_from_rays",
     "grid_for",
     "grid_for_bounds",
     "hull_mask",

@@ -49,6 +49,7 @@ __all__ = [
     "burn_polygons",
     "burn_segments",
     "flood_fill",
+    "free_from_rays",
     "grid_for",
     "grid_for_bounds",
     "hull_mask",
@@ -64,7 +65,7 @@ __all__ = [
 log_ = logging.getLogger(__name__)
 
 #: How to decide which cells are free (see :func:`rasterize`).
-FreeMode = Literal["flood", "hull", "all", "none"]
+FreeMode = Literal["flood", "hull", "all", "none", "rays"]
 
 #: The largest grid mapkit makes (cells); a larger one is refused with a clear error.
 MAX_CELLS = 400_000_000
@@ -85,10 +86,10 @@ def map_bounds(m: MapData, *, objects: bool = True) -> _Bounds | None:
     lo = np.array([np.inf, np.inf])
     hi = -lo
     for scan in m.scans:
-        for arr in (scan.points, scan.lines.reshape(-1, 2)):
+        for arr, xs, ys in ((scan.points, [0], [1]), (scan.lines, [0, 2], [1, 3])):
             if len(arr):
-                lo = np.minimum(lo, arr.min(axis=0))
-                hi = np.maximum(hi, arr.max(axis=0))
+                lo = np.minimum(lo, [min(arr[:, i].min() for i in xs), min(arr[:, i].min() for i in ys)])
+                hi = np.maximum(hi, [max(arr[:, i].max() for i in xs), max(arr[:, i].max() for i in ys)])
     if objects and m.objects:
         xy = np.array([c for o in m.objects for c in o.corners()], dtype=np.float64)
         xy = xy[np.all(np.isfinite(xy), axis=1)]
@@ -172,8 +173,12 @@ def _mask_for(grid: OccupancyGrid, out: NDArray[np.bool_] | None) -> NDArray[np.
 
 def _set(mask: NDArray[np.bool_], rows: NDArray[np.int64], cols: NDArray[np.int64]) -> None:
     h, w = mask.shape
-    ok = (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
-    mask[rows[ok], cols[ok]] = True
+    if not len(rows):
+        return
+    if rows.min() < 0 or rows.max() >= h or cols.min() < 0 or cols.max() >= w:
+        ok = (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
+        rows, cols = rows[ok], cols[ok]
+    mask.reshape(-1)[rows * w + cols] = True
 
 
 # -- primitives --------------------------------------------------------------------------------
@@ -198,9 +203,17 @@ def burn_points(
         [[1, 0, 0, 0], [0, 0, 1, 0]]
     """
     mask = _mask_for(grid, out)
-    pts = np.asarray(points_mm, dtype=np.float64).reshape(-1, 2)
-    if len(pts):
-        uv = np.floor(_cell_units(grid, pts))
+    pts = np.asarray(points_mm).reshape(-1, 2)
+    if not len(pts):
+        return mask
+    (ox, oy), r = grid.origin_mm, grid.resolution_mm
+    if pts.dtype.kind in "iu" and all(float(v).is_integer() for v in (ox, oy, r)):
+        # Integer millimetres on an integer grid: exact floor division, no floats.
+        col = (pts[:, 0] - int(ox)) // int(r)
+        row = (pts[:, 1] - int(oy)) // int(r)
+        _set(mask, row.astype(np.int64), col.astype(np.int64))
+    else:
+        uv = np.floor(_cell_units(grid, pts.astype(np.float64)))
         _set(mask, uv[:, 1].astype(np.int64), uv[:, 0].astype(np.int64))
     return mask
 
@@ -208,8 +221,11 @@ def burn_points(
 def segment_cells(grid: OccupancyGrid, segments_mm: ArrayLike) -> NDArray[np.int64]:
     """Every cell ``(row, col)`` each segment passes through, both end cells included.
 
-    A supercover: the cells of the segment's crossings with the grid lines and of the pieces in
-    between, computed for all segments at once. Cells may repeat and may lie off the grid.
+    The segment is cut where it crosses grid lines; every piece of positive length marks its
+    cell, and both end points mark theirs (a point on a border belongs to the cell above/right).
+    Cells the segment only touches at a corner are not marked, so a diagonal line through cell
+    corners marks just the diagonal cells. Computed for all segments at once; cells may repeat
+    and may lie off the grid.
 
     Args:
         grid: Gives the geometry.
@@ -232,15 +248,48 @@ def segment_cells(grid: OccupancyGrid, segments_mm: ArrayLike) -> NDArray[np.int
     lo = np.floor(np.minimum(a, b))
     hi = np.floor(np.maximum(a, b))
     n = (hi - lo).astype(np.int64)  # grid lines crossed along u and along v
-    m = len(seg)
+    ilo, ihi = lo.astype(np.int64), hi.astype(np.int64)
+    # Fast path: a segment inside one column (or one row) of cells covers the whole span of
+    # rows (or columns) between its ends - most walls in real maps.
+    simple = (n[:, 0] == 0) | (n[:, 1] == 0)
+    out = [_straight_cells(ilo[simple], ihi[simple], n[simple])]
+    general = ~simple
+    if general.any():
+        out.append(_crossing_cells(a[general], b[general], d[general], lo[general],
+                                   ilo[general], ihi[general], n[general]))
+    return np.concatenate(out)
+
+
+def _straight_cells(
+    ilo: NDArray[np.int64], ihi: NDArray[np.int64], n: NDArray[np.int64]
+) -> NDArray[np.int64]:
+    """Cells of segments that stay in one column or one row: the span between their ends."""
+    cnt = n.max(axis=1) + 1
+    sid = np.repeat(np.arange(len(n)), cnt)
+    step = np.arange(len(sid)) - np.repeat(np.cumsum(cnt) - cnt, cnt)
+    along_u = n[sid, 0] > 0
+    u = ilo[sid, 0] + np.where(along_u, step, 0)
+    v = ilo[sid, 1] + np.where(along_u, 0, step)
+    return np.stack([v, u], axis=1)
+
+
+def _crossing_cells(
+    a: NDArray[np.float64],
+    b: NDArray[np.float64],
+    d: NDArray[np.float64],
+    lo: NDArray[np.float64],
+    ilo: NDArray[np.int64],
+    ihi: NDArray[np.int64],
+    n: NDArray[np.int64],
+) -> NDArray[np.int64]:
+    """Cells of general segments: cut at every grid line, one sample per piece."""
+    m = len(a)
     ids = np.arange(m)
     parts_id = [ids, ids]
     parts_t = [np.zeros(m), np.ones(m)]
     for axis in (0, 1):
         cnt = n[:, axis]
         total = int(cnt.sum())
-        if not total:
-            continue
         sid = np.repeat(ids, cnt)
         start = np.cumsum(cnt) - cnt
         k = lo[sid, axis] + 1 + (np.arange(total) - np.repeat(start, cnt))
@@ -250,17 +299,18 @@ def segment_cells(grid: OccupancyGrid, segments_mm: ArrayLike) -> NDArray[np.int
     t = np.clip(np.concatenate(parts_t), 0.0, 1.0)
     order = np.argsort(sid * 2.0 + t, kind="stable")
     sid, t = sid[order], t[order]
-    same = sid[1:] == sid[:-1]
-    mid_id = sid[1:][same]
-    mid_t = 0.5 * (t[1:][same] + t[:-1][same])
-    sid = np.concatenate([sid, mid_id])
-    t = np.concatenate([t, mid_t])
-    u = np.floor(a[sid, 0] + t * d[sid, 0]).astype(np.int64)
-    v = np.floor(a[sid, 1] + t * d[sid, 1]).astype(np.int64)
-    # Keep every cell within [lo, hi] (rounding at a crossing may step one cell outside).
-    u = np.clip(u, lo[sid, 0].astype(np.int64), hi[sid, 0].astype(np.int64))
-    v = np.clip(v, lo[sid, 1].astype(np.int64), hi[sid, 1].astype(np.int64))
-    return np.stack([v, u], axis=1)
+    # One sample inside every piece of positive length (a piece that is only a shared corner
+    # touches its cells at a point: it crosses none of them), plus both end points.
+    keep = (sid[1:] == sid[:-1]) & (t[1:] - t[:-1] > _EPS)
+    mid_id = sid[1:][keep]
+    mid_t = 0.5 * (t[1:][keep] + t[:-1][keep])
+    u = np.concatenate([a[:, 0], b[:, 0], a[mid_id, 0] + mid_t * d[mid_id, 0]])
+    v = np.concatenate([a[:, 1], b[:, 1], a[mid_id, 1] + mid_t * d[mid_id, 1]])
+    sid = np.concatenate([ids, ids, mid_id])
+    # Keep every cell within [lo, hi] (rounding near a crossing may step one cell outside).
+    iu = np.clip(np.floor(u).astype(np.int64), ilo[sid, 0], ihi[sid, 0])
+    iv = np.clip(np.floor(v).astype(np.int64), ilo[sid, 1], ihi[sid, 1])
+    return np.stack([iv, iu], axis=1)
 
 
 def burn_segments(
@@ -331,10 +381,15 @@ def _convex_fill(
     rows, c0, c1 = rows[keep], c0[keep], c1[keep]
     if not len(rows):
         return
-    diff = np.zeros((h, w + 1), dtype=np.int32)
-    np.add.at(diff, (rows, c0), 1)
-    np.add.at(diff, (rows, c1 + 1), -1)
-    mask |= np.cumsum(diff[:, :w], axis=1) > 0
+    r0, r1 = int(rows.min()), int(rows.max()) + 1
+    cols = np.arange(w)
+    if len(np.unique(rows)) == len(rows):  # one span per row (e.g. a hull): compare directly
+        mask[rows] |= (cols >= c0[:, None]) & (cols <= c1[:, None])
+        return
+    diff = np.zeros((r1 - r0, w + 1), dtype=np.int32)
+    np.add.at(diff, (rows - r0, c0), 1)
+    np.add.at(diff, (rows - r0, c1 + 1), -1)
+    mask[r0:r1] |= np.cumsum(diff[:, :w], axis=1) > 0
 
 
 def burn_polygons(
@@ -410,6 +465,47 @@ def inflate(mask: NDArray[np.bool_], radius_mm: float, resolution: float) -> NDA
     out = np.zeros_like(mask)
     out[r0:r1, c0:c1] = dist <= r_cells + _EPS
     return out
+
+
+def free_from_rays(
+    grid: OccupancyGrid,
+    rays_mm: ArrayLike,
+    hits: ArrayLike | None = None,
+    out: NDArray[np.bool_] | None = None,
+    *,
+    chunk: int = 20_000,
+) -> NDArray[np.bool_]:
+    """Cells laser beams pass through: every cell a ray crosses, except the cells it hit.
+
+    Args:
+        grid: Gives the geometry.
+        rays_mm: ``(K, 4)`` sensor x, y and beam end x, y in mm (world frame).
+        hits: ``(K,)`` bool, whether each beam ended on an obstacle (default: all did); the end
+            cell of a hit is not free, the end of a max-range reading is.
+        out: A bool mask to draw into (in place); a new one when ``None``.
+        chunk: Rays per vectorised batch (bounds the memory: a batch holds every crossed cell).
+
+    Returns:
+        The mask of cells some beam passed through.
+
+    Examples:
+        >>> g = grid_for_bounds(((0, 0), (500, 0)), 0.1, 0)
+        >>> free_from_rays(g, [[50, 50, 450, 50]]).astype(int).tolist()
+        [[1, 1, 1, 1, 0, 0]]
+    """
+    mask = _mask_for(grid, out)
+    rays = np.asarray(rays_mm, dtype=np.float64).reshape(-1, 4)
+    hit = np.ones(len(rays), dtype=bool) if hits is None else np.asarray(hits, dtype=bool)
+    if hit.shape != (len(rays),):
+        raise RasterError(f"hits must have one flag per ray ({len(rays)}), got shape {hit.shape}")
+    ended = np.zeros_like(mask)
+    for i in range(0, len(rays), max(1, chunk)):  # one step per batch of rays
+        part = rays[i:i + chunk]
+        cells = segment_cells(grid, part)
+        _set(mask, cells[:, 0], cells[:, 1])
+        burn_points(grid, part[hit[i:i + chunk], 2:4], out=ended)
+    mask &= ~ended
+    return mask
 
 
 def flood_fill(open_mask: NDArray[np.bool_], seeds_rc: ArrayLike) -> NDArray[np.bool_]:
@@ -540,6 +636,8 @@ def rasterize(
     inflate_mm: float = 0,
     forbidden_as_walls: bool = False,
     log: Any = None,
+    like: OccupancyGrid | None = None,
+    rays_mm: ArrayLike | None = None,
 ) -> OccupancyGrid:
     """A map as an occupancy grid: walls occupied, reachable space free, the rest unknown.
 
@@ -554,6 +652,7 @@ def rasterize(
     * ``"hull"``: everything inside the convex hull of the walls.
     * ``"all"``: every cell that is not a wall.
     * ``"none"``: nothing (only walls and unknown).
+    * ``"rays"``: the cells laser beams ``rays_mm`` pass through (see :func:`free_from_rays`).
 
     Args:
         m: The map.
@@ -564,6 +663,11 @@ def rasterize(
         forbidden_as_walls: Also mark forbidden areas and lines occupied.
         log: Reserved for ray-casting free space from a ``.2d`` laser log (not available yet;
             anything but ``None`` raises :class:`RasterError`).
+        rays_mm: ``(K, 4)`` beams (sensor x, y, end x, y in mm) for ``free="rays"``, each ending
+            on an obstacle.
+        like: Use this grid's geometry (shape, resolution, origin) instead of one fitted to the
+            map (``resolution`` and ``margin_m`` are then ignored); e.g. to compare two maps
+            cell by cell, or to draw a mask on the same grid as a map.
 
     Returns:
         The grid (see :func:`grid_for` for its geometry).
@@ -571,13 +675,18 @@ def rasterize(
     Raises:
         RasterError: For a bad option or a grid too large.
     """
-    if free not in ("flood", "hull", "all", "none"):
-        raise RasterError(f"free must be one of flood, hull, all, none; got {free!r}")
+    if free not in ("flood", "hull", "all", "none", "rays"):
+        raise RasterError(f"free must be one of flood, hull, all, none, rays; got {free!r}")
+    if (free == "rays") != (rays_mm is not None):
+        raise RasterError('free="rays" and rays_mm go together: give both or neither')
     if log is not None:
         raise RasterError("ray-casting free space from a .2d log is not available yet")
     if not (math.isfinite(inflate_mm) and inflate_mm >= 0):
         raise RasterError(f"inflation must be zero or more millimetres, got {inflate_mm!r}")
-    grid = grid_for(m, resolution, margin_m)
+    if like is not None:
+        grid = like.with_data(np.full(like.data.shape, UNKNOWN, dtype=np.int8))
+    else:
+        grid = grid_for(m, resolution, margin_m)
     walls = wall_mask(m, grid, forbidden_as_walls=forbidden_as_walls)
     open_ = ~walls
     if free == "flood":
@@ -592,6 +701,8 @@ def rasterize(
         space = hull_mask(walls) & open_
     elif free == "all":
         space = open_
+    elif free == "rays":
+        space = free_from_rays(grid, np.asarray(rays_mm)) & open_
     else:
         space = np.zeros_like(walls)
     occupied = inflate(walls, inflate_mm, grid.resolution) if inflate_mm else walls

@@ -335,7 +335,14 @@ def write_image(
 
 
 def _fmt_float(v: float) -> str:
-    return repr(float(v) + 0.0)
+    """Shortest round-trip text that both YAML 1.1 (PyYAML) and yaml-cpp read as a float."""
+    text = repr(float(v) + 0.0)
+    if "e" in text and "." not in text:
+        mant, exp = text.split("e")
+        text = f"{mant}.0e{exp}"
+    elif "." not in text and "e" not in text and text not in ("inf", "-inf", "nan"):
+        text += ".0"
+    return text
 
 
 _PLAIN = re.compile(r"^[A-Za-z0-9_./][A-Za-z0-9_./+@-]*$")
@@ -406,8 +413,8 @@ def write_ros_map(
         grid: The grid.
         yaml_path: The YAML file (``NAME.yaml``).
         mode: ``trinary`` (default), ``scale`` or ``raw``.
-        image_format: ``pgm`` (default) or ``png``. ``scale`` mode with unknown cells needs PNG
-            (transparent pixels) and defaults to it.
+        image_format: ``pgm`` (default) or ``png``. ``scale`` mode defaults to PNG, as Nav2's
+            map_saver does: its unknown cells need transparent pixels.
         image_path: The image file; default ``NAME.pgm``/``NAME.png`` beside the YAML. The YAML
             names it relative to its own folder when it is inside it, else by absolute path.
         negate: Write inverted grey levels and ``negate: 1``.
@@ -427,7 +434,7 @@ def write_ros_map(
         img_p = Path(os.fspath(image_path))
         fmt = image_format or ("png" if img_p.suffix.lower() == ".png" else "pgm")
     else:
-        fmt = image_format or ("png" if alpha is not None else "pgm")
+        fmt = image_format or ("png" if mode == "scale" else "pgm")
         img_p = yaml_p.with_suffix("." + fmt.lower())
     fmt = fmt.lower()
     if fmt not in ("pgm", "png"):

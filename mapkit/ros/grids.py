@@ -78,8 +78,8 @@ class ServedMap:
     Attributes:
         path: The file it came from.
         grid: The occupancy grid (``/map``).
-        keepout: Forbidden areas and lines as a mask on the same grid (100 forbidden, 0 elsewhere),
-            ``None`` for a map_server YAML (it has no objects).
+        keepout: Forbidden areas and lines as a mask on the same grid (100 forbidden, -1
+            elsewhere: Nav2's keepout-filter convention), ``None`` for a map_server YAML.
         goals: Goals (any goal type, with or without heading).
         homes: Robot homes.
         docks: Docks.
@@ -138,13 +138,9 @@ def map_poses(m: MapData) -> tuple[tuple[Pose, ...], tuple[Pose, ...], tuple[Pos
 
 
 def _keepout(m: MapData, grid: OccupancyGrid) -> OccupancyGrid:
-    # TODO(raster): use mapkit.raster.masks once it lands (same cells: forbidden areas + lines).
-    from mapkit.raster.rasterize import _forbidden, burn_polygons, burn_segments
+    from mapkit.raster.masks import keepout_mask
 
-    polys, segs = _forbidden(m)
-    mask = burn_polygons(grid, polys)
-    burn_segments(grid, segs, out=mask)
-    return grid.with_data(np.where(mask, 100, 0).astype(np.int8))
+    return keepout_mask(m, grid)
 
 
 def served_map(path: str | os.PathLike[str], resolution: float = 0.05, **raster: Any) -> ServedMap:

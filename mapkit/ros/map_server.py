@@ -9,7 +9,7 @@ name                   type                          what
 ``map_metadata``       nav_msgs/MapMetaData          latched; its size, resolution, origin
 ``static_map``         nav_msgs/GetMap (service)     the active grid
 ``change_map``         nav_msgs/LoadMap (service)    load a ``.map`` or map_server YAML; republish
-``keepout_mask``       nav_msgs/OccupancyGrid        latched; forbidden areas/lines 100, else 0
+``keepout_mask``       nav_msgs/OccupancyGrid        latched; forbidden areas/lines 100, else -1
 ``map_goals``          geometry_msgs/PoseArray       latched; goals (any goal type)
 ``map_homes``          geometry_msgs/PoseArray       latched; robot homes
 ``map_docks``          geometry_msgs/PoseArray       latched; docks

@@ -27,19 +27,14 @@ from mapkit.raster import (
     seed_points,
 )
 
+from .helpers import covered, dense, off_corners
+
 R = importlib.import_module("mapkit.raster.rasterize")
 
 resolutions = st.sampled_from([0.02, 0.05, 0.1, 0.25])
 mm = st.integers(-5_000, 5_000)
 points = st.lists(st.tuples(mm, mm), min_size=1, max_size=60)
 segments = st.lists(st.tuples(mm, mm, mm, mm), min_size=1, max_size=15)
-
-
-def _dense(seg: np.ndarray, n: int = 4001) -> np.ndarray:
-    """Points along each segment, including both ends."""
-    t = np.linspace(0.0, 1.0, n)[None, :, None]
-    a, b = seg[:, None, 0:2], seg[:, None, 2:4]
-    return (a + t * (b - a)).reshape(-1, 2)
 
 
 def _seg_dist(p: np.ndarray, seg: np.ndarray) -> np.ndarray:
@@ -65,8 +60,7 @@ def test_every_cell_a_line_crosses_is_occupied(segs, res) -> None:
     seg = np.array(segs, dtype=np.float64)
     g = grid_for_bounds(((-5000, -5000), (5000, 5000)), res, 0.1)
     mask = burn_segments(g, seg)
-    rc = g.world_to_cell(_dense(seg))
-    assert mask[rc[:, 0], rc[:, 1]].all()
+    assert covered(g, mask, off_corners(g, dense(seg))).all()
     # No stray cells: every marked cell's square touches a segment.
     cells = np.argwhere(mask)
     centres = g.cell_to_world(cells)
@@ -79,7 +73,7 @@ def test_lines_have_no_gaps_at_any_angle(angle) -> None:
     a = math.radians(angle)
     seg = np.array([[13.0, -7.0, 13 + 2900 * math.cos(a), -7 + 2900 * math.sin(a)]])
     mask = burn_segments(g, seg)
-    rc = g.world_to_cell(_dense(seg, 20001))
+    rc = g.world_to_cell(dense(seg, 20001))
     assert mask[rc[:, 0], rc[:, 1]].all()
     # The cells form one 4-connected chain.
     from scipy import ndimage
@@ -119,19 +113,21 @@ def test_rotated_rectangles_cover_their_cells(ft, theta, res) -> None:
     (poly,) = object_polygons([obj])
     g = grid_for_bounds(((-8000, -8000), (8000, 8000)), res, 0)
     mask = burn_polygons(g, [poly])
-    from shapely.geometry import Point, Polygon
+    from shapely import contains_xy
+    from shapely.geometry import Polygon
 
     shape = Polygon(poly) if abs(fx - tx) > 0 and abs(fy - ty) > 0 else None
-    # Every cell whose centre is inside is marked; the outline marks the cells its edges cross.
-    centres = g.cell_to_world(np.argwhere(np.ones_like(mask)))
+    # Every cell whose centre is inside is marked (all cells of the bounding box checked) ...
     if shape is not None:
-        inside = np.array([shape.contains(Point(c)) for c in centres[:: max(1, len(centres) // 4000)]])
-        picked = np.argwhere(np.ones_like(mask))[:: max(1, len(centres) // 4000)]
-        assert mask[picked[inside, 0], picked[inside, 1]].all()
+        (r0, c0), (r1, c1) = g.world_to_cell(poly.min(axis=0)), g.world_to_cell(poly.max(axis=0))
+        rr, cc = np.mgrid[max(r0, 0):min(r1, g.height - 1) + 1, max(c0, 0):min(c1, g.width - 1) + 1]
+        cells = np.stack([rr.ravel(), cc.ravel()], axis=1)
+        xy = g.cell_to_world(cells)
+        inside = contains_xy(shape, xy[:, 0], xy[:, 1])
+        assert mask[cells[inside, 0], cells[inside, 1]].all()
+    # ... and the outline marks the cells its edges cross.
     edges = np.concatenate([poly, np.roll(poly, -1, axis=0)], axis=1)
-    rc = g.world_to_cell(_dense(edges, 2001))
-    ok = g.inside(rc)
-    assert mask[rc[ok, 0], rc[ok, 1]].all()
+    assert covered(g, mask, off_corners(g, dense(edges, 2001))).all()
     # Nothing farther than a cell's half-diagonal from the rectangle is marked.
     marked = g.cell_to_world(np.argwhere(mask))
     if shape is not None and len(marked):
@@ -282,3 +278,34 @@ def test_real_samples(real_sample) -> None:
     # Every seed that is not on a wall is free.
     vals = g.values_at(seeds)
     assert set(vals.tolist()) <= {0, 100}
+
+
+def test_free_from_rays_marks_beams_but_not_hits() -> None:
+    m = _room()
+    rng = np.random.default_rng(7)
+    angles = rng.uniform(0, 2 * np.pi, 500)
+    # A sensor at (2000, 1500) in the 4 x 3 m room: each beam ends on the wall it meets.
+    d = np.stack([np.cos(angles), np.sin(angles)], axis=1)
+    with np.errstate(divide="ignore"):
+        tx = np.where(d[:, 0] > 0, (4000 - 2000) / d[:, 0], (0 - 2000) / d[:, 0])
+        ty = np.where(d[:, 1] > 0, (3000 - 1500) / d[:, 1], (0 - 1500) / d[:, 1])
+    t = np.minimum(np.abs(tx), np.abs(ty))
+    ends = np.rint(np.array([2000, 1500]) + d * t[:, None])  # integer mm, as logs hold them
+    rays = np.concatenate([np.tile([2000, 1500], (500, 1)), ends], axis=1)
+    g = rasterize(m, 0.1, free="rays", rays_mm=rays)
+    assert g.values_at([[2000, 1500], [3500, 1500], [-300, 1500]]).tolist() == [0, 0, -1]
+    assert (g.values_at(ends) == 100).all()
+    free = g.data == 0
+    assert free.sum() > 0.8 * 39 * 29 and free.sum() <= 39 * 29
+    # Max-range readings (no hit) free their end cell too; chunking does not change the result.
+    base = grid_for(m, 0.1)
+    a = R.free_from_rays(base, [[500, 500, 1000, 500]], hits=[False])
+    b = R.free_from_rays(base, [[500, 500, 1000, 500]])
+    assert a.sum() == b.sum() + 1
+    assert np.array_equal(R.free_from_rays(base, rays, chunk=7), R.free_from_rays(base, rays))
+    with pytest.raises(RasterError, match="one flag per ray"):
+        R.free_from_rays(base, rays, hits=[True])
+    with pytest.raises(RasterError, match="go together"):
+        rasterize(m, free="rays")
+    with pytest.raises(RasterError, match="go together"):
+        rasterize(m, rays_mm=rays)

@@ -89,7 +89,10 @@ def test_keepout_mask_and_poses(ros: Ros, server: Any, sample: Path) -> None:
     grid = expected_grid(sample)
     mask = echo(ros, "/keepout_mask")
     cells = np.array(mask["data"], dtype=np.int8).reshape(grid.data.shape)
-    assert set(np.unique(cells).tolist()) == {0, 100}
+    from mapkit.raster.masks import keepout_mask
+
+    assert np.array_equal(cells, keepout_mask(m, grid).data)  # mapkit's own mask, same grid
+    assert set(np.unique(cells).tolist()) == {-1, 100}
     # every forbidden area's centre and every forbidden line's middle lies in a keepout cell
     keep = grid.with_data(cells)
     for obj in m.objects:
