@@ -64,8 +64,18 @@ def map_server(map_file: str, resolution: float, frame_id: str, free: str, as_js
 
 # -- transfer ---------------------------------------------------------------------------------
 
+def _check_channel(_ctx: Any, _param: Any, value: str) -> str:
+    from mapkit.ros.errors import RosError
+    from mapkit.ros.transport import check_channel
+
+    try:
+        return check_channel(value)
+    except RosError as e:
+        raise click.BadParameter(str(e)) from e
+
+
 def _channel_option(f: Any) -> Any:
-    return click.option("--channel", default="maps", show_default=True,
+    return click.option("--channel", default="maps", show_default=True, callback=_check_channel,
                         help="Channel: topics mapkit/CHANNEL/{c2r,r2c,announce} in ROS_NAMESPACE.")(f)
 
 

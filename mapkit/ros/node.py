@@ -57,11 +57,11 @@ def _master_answers(uri: str, timeout: float) -> bool:
         socket.setdefaulttimeout(old)
 
 
-class _OnlyMapkitBelowWarning:
-    """Pass mapkit's records, and others' from WARNING up (rospy logs its chatter at INFO)."""
+class _OnlyMapkit:
+    """Pass mapkit's records only: rospy's own go to its log file (ROS_LOG_DIR), as usual."""
 
     def filter(self, record: Any) -> bool:
-        return record.name.startswith("mapkit") or record.levelno >= 30
+        return bool(record.name.startswith("mapkit"))
 
 
 def start_node(name: str, *, anonymous: bool = True, timeout: float = 5.0) -> str:
@@ -91,7 +91,7 @@ def start_node(name: str, *, anonymous: bool = True, timeout: float = 5.0) -> st
     # every logger made before it: mapkit's log lines must still reach the CLI's stderr handler.
     for h in handlers:
         if h not in logging.root.handlers:
-            h.addFilter(_OnlyMapkitBelowWarning())
+            h.addFilter(_OnlyMapkit())
             logging.root.addHandler(h)
     logging.root.setLevel(level)
     for lname, logger in logging.root.manager.loggerDict.items():

@@ -50,6 +50,7 @@ from mapkit.transfer.protocol import (
     Out,
     ProtocolError,
     Receiver,
+    Rejected,
     Request,
     Sender,
     ServerHandshake,
@@ -740,7 +741,7 @@ class Terminal:
             s = self._session(r)
             tx = Sender(offer, lambda i: view[i * cs:(i + 1) * cs], ref=1, window=window,
                         rto=self.rto, idle_timeout=self.idle_timeout)
-            s.begin(_push_script(s, tx, res, offer, load), time.monotonic())
+            s.begin(_push_script(s, tx, res, r, offer, load), time.monotonic())
             results.append(res)
             sessions.append(s)
             senders.append(tx)
@@ -751,10 +752,10 @@ class Terminal:
                 progress(sum(t.bytes_acked for t in senders), total)
 
         _drive(self.link, sessions, tick=tick, stopped=self.stopped)
-        for s, res, tx in zip(sessions, results, senders):
+        for s, res, tx, r in zip(sessions, results, senders, robots):
             res.chunks_sent, res.chunks_resent = tx.chunks_sent, tx.chunks_resent
             if s.error is not None and res.error is None:
-                res.error = str(s.error)
+                res.error = str(_named(s.error, r))
         return results
 
     def request(self, robot: Robot, ftype: FrameType, payload: dict[str, Any],
@@ -775,7 +776,7 @@ class Terminal:
         s.begin(script(), time.monotonic())
         _drive(self.link, [s], stopped=self.stopped)
         if s.error is not None:
-            raise s.error
+            raise _named(s.error, robot)
         assert req.response is not None
         return req.response
 
@@ -847,17 +848,27 @@ class Terminal:
             if state.get("dest") is not None:  # keep what arrived for a resume
                 state["dest"].close(keep=True)
         if s.error is not None:
-            raise s.error
+            raise _named(s.error, robot)
         return {"robot": robot.robot, **out}
 
 
-def _push_script(s: _ClientSession, tx: Sender, res: PushResult, offer: Offer, load: bool) -> Script:
+def _named(err: BaseException, robot: Robot) -> BaseException:
+    """A robot's refusal, naming the robot (the protocol core says "server")."""
+    if isinstance(err, Rejected):
+        named = Rejected(int(err.status), err.reason, err.detail, peer=f"robot {robot.robot!r}")
+        named.__cause__ = err
+        return named
+    return err
+
+
+def _push_script(s: _ClientSession, tx: Sender, res: PushResult, robot: Robot, offer: Offer,
+                 load: bool) -> Script:
     try:
         yield s.handshake()
         yield tx
     except TransferError as err:
         res.received = tx.bytes_acked == offer.size and offer.size > 0
-        res.error = str(err)
+        res.error = str(_named(err, robot))
         return
     res.received = True
     res.skipped = bool(tx.result.get("skipped"))
@@ -873,7 +884,7 @@ def _push_script(s: _ClientSession, tx: Sender, res: PushResult, offer: Offer, l
         try:
             yield req
         except TransferError as err:
-            res.loaded, res.error = False, str(err)
+            res.loaded, res.error = False, str(_named(err, robot))
             return
         assert req.response is not None
         res.loaded = True

@@ -196,6 +196,10 @@ def running_roscore(tmp: Path) -> Iterator[Ros]:
     try:
         yield ros
     finally:
+        for p in ros.procs:  # all at once, then wait: each takes a moment to leave the master
+            if p.poll() is None:
+                with contextlib.suppress(ProcessLookupError):
+                    os.killpg(p.pid, signal.SIGINT)
         for p in reversed(ros.procs):
             stop_group(p)
         stop_group(proc)

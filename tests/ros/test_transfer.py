@@ -110,8 +110,9 @@ def test_receive_count_exits_after_the_files(net: Ros, tmp_path: Path, shared_di
 def test_fleet_of_three_with_load(net: Ros, tmp_path: Path, shared_dir: Path) -> None:
     sample = shared_dir / "real" / "aria294-columbia.map"
     robots = {f"r{i}": tmp_path / f"r{i}" for i in (1, 2, 3)}
-    procs = [start_receiver(net, d, n, channel="fleet") for n, d in robots.items()]
-    res = send(net, sample, "--channel", "fleet", "--expect", "3", "--load")
+    procs = [net.start_mapkit("ros", "receive", "-o", str(d), "--name", n, "--channel", "fleet")
+             for n, d in robots.items()]  # started together; `send --expect 3` waits for all
+    res = send(net, sample, "--channel", "fleet", "--expect", "3", "--wait", "60", "--load")
     lines = res.stdout.splitlines()
     assert lines[0].split() == ["robot", "received", "verified", "loaded", "note"]
     assert [ln.split()[:4] for ln in lines[1:]] == [[n, "yes", "yes", "yes"] for n in robots]
@@ -122,7 +123,9 @@ def test_fleet_of_three_with_load(net: Ros, tmp_path: Path, shared_dir: Path) ->
     again = json.loads(send(net, sample, "--channel", "fleet", "--expect", "3", "--json").stdout)
     assert [r["ok"] for r in again] == [True] * 3
     for p in procs:
-        assert net.stop(p) == 0, net.output(p)
+        os.killpg(p.pid, signal.SIGINT)
+    for p in procs:
+        assert p.wait(30) == 0, net.output(p)
 
 
 @pytest.fixture
