@@ -68,7 +68,7 @@ log_ = logging.getLogger(__name__)
 FreeMode = Literal["flood", "hull", "all", "none", "rays"]
 
 #: The largest grid mapkit makes (cells); a larger one is refused with a clear error.
-MAX_CELLS = 400_000_000
+MAX_CELLS = 100_000_000
 
 _EPS = 1e-9
 _Bounds = tuple[tuple[float, float], tuple[float, float]]

@@ -611,8 +611,7 @@ class _Image:
     channels: NDArray[Any]
     has_alpha: bool
     maxval: int
-    indexed: bool = False  # palette indices (ROS 1 reads the index, Nav2 the colour)
-    palette: NDArray[np.uint8] | None = None
+    palette_rgba: NDArray[np.uint8] | None = None  # a paletted image's colours (for Nav2)
     bilevel: str | None = None  # "pbm" (1 = black) or "png" (1 = white): 0/1 samples
     pnm: bool = False  # read by mapkit's own PNM decoder
 
@@ -688,10 +687,10 @@ def _read_pillow(path: Path, src: str) -> _Image:
             im.load()
             mode = im.mode
             if mode == "P":
-                pal = np.array(im.getpalette() or [], dtype=np.uint8).reshape(-1, 3)
+                # ROS 1 (SDL) reads the index as a one-channel pixel; Nav2 the colour.
                 idx = np.asarray(im, dtype=np.uint8)
-                has_t = "transparency" in im.info
-                return _Image(idx[..., None], has_t, 255, indexed=True, palette=pal)
+                rgba = np.asarray(im.convert("RGBA"), dtype=np.uint8)
+                return _Image(idx[..., None], False, 255, palette_rgba=rgba)
             if mode == "1":
                 return _Image(np.asarray(im, dtype=np.uint8)[..., None], False, 255, bilevel="png")
             if mode in ("I;16", "I;16B", "I;16L", "I"):
@@ -752,11 +751,10 @@ def image_to_grid(img: _Image, info: RosMapInfo, *, flavor: Flavor = "ros1") -> 
         full = img.maxval
         rgb: NDArray[Any]
         alpha_ch: NDArray[Any] | None = None
-        if img.indexed and img.palette is not None:
-            pal = img.palette
-            idx = ch[..., 0]
-            safe = np.minimum(idx, len(pal) - 1) if len(pal) else idx * 0
-            rgb = pal[safe] if len(pal) else np.repeat(ch, 3, axis=2)
+        if img.palette_rgba is not None:
+            rgb = img.palette_rgba[..., :3]
+            if (img.palette_rgba[..., 3] < 255).any():
+                alpha_ch = img.palette_rgba[..., 3]
         elif ch.shape[2] == 1:
             rgb = ch
         else:

@@ -320,3 +320,15 @@ def test_png_written_is_valid_for_pillow(tmp_path: Path) -> None:
     f = write_ros_map(g, tmp_path / "p.yaml", image_format="png")
     with Image.open(f.image) as im:
         assert im.mode == "L" and np.asarray(im).tolist() == [[254, 0, 205]]
+
+
+def test_palette_with_transparency(tmp_path: Path) -> None:
+    from PIL import Image
+
+    im = Image.fromarray(np.array([[0, 1, 2]], dtype=np.uint8), "P")
+    im.putpalette([255, 255, 255, 0, 0, 0, 128, 128, 128] + [0] * 759)
+    im.info["transparency"] = 2
+    im.save(tmp_path / "t.png", transparency=2)
+    y = _yaml(tmp_path / "t.yaml", "t.png", mode="scale")
+    assert read_ros_map(y).data.tolist() == [[100, 100, 100]]  # indices 0, 1, 2: all dark
+    assert read_ros_map(y, flavor="nav2").data.tolist() == [[0, 100, -1]]
