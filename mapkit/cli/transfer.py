@@ -8,27 +8,24 @@ environment variable, never from the command line. Without one, both sides must 
 from __future__ import annotations
 
 import logging
+import os
 import signal
 import sys
 import threading
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from typing import Any, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import click
 
 from mapkit.cli.options import echo_json, err, json_option
-from mapkit.transfer import (
-    DEFAULT_PORT,
-    Client,
-    MapFolder,
-    MapServer,
-    client_tls_context,
-    load_secret,
-    parse_address,
-    server_tls_context,
-)
+
+if TYPE_CHECKING:
+    from mapkit.transfer import Client, MapServer
+
+# mapkit.transfer is imported inside the commands so that `mapkit --help` stays fast.
+DEFAULT_PORT = 7373  # == mapkit.transfer.DEFAULT_PORT (a test checks)
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -55,6 +52,8 @@ def _client_options(f: F) -> F:
 
 def _client(address: str, secret_file: str | None, insecure: bool, use_tls: bool,
             tls_ca: str | None, tls_no_verify: bool, timeout: float) -> Client:
+    from mapkit.transfer import Client, client_tls_context, load_secret, parse_address
+
     host, port = parse_address(address, DEFAULT_PORT)
     secret = load_secret(path=secret_file)
     tls = client_tls_context(tls_ca, verify=not tls_no_verify) if (use_tls or tls_ca or tls_no_verify) else None
@@ -122,6 +121,8 @@ def _serve(server: MapServer) -> None:
 
 def _server_setup(listen_addr: str, secret_file: str | None, insecure: bool, tls_cert: str | None,
                   tls_key: str | None) -> tuple[str, int, bytes | None, Any]:
+    from mapkit.transfer import load_secret, parse_address, server_tls_context
+
     host, port = parse_address(listen_addr, DEFAULT_PORT, default_host="0.0.0.0")
     secret = load_secret(path=secret_file)
     if secret is None and not insecure:
@@ -156,6 +157,8 @@ def serve(folder: str, listen_addr: str, secret_file: str | None, insecure: bool
       MAPKIT_SECRET_FILE=/etc/mapkit/secret mapkit serve /home/robot/maps
       mapkit serve maps --listen 0.0.0.0:7373 --secret-file secret --tls-cert c.pem --tls-key k.pem
     """
+    from mapkit.transfer import MapFolder, MapServer
+
     host, port, secret, tls = _server_setup(listen_addr, secret_file, insecure, tls_cert, tls_key)
     srv = MapServer(MapFolder(folder, max_size=max_size), host=host, port=port, secret=secret,
                     insecure=insecure, tls=tls)
@@ -187,35 +190,40 @@ def receive(listen_addr: str, folder: str, secret_file: str | None, insecure: bo
       mapkit receive --listen 0.0.0.0:7373 -o incoming --secret-file secret
       (on the robot)  mapkit send log.2d laptop:7373 --secret-file secret
     """
-    host, port, secret, tls = _server_setup(listen_addr, secret_file, insecure, tls_cert, tls_key)
-    got: list[dict[str, Any]] = []
-    done = threading.Event()
+    from mapkit.transfer import MapFolder, MapServer, receive_files
 
-    def received(info: dict[str, Any]) -> None:
-        got.append(info)
+    host, port, secret, tls = _server_setup(listen_addr, secret_file, insecure, tls_cert, tls_key)
+    root = os.path.abspath(folder)
+
+    def listening(address: tuple[str, int]) -> None:
+        err(f"mapkit receive: waiting on {address[0]}:{address[1]} for files into {root} "
+            f"(auth {'hmac-sha256' if secret else 'none'}, tls {'on' if tls else 'off'})")
+
+    def show(info: dict[str, Any]) -> None:
         if not as_json:
             click.echo(f"received {info['name']} ({_size(info['size'])}, SHA-256 {info['sha256'][:16]}…) "
                        f"from {info['peer']}")
-        if once:
-            done.set()
+
+    if once:
+        first = receive_files(folder, host, port, count=1, secret=secret, insecure=insecure, tls=tls,
+                              on_listening=listening)
+        for info in first:
+            show(info)
+        if as_json:
+            echo_json(first[0] if first else None)
+        return
+    got: list[dict[str, Any]] = []
+
+    def received(info: dict[str, Any]) -> None:
+        got.append(info)
+        show(info)
 
     srv = MapServer(MapFolder(folder), host=host, port=port, secret=secret, insecure=insecure,
                     tls=tls, push_only=True, on_received=received)
-    h, p = srv.address
-    err(f"mapkit receive: waiting on {h}:{p} for files into {srv.folder.root} "
-        f"(auth {'hmac-sha256' if secret else 'none'}, tls {'on' if tls else 'off'})")
-    if once:
-        srv.start()
-        try:
-            done.wait()
-        except KeyboardInterrupt:
-            pass
-        finally:
-            srv.close()
-    else:
-        _serve(srv)
+    listening(srv.address)
+    _serve(srv)
     if as_json:
-        echo_json(got[0] if once and got else got)
+        echo_json(got)
 
 
 @click.command()

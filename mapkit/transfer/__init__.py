@@ -17,7 +17,7 @@ Examples:
 
 from __future__ import annotations
 
-from mapkit.transfer.client import Client, fetch_file, list_maps, load_map, send_file
+from mapkit.transfer.client import Client, fetch_file, list_maps, load_map, receive_files, send_file
 from mapkit.transfer.protocol import DEFAULT_PORT, Rejected, Status, load_secret
 from mapkit.transfer.server import MapFolder, MapServer
 from mapkit.transfer.tcp import client_tls_context, parse_address, server_tls_context
@@ -35,6 +35,7 @@ __all__ = [
     "load_map",
     "load_secret",
     "parse_address",
+    "receive_files",
     "send_file",
     "server_tls_context",
 ]

@@ -31,7 +31,6 @@ from mapkit.transfer.protocol import (
     DEFAULT_CHUNK_SIZE,
     DEFAULT_PORT,
     Channel,
-    ChunkReceived,
     ClientHandshake,
     FrameType,
     Offer,
@@ -40,14 +39,14 @@ from mapkit.transfer.protocol import (
     Request,
     Sender,
     Status,
-    TransferComplete,
     kind_of,
 )
 from mapkit.transfer.server import validate_map_file
 from mapkit.transfer.store import PartialFile, check_name, file_digests
 from mapkit.transfer.tcp import FrameLink, connect, run
 
-__all__ = ["Client", "Progress", "fetch_file", "list_maps", "load_map", "offer_for_file", "send_file"]
+__all__ = ["Client", "Progress", "fetch_file", "list_maps", "load_map", "offer_for_file",
+           "receive_files", "send_file"]
 
 #: ``progress(done_bytes, total_bytes)``, called a few times a second during a transfer.
 Progress = Callable[[int, int], None]
@@ -76,16 +75,21 @@ def offer_for_file(path: str | os.PathLike[str], *, name: str | None = None,
     return fd, Offer(name, st.st_size, sha, chunk_size, md5, kind, round(st.st_mtime, 3))
 
 
+def _attr(obj: Any, name: str) -> Callable[[], int]:
+    return lambda: int(getattr(obj, name))
+
+
 class _Ticker:
-    def __init__(self, progress: Progress | None, total: int, get: Callable[[], int]) -> None:
-        self.progress, self.total, self.get = progress, total, get
+    def __init__(self, progress: Progress | None, total: int, get: Callable[[], int],
+                 interval: float) -> None:
+        self.progress, self.total, self.get, self.interval = progress, total, get, interval
         self._last = 0.0
 
     def __call__(self, force: bool = False) -> None:
         if self.progress is None:
             return
         now = time.monotonic()
-        if force or now - self._last >= 0.1:
+        if force or now - self._last >= self.interval:
             self._last = now
             self.progress(self.get(), self.total)
 
@@ -103,6 +107,7 @@ class Client:
         rto: First resend timeout in seconds.
         chunk_size: Bytes per chunk.
         window: Chunks in flight.
+        progress_interval: Seconds between progress callbacks (0: after every frame).
 
     Attributes:
         server: The server's HELLO_ACK (name, limits, features).
@@ -114,13 +119,15 @@ class Client:
 
     def __init__(self, host: str, port: int = DEFAULT_PORT, *, secret: bytes | None = None,
                  insecure: bool = False, tls: ssl.SSLContext | None = None, timeout: float = 10.0,
-                 rto: float = 2.0, chunk_size: int = DEFAULT_CHUNK_SIZE, window: int = 16) -> None:
+                 rto: float = 2.0, chunk_size: int = DEFAULT_CHUNK_SIZE, window: int = 16,
+                 progress_interval: float = 0.1) -> None:
         if secret is None and not insecure:
             raise LocalTransferError("no shared secret: give --secret-file or MAPKIT_SECRET, or "
                                      "--insecure if the robot runs without one")
         self.host, self.port = host, port
         self.timeout, self.rto, self.window = timeout, rto, window
         self.chunk_size = chunk_size
+        self.progress_interval = progress_interval
         self._ref = 0
         sock = connect(host, port, timeout=timeout, tls=tls)
         session = int.from_bytes(secrets.token_bytes(8), "big")
@@ -170,7 +177,7 @@ class Client:
 
                 tx = Sender(offer, read, ref=self._next_ref(), window=self.window, rto=self.rto,
                             idle_timeout=max(self.timeout, 60.0))
-                tick = _Ticker(progress, offer.size, lambda tx=tx: tx.bytes_acked)
+                tick = _Ticker(progress, offer.size, _attr(tx, "bytes_acked"), self.progress_interval)
                 try:
                     run(self.link, tx, tick=tick)
                 except Rejected as err:
@@ -183,6 +190,7 @@ class Client:
             dt = time.monotonic() - t0
             return {**offer.json(), "host": self.host, "chunks_sent": tx.chunks_sent,
                     "chunks_resent": tx.chunks_resent, "chunks_skipped": tx.chunks_skipped,
+                    "chunks_distinct": len(tx.sent_indices),
                     "seconds": round(dt, 4), "mb_per_s": round(offer.size / dt / 1e6, 2) if dt else None,
                     "verified": tx.result}
         raise LocalTransferError("unreachable")  # pragma: no cover
@@ -219,7 +227,8 @@ class Client:
             if kind_of(name) == "map":
                 req["if_md5"] = md5
         resp = self._request(FrameType.GET, req, (FrameType.OFFER, FrameType.NOT_MODIFIED))
-        offer = Offer.from_json(resp.json())
+        d = resp.json()
+        offer = Offer.from_json(d)
         if offer.name != name:
             raise LocalTransferError(f"asked for {name!r}, the robot offered {offer.name!r}")
         base = {**offer.json(), "host": self.host, "path": dest}
@@ -228,28 +237,17 @@ class Client:
                     "seconds": round(time.monotonic() - t0, 4), "mb_per_s": None}
         validate = validate_map_file if kind_of(local) == "map" and kind_of(name) == "map" else None
         store = PartialFile.open(folder, local, offer, validate=validate)
+        w = d.get("window")
         rx = Receiver(offer, ref=resp.ref, have=store.have, window=max(self.window * 4, 64),
-                      idle_timeout=max(self.timeout, 60.0))
-        tick = _Ticker(progress, offer.size, lambda: rx.bytes_received)
-        info: dict[str, Any] = {}
+                      idle_timeout=max(self.timeout, 60.0), sender_window=w if isinstance(w, int) else None)
+        tick = _Ticker(progress, offer.size, _attr(rx, "bytes_received"), self.progress_interval)
         ok = False
 
         def on_events() -> list[Any]:
-            out: list[Any] = []
-            for e in rx.pop_events():
-                try:
-                    if isinstance(e, ChunkReceived):
-                        store.write(e.index, e.data, e.crc)
-                    elif isinstance(e, TransferComplete):
-                        info.update(store.finalize())
-                        out += rx.verified({k: v for k, v in info.items() if k != "path"},
-                                           time.monotonic())
-                except TransferError as err:
-                    out += rx.fail(err)
-                    break
-            return out
+            return store.take(rx)
 
         try:
+            store.start_writer()
             self.link.send(rx.accept(time.monotonic()))
             self.link.send(on_events())
             run(self.link, rx, start=False, on_events=on_events, tick=tick)
@@ -273,7 +271,7 @@ class Client:
         maps = d.get("maps") if isinstance(d.get("maps"), list) else []
         for m in maps:  # never trust names from the wire
             check_name(m.get("name") if isinstance(m, dict) else None, suffixes=None)
-        return d
+        return dict(d)
 
     def load(self, name: str | None = None, *, md5: str | None = None,
              rollback: bool = False) -> dict[str, Any]:
@@ -352,3 +350,44 @@ def load_map(host: str, name: str | None, port: int = DEFAULT_PORT, *, md5: str 
     """Make a map active on a robot (or roll back)."""
     with Client(host, port, **options) as c:
         return c.load(name, md5=md5, rollback=rollback)
+
+
+def receive_files(folder: str | os.PathLike[str], host: str = "0.0.0.0", port: int = DEFAULT_PORT, *,
+                  count: int = 1, timeout: float | None = None,
+                  on_listening: Callable[[tuple[str, int]], None] | None = None,
+                  **options: Any) -> list[dict[str, Any]]:
+    """Wait for peers to push files into ``folder`` (the terminal side of ``mapkit receive``).
+
+    Runs a push-only :class:`~mapkit.transfer.server.MapServer` until ``count`` files arrived or
+    ``timeout`` seconds passed. ``options`` are :class:`MapServer` arguments (``secret``,
+    ``insecure``, ``tls``...).
+
+    Returns:
+        One record per received file: ``{"name", "size", "sha256", "md5", "peer", "resumed", "path"}``.
+
+    Examples:
+        >>> import tempfile, threading, pathlib
+        >>> inbox, src = pathlib.Path(tempfile.mkdtemp()), pathlib.Path(tempfile.mkdtemp()) / "s.2d"
+        >>> _ = src.write_bytes(b"laser")
+        >>> def robot(addr):
+        ...     threading.Thread(target=send_file, args=(src, *addr), kwargs={"insecure": True}).start()
+        >>> [r["name"] for r in receive_files(inbox, "127.0.0.1", 0, insecure=True, on_listening=robot)]
+        ['s.2d']
+    """
+    import threading
+
+    from mapkit.transfer.server import MapServer
+
+    got: list[dict[str, Any]] = []
+    done = threading.Event()
+
+    def received(info: dict[str, Any]) -> None:
+        got.append(info)
+        if len(got) >= count:
+            done.set()
+
+    with MapServer(folder, host=host, port=port, push_only=True, on_received=received, **options) as srv:
+        if on_listening is not None:
+            on_listening(srv.address)
+        done.wait(timeout)
+    return got

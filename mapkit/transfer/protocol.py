@@ -26,6 +26,21 @@ return the :class:`Out` frames to send (encode them with :meth:`Channel.encode`,
 ``deadline()`` says when ``poll`` wants to run next; ``finished`` and ``error`` say how it ended.
 Time is whatever monotonic clock the driver passes in (seconds), so tests can simulate it.
 
+Writing a binding for another transport (what :mod:`mapkit.transfer.tcp` does for TCP):
+
+1. Make a :class:`Channel` per session: ``Channel(initiator=True, session=random 64 bits)`` on
+   the side that starts, ``Channel(initiator=False)`` on the other; ``ordered=False`` when the
+   transport may lose, duplicate or reorder (ROS topics), and then feed each received message
+   with :meth:`Channel.receive_message` (one frame per message) instead of ``receive_data``.
+2. Run :class:`ClientHandshake` / :class:`ServerHandshake`, then :class:`Request` machines for
+   GET/LIST/LOAD/BYE and :class:`Sender` / :class:`Receiver` for files: loop ``poll`` → send →
+   wait for a message until ``deadline()`` → ``handle`` → send, until ``finished``.
+3. For a receiver, store chunks and finish the file with
+   :meth:`mapkit.transfer.store.PartialFile.take` (resume journal, SHA-256, atomic rename); on the
+   robot side :class:`mapkit.transfer.server.MapFolder` does names, listings and LOAD.
+4. Send :class:`Damaged` events to the machine too (``handle`` accepts them): the receiver asks
+   for a damaged chunk again at once.
+
 Examples:
     A whole push over an in-memory link, insecure, with 4-byte chunks:
 
@@ -70,8 +85,8 @@ import os
 import struct
 import zlib
 from collections import deque
-from collections.abc import Callable, Iterable
-from dataclasses import dataclass, field
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass
 from typing import Any, Union
 
 from mapkit.errors import ChecksumError, LocalTransferError, RemoteTransferError, TransferError
@@ -95,10 +110,10 @@ __all__ = [
     "Offer",
     "Out",
     "ProtocolError",
+    "Receiver",
     "Rejected",
     "ReplayError",
     "Request",
-    "Receiver",
     "Sender",
     "ServerHandshake",
     "Status",
@@ -161,6 +176,7 @@ class Flag(enum.IntFlag):
 
     AUTH = 0x0001  #: a 16-byte tag follows the payload
     RETX = 0x0002  #: this DATA frame is a resend (informational)
+    ACKREQ = 0x0004  #: the sender's window is full (or this is its last chunk): acknowledge now
 
 
 class Status(enum.IntEnum):
@@ -518,7 +534,7 @@ class Channel:
         self.stats["garbage"] += nxt - self._pos
         self._pos = nxt
 
-    def _decode_one(self) -> Event | None | object:
+    def _decode_one(self) -> Event | object | None:
         buf, pos = self._buf, self._pos
         if len(buf) - pos < HEADER_SIZE:
             if len(buf) - pos >= 4 and buf[pos:pos + 4] != MAGIC:
@@ -613,7 +629,8 @@ _AGAIN = object()
 # -- keys and secrets ----------------------------------------------------------------------------
 
 
-def load_secret(*, path: str | os.PathLike[str] | None = None, env: dict[str, str] | None = None) -> bytes | None:
+def load_secret(*, path: str | os.PathLike[str] | None = None,
+                env: Mapping[str, str] | None = None) -> bytes | None:
     """Read the pre-shared secret from a file, or else the ``MAPKIT_SECRET`` environment variable.
 
     Surrounding whitespace (the trailing newline of a file) is removed. The secret is never taken
@@ -636,10 +653,10 @@ def load_secret(*, path: str | os.PathLike[str] | None = None, env: dict[str, st
         >>> load_secret(env={}) is None
         True
     """
-    env = os.environ if env is None else env
+    environ: Mapping[str, str] = os.environ if env is None else env
     where = ""
-    if path is None and env.get("MAPKIT_SECRET_FILE"):
-        path = env["MAPKIT_SECRET_FILE"]
+    if path is None and environ.get("MAPKIT_SECRET_FILE"):
+        path = environ["MAPKIT_SECRET_FILE"]
     if path is not None:
         where = os.fspath(path)
         try:
@@ -647,9 +664,9 @@ def load_secret(*, path: str | os.PathLike[str] | None = None, env: dict[str, st
                 secret = fh.read(65536).strip()
         except OSError as err:
             raise LocalTransferError(f"{where}: cannot read the secret: {err.strerror}") from err
-    elif env.get("MAPKIT_SECRET"):
+    elif environ.get("MAPKIT_SECRET"):
         where = "MAPKIT_SECRET"
-        secret = env["MAPKIT_SECRET"].strip().encode("utf-8")
+        secret = environ["MAPKIT_SECRET"].strip().encode("utf-8")
     else:
         return None
     if len(secret) < MIN_SECRET:
@@ -854,7 +871,7 @@ class Offer:
         md5 = d.get("md5")
         if md5 is not None:
             _unhex(md5, 16, "OFFER md5")
-        offer = cls(name, size, sha.lower(), cs, md5.lower() if md5 else None,
+        offer = cls(name, size, str(sha).lower(), cs, str(md5).lower() if md5 else None,
                     str(d.get("kind", kind_of(name))),
                     d["mtime"] if isinstance(d.get("mtime"), (int, float)) else None)
         if d.get("chunks", offer.chunks) != offer.chunks:
@@ -898,8 +915,8 @@ def rejected_from(frame: Frame, peer: str = "peer") -> Rejected:
         default_reason = Status(code).reason
     except ValueError:
         default_reason = f"code {code}"
-    reason = d.get("reason") if isinstance(d.get("reason"), str) else default_reason
-    message = d.get("message") if isinstance(d.get("message"), str) else ""
+    reason = str(d["reason"]) if isinstance(d.get("reason"), str) else default_reason
+    message = str(d["message"]) if isinstance(d.get("message"), str) else ""
     return Rejected(code, reason, message, peer=peer)
 
 
@@ -958,6 +975,33 @@ class _Machine:
             return True
         return False
 
+    ref = 0
+
+    def _handle(self, f: Frame, now: float) -> list[Out]:  # pragma: no cover - overridden
+        return []
+
+    def _guarded(self, f: Frame, now: float, peer: str) -> list[Out]:
+        """A REJECT/CANCEL of this exchange ends it; a local error is answered with CANCEL."""
+        if f.type in (FrameType.REJECT, FrameType.CANCEL):
+            if f.ref == self.ref:
+                self._fail(rejected_from(f, peer))
+            return []
+        try:
+            return self._handle(f, now)
+        except TransferError as err:
+            return self.fail(err, self.ref)
+
+    def _resend(self, now: float, out: Out | None) -> list[Out]:
+        """``[out]`` again when the resend timer expired; fail after ``max_tries`` sends."""
+        if self._timer is None or now < self._timer or out is None:
+            return []
+        if self._tries >= self.max_tries:
+            self._fail(TimeoutTransferError(f"no answer to {out.type.name} after {self._tries} tries"))
+            return []
+        self._tries += 1
+        self._arm(now)
+        return [out]
+
     def fail(self, err: TransferError, ref: int = 0) -> list[Out]:
         """Give up with ``err`` (e.g. the application's disk is full); returns the CANCEL to send."""
         if self.finished:
@@ -1012,15 +1056,7 @@ class ClientHandshake(_Machine):
         """Resend HELLO or AUTH when its answer is late."""
         if self.finished or self._idle(now, "waiting for the handshake"):
             return []
-        if self._timer is not None and now >= self._timer and self._pending is not None:
-            if self._tries >= self.max_tries:
-                self._fail(TimeoutTransferError(f"no answer to {self._pending.type.name} after "
-                                                f"{self._tries} tries"))
-                return []
-            self._tries += 1
-            self._arm(now)
-            return [self._pending]
-        return []
+        return self._resend(now, self._pending)
 
     def handle(self, ev: Event, now: float) -> list[Out]:
         """Take a frame from the server."""
@@ -1061,9 +1097,9 @@ class ClientHandshake(_Machine):
         if f.type == FrameType.AUTH_OK and self._pending is not None \
                 and self._pending.type == FrameType.AUTH:
             if self.secret is not None:
-                proof = f.json().get("proof")
-                if not (f.authentic and isinstance(proof, str)
-                        and hmac.compare_digest(proof, self._expect_proof)):
+                got = f.json().get("proof")
+                if not (f.authentic and isinstance(got, str)
+                        and hmac.compare_digest(got, self._expect_proof)):
                     raise AuthenticationError("the server could not prove it knows the shared secret")
             self._pending = None
             self._finish()
@@ -1119,12 +1155,12 @@ class ServerHandshake(_Machine):
             return []
         self._heard(now)
         try:
-            return self._handle(ev)
+            return self._hello_or_auth(ev)
         except TransferError as err:
             self._fail(err)
             return [reject_out(err, ev.ref, plain=True)]
 
-    def _handle(self, f: Frame) -> list[Out]:
+    def _hello_or_auth(self, f: Frame) -> list[Out]:
         if f.type == FrameType.HELLO:
             if self._ack is not None:
                 if f.payload == self._hello:
@@ -1166,8 +1202,8 @@ class ServerHandshake(_Machine):
             return [self._ack]
         if f.type == FrameType.AUTH and self._ack is not None:
             if self._expect:
-                proof = f.json().get("proof")
-                if not (f.authentic and isinstance(proof, str) and hmac.compare_digest(proof, self._expect)):
+                got = f.json().get("proof")
+                if not (f.authentic and isinstance(got, str) and hmac.compare_digest(got, self._expect)):
                     raise AuthenticationError("the client's proof does not match: it uses another "
                                               "shared secret")
             assert self._ok is not None
@@ -1220,15 +1256,7 @@ class Request(_Machine):
         """Resend when the answer is late."""
         if self.finished or self._idle(now, f"waiting for the answer to {self.out.type.name}"):
             return []
-        if self._timer is not None and now >= self._timer:
-            if self._tries >= self.max_tries:
-                self._fail(TimeoutTransferError(f"no answer to {self.out.type.name} after "
-                                                f"{self._tries} tries"))
-                return []
-            self._tries += 1
-            self._arm(now)
-            return [self.out]
-        return []
+        return self._resend(now, self.out)
 
     def handle(self, ev: Event, now: float) -> list[Out]:
         """Take a frame; finishes on the answer."""
@@ -1269,6 +1297,7 @@ class TransferComplete:
 @dataclass
 class _Flight:
     sent: float
+    order: int
 
 
 class Sender(_Machine):
@@ -1307,13 +1336,14 @@ class Sender(_Machine):
         self._pending: deque[int] = deque()
         self._flight: dict[int, _Flight] = {}
         self._sends: dict[int, int] = {}
+        self._order = 0
         self.chunks_sent = 0
         self.chunks_resent = 0
         self.chunks_skipped = 0
         self.sent_indices: set[int] = set()
         self.bytes_acked = 0
         self.result: dict[str, Any] = {}
-        self._offer_out = Out(FrameType.OFFER, dump_json(offer.json()), ref=ref)
+        self._offer_out = Out(FrameType.OFFER, dump_json({**offer.json(), "window": self.window}), ref=ref)
 
     def start(self, now: float) -> list[Out]:
         """The OFFER frame."""
@@ -1333,17 +1363,10 @@ class Sender(_Machine):
         self._heard(now)
         if isinstance(ev, Damaged):
             return []
-        try:
-            return self._handle(ev, now)
-        except TransferError as err:
-            return self.fail(err, self.ref)
+        return self._guarded(ev, now, "receiver")
 
     def _handle(self, f: Frame, now: float) -> list[Out]:
         t = f.type
-        if t in (FrameType.REJECT, FrameType.CANCEL):
-            if f.ref == self.ref:
-                self._fail(rejected_from(f, "receiver"))
-            return []
         if f.ref != self.ref and t != FrameType.PING:
             return []
         if t == FrameType.ACCEPT and self.state == "offer":
@@ -1405,11 +1428,26 @@ class Sender(_Machine):
                 raise ProtocolError(f"ACK has a bad range {r!r}")
             spans.append(r)
         acked = self.acked
+        newest = -1  # send order of the newest in-flight chunk this ACK covers
+        flight = self._flight
         for a, b in spans:
             j = acked.find(0, a, b)
             while j >= 0:
+                fl = flight.get(j)
+                if fl is not None and fl.order > newest:
+                    newest = fl.order
                 self._mark(j)
                 j = acked.find(0, j + 1, b)
+        # fast resend: chunks sent before one that arrived are lost (exact on ordered links)
+        if newest >= 0:
+            lost = []
+            for i, fl in flight.items():
+                if fl.order >= newest:
+                    break
+                lost.append(i)
+            for i in lost:
+                del flight[i]
+            self._pending.extendleft(reversed(lost))
         progress = self._acked_count > before
         for i in d.get("nack", []):
             if isinstance(i, int) and 0 <= i < n and not self.acked[i] and i in self._flight:
@@ -1431,7 +1469,8 @@ class Sender(_Machine):
         self._sends[i] = sends
         retx = sends > 1
         self._flight.pop(i, None)
-        self._flight[i] = _Flight(now)
+        self._order += 1
+        self._flight[i] = _Flight(now, self._order)
         self.chunks_sent += 1
         if retx:
             self.chunks_resent += 1
@@ -1444,6 +1483,9 @@ class Sender(_Machine):
             i = self._pending.popleft()
             if not self.acked[i]:
                 out.append(self._send(i, now))
+        if out and (len(self._flight) >= self.window or not self._pending):
+            last = out[-1]  # window full or nothing more to send: ask for an ACK now
+            out[-1] = Out(last.type, last.payload, ref=last.ref, flags=last.flags | Flag.ACKREQ)
         if self._acked_count == self.offer.chunks and self.state == "data":
             self.state = "done"
             self._tries = 1
@@ -1479,6 +1521,9 @@ class Sender(_Machine):
         cutoff = now - self.rto * 0.5
         stale = [i for i, fl in self._flight.items() if fl.sent <= cutoff] or list(self._flight)[:1]
         out = [self._send(i, now) for i in stale]
+        if out:
+            last = out[-1]
+            out[-1] = Out(last.type, last.payload, ref=last.ref, flags=last.flags | Flag.ACKREQ)
         self._arm(now)
         return out + self._fill(now)
 
@@ -1494,7 +1539,8 @@ class Receiver(_Machine):
         ref: The OFFER's ref.
         have: Chunks already held (resume), byte-per-chunk, or None.
         window: Largest window the sender may use.
-        ack_every: Acknowledge after this many new chunks (default ``window // 4``).
+        ack_every: Acknowledge after this many new chunks (default: half the smaller of the
+            sender's and this window). DATA with :attr:`Flag.ACKREQ` is acknowledged at once.
         idle_timeout: Give up after this long without a frame.
 
     Attributes:
@@ -1506,7 +1552,8 @@ class Receiver(_Machine):
     """
 
     def __init__(self, offer: Offer, *, ref: int = 0, have: bytearray | None = None,
-                 window: int = 64, ack_every: int | None = None, idle_timeout: float = 30.0) -> None:
+                 window: int = 64, ack_every: int | None = None, idle_timeout: float = 30.0,
+                 sender_window: int | None = None) -> None:
         super().__init__(rto=1.0, max_tries=1, idle_timeout=idle_timeout)
         self.offer = offer
         self.ref = ref
@@ -1515,7 +1562,7 @@ class Receiver(_Machine):
             raise ValueError("have bitmap does not match the number of chunks")
         self.held = sum(self.have)
         self.window = window
-        self.ack_every = ack_every or max(1, window // 4)
+        self.ack_every = ack_every or max(1, min(window, sender_window or window) // 2)
         self._next = self.have.find(0)
         if self._next < 0:
             self._next = offer.chunks
@@ -1577,17 +1624,10 @@ class Receiver(_Machine):
             if ev.type in (FrameType.DONE, FrameType.DATA, FrameType.OFFER) and self._final is not None:
                 return [self._final]
             return []
-        try:
-            return self._handle(ev, now)
-        except TransferError as err:
-            return self.fail(err, self.ref)
+        return self._guarded(ev, now, "sender")
 
     def _handle(self, f: Frame, now: float) -> list[Out]:
         t = f.type
-        if t in (FrameType.REJECT, FrameType.CANCEL):
-            if f.ref == self.ref:
-                self._fail(rejected_from(f, "sender"))
-            return []
         if t == FrameType.PING:
             return [Out(FrameType.PONG, f.payload, ref=f.ref)]
         if f.ref != self.ref and t != FrameType.DATA:
@@ -1627,7 +1667,7 @@ class Receiver(_Machine):
             self.state = "verify"
             self._events.append(TransferComplete(self.offer))
             return [self._ack_out()]
-        if self._unacked >= self.ack_every or not in_order:
+        if self._unacked >= self.ack_every or not in_order or f.flags & Flag.ACKREQ:
             return [self._ack_out()]
         return []
 

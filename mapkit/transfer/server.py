@@ -36,7 +36,6 @@ from mapkit.transfer.protocol import (
     MAX_CHUNK_SIZE,
     AuthenticationError,
     Channel,
-    ChunkReceived,
     Frame,
     FrameType,
     Offer,
@@ -46,7 +45,6 @@ from mapkit.transfer.protocol import (
     Sender,
     ServerHandshake,
     Status,
-    TransferComplete,
     dump_json,
     kind_of,
     reject_out,
@@ -126,17 +124,19 @@ class MapFolder:
         """The path of a (checked) name."""
         return os.path.join(self.root, name)
 
+    def _open(self, name: str) -> int:
+        try:
+            return os.open(self.path(name), os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0))
+        except FileNotFoundError as err:
+            raise StoreError(f"{name}: no such map on this robot", Status.NOT_FOUND) from err
+        except OSError as err:
+            raise StoreError(f"{name}: {err.strerror}", Status.IO_ERROR) from err
+
     def digests(self, name: str, fd: int | None = None) -> tuple[str, str, os.stat_result]:
         """``(sha256, md5, stat)`` of a file in the folder, cached by inode, size and mtime."""
         own = fd is None
-        if own:
-            try:
-                fd = os.open(self.path(name), os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0))
-            except FileNotFoundError as err:
-                raise StoreError(f"{name}: no such map on this robot", Status.NOT_FOUND) from err
-            except OSError as err:
-                raise StoreError(f"{name}: {err.strerror}", Status.IO_ERROR) from err
-        assert fd is not None
+        if fd is None:
+            fd = self._open(name)
         try:
             st = os.fstat(fd)
             key = (st.st_ino, st.st_size, st.st_mtime_ns, st.st_ctime_ns)
@@ -207,12 +207,7 @@ class MapFolder:
             check_name(name, suffixes=self.suffixes)
         else:
             self.check_name(name)
-        try:
-            fd = os.open(self.path(name), os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0))
-        except FileNotFoundError as err:
-            raise StoreError(f"{name}: no such map on this robot", Status.NOT_FOUND) from err
-        except OSError as err:
-            raise StoreError(f"{name}: {err.strerror}", Status.IO_ERROR) from err
+        fd = self._open(name)
         try:
             sha, md5, st = self.digests(name, fd)
         except BaseException:
@@ -429,8 +424,9 @@ class MapServer:
         try:
             run(link, hs)
         except (AuthenticationError, ProtocolError) as err:
-            with contextlib.suppress(TransferError):
-                link.send([reject_out(err, plain=True)])
+            if hs.error is None:  # the channel refused a frame; the machine has not answered
+                with contextlib.suppress(TransferError):
+                    link.send([reject_out(err, plain=True)])
             log.warning("%s: refused: %s", peer, err)
             return
         with self._lock:
@@ -454,8 +450,11 @@ class MapServer:
             if ev.type == FrameType.BYE:
                 link.send([Out(FrameType.BYE, b"{}", ref=ev.ref)])
                 return
-            if last is not None and ev.ref == last.ref and ev.type in (
-                    FrameType.DONE, FrameType.DATA, FrameType.ACK, FrameType.OFFER):
+            if ev.type == FrameType.AUTH:
+                link.send(hs.resend(ev))  # the client missed AUTH_OK
+                continue
+            if last is not None and (ev.type == FrameType.DATA or (ev.ref == last.ref and ev.type in (
+                    FrameType.DONE, FrameType.ACK, FrameType.OFFER))):
                 link.send(last.handle(ev, time.monotonic()))  # late frames of the last transfer
                 continue
             try:
@@ -469,8 +468,6 @@ class MapServer:
 
     def _request(self, link: FrameLink, f: Frame, peer: str, features: list[str]) -> Any:
         t = f.type
-        if t == FrameType.AUTH:
-            return None  # a repeated AUTH: the answer was sent; TCP does not lose it
         if t == FrameType.PING:
             link.send([Out(FrameType.PONG, f.payload, ref=f.ref)])
         elif t == FrameType.OFFER:
@@ -494,30 +491,21 @@ class MapServer:
         return None
 
     def _push(self, link: FrameLink, f: Frame, peer: str) -> Receiver:
-        offer = Offer.from_json(f.json(), max_chunk=self.max_chunk)
+        d = f.json()
+        offer = Offer.from_json(d, max_chunk=self.max_chunk)
         dest = self.folder.begin_write(offer)
+        w = d.get("window")
         rx = Receiver(offer, ref=f.ref, have=dest.have, window=max(self.window * 4, 64),
-                      idle_timeout=self.idle_timeout)
+                      idle_timeout=self.idle_timeout, sender_window=w if isinstance(w, int) else None)
         ok = False
         try:
             def on_events() -> list[Out]:
-                out: list[Out] = []
-                for e in rx.pop_events():
-                    try:
-                        if isinstance(e, ChunkReceived):
-                            dest.write(e.index, e.data, e.crc)
-                        elif isinstance(e, TransferComplete):
-                            info = dest.finalize()
-                            info.pop("path", None)
-                            out += rx.verified(info, time.monotonic())
-                    except TransferError as err:
-                        out += rx.fail(err)
-                        break
-                return out
+                return dest.take(rx)
 
             if dest.resumed:
                 log.info("%s: resuming %s with %d of %d chunks", peer, offer.name, dest.resumed,
                          offer.chunks)
+            dest.start_writer()
             link.send(rx.accept(time.monotonic()))
             link.send(on_events())
             run(link, rx, start=False, on_events=on_events)
@@ -531,6 +519,8 @@ class MapServer:
             return rx
         except TransferError as err:
             log.warning("%s: push of %s failed: %s", peer, offer.name, err)
+            no_space = getattr(rx.error, "status", None) == Status.NO_SPACE
+            dest.close(keep=not no_space)  # a full disk keeps no partial file
             raise _Ended(str(err)) from err
         finally:
             if not ok:

@@ -25,14 +25,25 @@ import hashlib
 import json
 import logging
 import os
+import queue
+import threading
 import time
 import zlib
 from collections.abc import Callable
 from typing import Any
 
 from mapkit._atomic import atomic_write, fsync_dir
-from mapkit.errors import ChecksumError, LocalTransferError
-from mapkit.transfer.protocol import Offer, Status, decode_bitmap, encode_bitmap
+from mapkit.errors import ChecksumError, LocalTransferError, TransferError
+from mapkit.transfer.protocol import (
+    ChunkReceived,
+    Offer,
+    Out,
+    Receiver,
+    Status,
+    TransferComplete,
+    decode_bitmap,
+    encode_bitmap,
+)
 
 __all__ = ["PartialFile", "StoreChecksumError", "StoreError", "check_name", "file_digests", "partial_paths"]
 
@@ -44,6 +55,15 @@ READ_BLOCK = 1 << 20
 # Indirections so tests can inject faults (a full disk) without touching the real os module.
 _pwrite = os.pwrite
 _fallocate = getattr(os, "posix_fallocate", None)
+
+
+def _read_umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+_UMASK = _read_umask()  # read once, at import: os.umask is process-wide, not thread-safe
 
 
 class StoreError(LocalTransferError):
@@ -125,6 +145,10 @@ class PartialFile:
         self._hashed = 0  # chunks fed to the hasher, in order
         self._dirty = False
         self._last_checkpoint = time.monotonic()
+        self._queue: queue.Queue[Any] | None = None
+        self._worker: threading.Thread | None = None
+        self._error: BaseException | None = None
+        self._failed = False
 
     # opening ---------------------------------------------------------------------------------
     @classmethod
@@ -163,14 +187,18 @@ class PartialFile:
             have, crcs = cls._load_journal(fd, journal, offer)
             self = cls(folder, name, offer, fd, have, crcs, checkpoint_interval=checkpoint_interval,
                        validate=validate)
-            if self.resumed:
-                self._verify_held()
-            else:
-                self._prepare(reserve)
-            return self
         except BaseException:
             os.close(fd)
             raise
+        try:
+            if self.resumed:
+                self._verify_held()
+            else:
+                self._prepare(reserve)  # discards the temp file itself on failure
+        except BaseException:
+            self._close_fd()
+            raise
+        return self
 
     @staticmethod
     def _load_journal(fd: int, journal: str, offer: Offer) -> tuple[bytearray, array.array[int]]:
@@ -243,12 +271,64 @@ class PartialFile:
                         self.name, dropped)
 
     # writing -----------------------------------------------------------------------------------
+    def start_writer(self, depth: int = 8) -> None:
+        """Write and hash in a background thread from now on (overlaps disk and SHA-256 with
+        the network). :meth:`write` then queues; errors come out of the next call."""
+        if self._queue is None:
+            self._queue = queue.Queue(depth)
+            self._worker = threading.Thread(target=self._work, name=f"mapkit-write-{self.name}",
+                                            daemon=True)
+            self._worker.start()
+
+    def _work(self) -> None:
+        q = self._queue
+        assert q is not None
+        while True:
+            item = q.get()
+            try:
+                if item is None:
+                    return
+                if self._error is None:
+                    self._write_now(*item)
+            except BaseException as err:
+                self._error = err
+            finally:
+                q.task_done()
+
+    def flush(self) -> None:
+        """Wait until queued chunks are written.
+
+        Raises:
+            StoreError: The background writer failed.
+        """
+        if self._queue is not None:
+            self._queue.join()
+        if self._error is not None:
+            err, self._error = self._error, None
+            self._failed = True
+            raise err
+
+    def _stop_writer(self) -> None:
+        if self._queue is not None:
+            self._queue.put(None)
+            if self._worker is not None:
+                self._worker.join()
+            self._queue = None
+
     def write(self, index: int, data: bytes | bytearray | memoryview, crc: int | None = None) -> None:
         """Store chunk ``index`` (``crc``: its CRC-32 if already known).
 
         Raises:
-            StoreError: ``NO_SPACE`` or ``IO_ERROR``.
+            StoreError: ``NO_SPACE`` or ``IO_ERROR`` (with a background writer: of an earlier chunk).
         """
+        if self._error is not None:
+            self.flush()
+        if self._queue is not None:
+            self._queue.put((index, data, crc))
+        else:
+            self._write_now(index, data, crc)
+
+    def _write_now(self, index: int, data: bytes | bytearray | memoryview, crc: int | None) -> None:
         assert self._fd is not None
         off = index * self.offer.chunk_size
         try:
@@ -307,9 +387,11 @@ class PartialFile:
                 ``NO_SPACE`` / ``IO_ERROR`` on file-system errors. The target is untouched.
         """
         assert self._fd is not None
-        if sum(self.have) != self.offer.chunks:
-            raise StoreError(f"{self.name}: finalize with chunks missing", Status.INTERNAL)
         try:
+            self.flush()
+            self._stop_writer()
+            if sum(self.have) != self.offer.chunks:
+                raise StoreError(f"{self.name}: finalize with chunks missing", Status.INTERNAL)
             self._catch_up()
             os.fsync(self._fd)
             sha = self._hasher.hexdigest()
@@ -332,9 +414,7 @@ class PartialFile:
             try:
                 mode = os.stat(self.target).st_mode & 0o7777
             except FileNotFoundError:
-                mask = os.umask(0)
-                os.umask(mask)
-                mode = 0o666 & ~mask
+                mode = 0o666 & ~_UMASK
             os.fchmod(self._fd, mode)
             os.replace(self.temp, self.target)
             fsync_dir(self.folder)
@@ -350,21 +430,51 @@ class PartialFile:
         info["path"] = self.target
         return info
 
+    def take(self, rx: Receiver) -> list[Out]:
+        """Handle a :class:`~mapkit.transfer.protocol.Receiver`'s events: store each chunk, and
+        on completion :meth:`finalize` and answer VERIFIED; a failure answers CANCEL.
+
+        Returns:
+            The frames to send.
+        """
+        out: list[Out] = []
+        for e in rx.pop_events():
+            try:
+                if isinstance(e, ChunkReceived):
+                    self.write(e.index, e.data, e.crc)
+                elif isinstance(e, TransferComplete):
+                    info = self.finalize()
+                    info.pop("path", None)
+                    out += rx.verified(info, time.monotonic())
+            except TransferError as err:
+                out += rx.fail(err)
+                break
+        return out
+
     def close(self, *, keep: bool = True) -> None:
         """End without publishing: keep the partial data and journal for a resume, or delete them."""
         if self._fd is None:
             return
-        if keep and sum(self.have):
+        try:
+            self.flush()
+        except StoreError as err:
+            keep = keep and err.status != Status.NO_SPACE
+        self._stop_writer()
+        held = any(self.have)
+        if keep and held:
             try:
                 self.checkpoint()
             except StoreError:
                 keep = False
-        if keep and sum(self.have):
+        if keep and held:
             self._close_fd()
         else:
             self._discard()
 
     def _discard(self) -> None:
+        if self._queue is not None and threading.current_thread() is not self._worker:
+            self._error = self._error or StoreError("discarded", Status.INTERNAL)
+            self._stop_writer()
         for p in (self.temp, self.journal):
             with contextlib.suppress(FileNotFoundError):
                 os.unlink(p)

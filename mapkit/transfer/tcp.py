@@ -220,7 +220,7 @@ class FrameLink:
             try:
                 self.sock.settimeout(left)
                 n = self.sock.recv_into(self._view)
-            except (socket.timeout, TimeoutError):
+            except TimeoutError:
                 return None
             except (OSError, ssl.SSLError) as err:
                 self.closed = True
