@@ -41,7 +41,6 @@ from mapkit.transfer.protocol import (
     MAGIC,
     MAX_CHUNK_SIZE,
     Channel,
-    ChunkReceived,
     ClientHandshake,
     Damaged,
     Frame,
@@ -55,7 +54,6 @@ from mapkit.transfer.protocol import (
     Sender,
     ServerHandshake,
     Status,
-    TransferComplete,
     dump_json,
     kind_of,
     reject_out,
@@ -263,27 +261,22 @@ class _RobotSession:
     def _rx_events(self, now: float) -> list[Out]:
         rx, dest = self.active, self.dest
         assert isinstance(rx, Receiver)
-        out: list[Out] = []
-        for e in rx.pop_events():
-            if dest is None:
-                break
-            try:
-                if isinstance(e, ChunkReceived):
-                    dest.write(e.index, e.data)
-                elif isinstance(e, TransferComplete):
-                    info = dest.finalize()
-                    info.pop("path", None)
-                    self.dest = None
-                    info.update(robot=self.node.robot, name=rx.offer.name)
-                    out += rx.verified(info, now)
-                    log.info("%s: received %s (%d bytes, SHA-256 %s, %d chunks resumed)", self.client,
-                             rx.offer.name, rx.offer.size, rx.offer.sha256, dest.resumed)
-                    self.node.received(info)
-            except TransferError as err:
-                log.warning("%s: %s failed: %s", self.client, rx.offer.name, err)
-                out += rx.fail(err)
+        if dest is None:
+            return []
+        out = dest.take(rx)  # store the chunks; at the end check, publish, answer VERIFIED
+        if rx.finished:
+            self.dest = None
+            if rx.error is not None:
+                log.warning("%s: %s failed: %s", self.client, rx.offer.name, rx.error)
                 self._release()
-                break
+                dest.close(keep=True)
+            else:
+                log.info("%s: received %s (%d bytes, SHA-256 %s, %d chunks resumed)", self.client,
+                         rx.offer.name, rx.offer.size, rx.offer.sha256, dest.resumed)
+                o = rx.offer
+                self.node.received({"name": o.name, "size": o.size, "sha256": o.sha256,
+                                    "md5": o.md5, "robot": self.node.robot, "peer": self.client,
+                                    "resumed": dest.resumed})
         return out
 
     def _pull(self, f: Frame, now: float) -> list[Out]:
@@ -541,7 +534,7 @@ class _ClientSession:
             events = self.conn.events(data)
         except AuthenticationError as err:
             if self.machine is not None and not self.machine.finished:
-                self.machine._fail(err)
+                self.machine.fail(err)  # nothing to send: the robot has other keys
                 self._check(now)
             return
         for ev in events:
@@ -820,21 +813,11 @@ class Terminal:
                           idle_timeout=self.idle_timeout)
 
             def on_events(now: float) -> list[Out]:
-                outs: list[Out] = []
-                for e in rx.pop_events():
-                    try:
-                        if isinstance(e, ChunkReceived):
-                            dfile.write(e.index, e.data)
-                        elif isinstance(e, TransferComplete):
-                            info = dfile.finalize()
-                            state["dest"] = None
-                            out.update(name=name, path=dest, size=offer.size, sha256=offer.sha256,
-                                       md5=info.get("md5", offer.md5), changed=True,
-                                       resumed=dfile.resumed)
-                            outs += rx.verified({"sha256": offer.sha256}, now)
-                    except TransferError as err:
-                        outs += rx.fail(err)
-                        break
+                outs = dfile.take(rx)
+                if rx.finished and rx.error is None:
+                    state["dest"] = None
+                    out.update(name=name, path=dest, size=offer.size, sha256=offer.sha256,
+                               md5=offer.md5, changed=True, resumed=dfile.resumed)
                 if progress is not None:
                     progress(rx.bytes_received, offer.size)
                 return outs
