@@ -22,12 +22,12 @@ from __future__ import annotations
 
 import argparse
 import hashlib
-import warnings
 import os
 import subprocess
 import sys
 import tempfile
 import time
+import warnings
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -83,8 +83,8 @@ def run_baseline(ros_env: dict[str, str], data: bytes, tmp: Path) -> tuple[float
     text = data.decode("utf-8")
     lines = text.splitlines(keepends=True)
     out = tmp / "baseline.map"
-    proc = subprocess.Popen([sys.executable, __file__, "--lines-receiver", str(out), str(len(lines))],
-                            env=ros_env, stdout=subprocess.PIPE, text=True)
+    argv = [sys.executable, __file__, "--lines-receiver", str(out), str(len(lines))]
+    proc = subprocess.Popen(argv, env=ros_env, stdout=subprocess.PIPE, text=True)
     assert proc.stdout is not None and proc.stdout.readline().strip() == "ready"
     # queue_size=None: synchronous publish, the baseline's best case (a queue would drop lines)
     pub = rospy.Publisher("baseline/lines", String, queue_size=None)
@@ -125,7 +125,8 @@ def main() -> None:
     ap.add_argument("--mb", type=float, default=50.0, help="Size of the map in MB.")
     ap.add_argument("--parse", action="store_true",
                     help="Also push it as a .map, which the receiver parses before accepting it.")
-    ap.add_argument("--no-baseline", action="store_true", help="Skip the (slow) line-per-message run.")
+    ap.add_argument("--no-baseline", action="store_true",
+                    help="Skip the (slow) line-per-message run.")
     ap.add_argument("--lines-receiver", nargs=2, metavar=("OUT", "COUNT"), help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.lines_receiver:
@@ -143,12 +144,14 @@ def main() -> None:
         size = make_map(path, args.mb)
         data = path.read_bytes()
         lines = data.count(b"\n")
-        print(f"map: {size / 1e6:.1f} MB, {lines} lines, SHA-256 {hashlib.sha256(data).hexdigest()[:16]}…")
+        digest = hashlib.sha256(data).hexdigest()
+        print(f"map: {size / 1e6:.1f} MB, {lines} lines, SHA-256 {digest[:16]}…")
         with running_roscore(tmp) as ros:
             os.environ.update({k: v for k, v in ros.env.items() if k.startswith("ROS_")})
             start_node("bench_ros")
             mk_s, mk_ok, extra = run_mapkit(ros.env, path, tmp)
-            print(f"mapkit (MKT/1 over UInt8MultiArray, HMAC, acks, SHA-256 verified): {mk_s:.2f} s, "
+            print("mapkit (MKT/1 over UInt8MultiArray, HMAC, acks, SHA-256 verified): "
+                  f"{mk_s:.2f} s, "
                   f"{size / 1e6 / mk_s:.1f} MB/s, verified {'yes' if mk_ok else 'NO'} ({extra})")
             if args.parse:
                 p_s, p_ok, _ = run_mapkit(ros.env, path, tmp, name="big.map")

@@ -29,7 +29,8 @@ def ros() -> None:
 @click.argument("map_file", type=click.Path(dir_okay=False))
 @click.option("--resolution", type=float, default=0.05, show_default=True,
               help="Metres per cell for .map files.")
-@click.option("--frame-id", default="map", show_default=True, help="Frame of the published messages.")
+@click.option("--frame-id", default="map", show_default=True,
+              help="Frame of the published messages.")
 @click.option("--free", type=click.Choice(["flood", "hull", "all", "none"]), default="flood",
               show_default=True, help="How free space is decided (see `mapkit rasterize`).")
 @json_option
@@ -56,7 +57,8 @@ def map_server(map_file: str, resolution: float, frame_id: str, free: str, as_js
         else:
             err(f"serving {info['file']} on /map: {info['width']} x {info['height']} cells of "
                 f"{info['resolution']:g} m, origin ({info['origin'][0]:g}, {info['origin'][1]:g}); "
-                f"{len(info['goals'])} goals, {len(info['homes'])} homes, {len(info['docks'])} docks. "
+                f"{len(info['goals'])} goals, {len(info['homes'])} homes, "
+                f"{len(info['docks'])} docks. "
                 "Ctrl-C stops.")
 
     run_map_server(map_file, resolution=resolution, frame_id=frame_id, free=free, on_ready=ready)
@@ -76,10 +78,12 @@ def _check_channel(_ctx: Any, _param: Any, value: str) -> str:
 
 def _channel_option(f: Any) -> Any:
     return click.option("--channel", default="maps", show_default=True, callback=_check_channel,
-                        help="Channel: topics mapkit/CHANNEL/{c2r,r2c,announce} in ROS_NAMESPACE.")(f)
+                        help="Channel: topics mapkit/CHANNEL/{c2r,r2c,announce} in "
+                        "ROS_NAMESPACE.")(f)
 
 
-def _robot_side(robot_name: str | None, secret_file: str | None, insecure: bool) -> tuple[bytes | None, str]:
+def _robot_side(robot_name: str | None, secret_file: str | None,
+                insecure: bool) -> tuple[bytes | None, str]:
     import socket
 
     from mapkit.transfer import load_secret
@@ -211,7 +215,8 @@ def _fleet_rows(results: list[Any]) -> list[dict[str, Any]]:
 @click.option("--wait", type=float, default=3.0, show_default=True,
               help="Seconds to wait for robots to announce themselves.")
 @click.option("--load", "and_load", is_flag=True, help="Then make it each robot's active map.")
-@click.option("--chunk-size", type=int, default=256 * 1024, show_default=True, help="Bytes per frame.")
+@click.option("--chunk-size", type=int, default=256 * 1024, show_default=True,
+              help="Bytes per frame.")
 @click.option("--timeout", type=float, default=30.0, show_default=True,
               help="Give a robot up after this many seconds without an answer.")
 @_secret_options
@@ -247,8 +252,8 @@ def send(file: str, channel: str, name: str | None, robots: tuple[str, ...], exp
         width = max(5, *(len(r["robot"]) for r in rows))
         click.echo(f"{'robot':<{width}}  received  verified  loaded  note")
         for r in rows:
-            note = r["error"] or ("already had it" if r["skipped"] else
-                                  f"{r['resumed_chunks']} chunks resumed" if r["resumed_chunks"] else "")
+            resumed = f"{r['resumed_chunks']} chunks resumed" if r["resumed_chunks"] else ""
+            note = r["error"] or ("already had it" if r["skipped"] else resumed)
             click.echo(f"{r['robot']:<{width}}  {yn(r['received']):<8}  {yn(r['verified']):<8}  "
                        f"{yn(r['loaded']):<6}  {note}".rstrip())
     failed = [r for r in rows if not r["ok"]]
@@ -285,7 +290,8 @@ def fetch(name: str, output: str | None, channel: str, robot: str | None, if_cha
     if as_json:
         echo_json(result)
     elif not result["changed"]:
-        click.echo(f"{result['path']} is up to date (SHA-256 {result['sha256'][:16]}…), nothing fetched")
+        click.echo(f"{result['path']} is up to date (SHA-256 {result['sha256'][:16]}…), "
+                   "nothing fetched")
     else:
         resumed = f", {result['resumed']} chunks resumed" if result["resumed"] else ""
         click.echo(f"fetched {name} from {result['robot']} into {result['path']}: "
@@ -322,7 +328,8 @@ def maps(channel: str, robot: str | None, all_robots: bool, timeout: float,
         if not docs:
             click.echo(f"no robot announces itself on channel {channel!r}")
         for d in docs:
-            click.echo(f"{d.get('robot')} ({d.get('node')}): serves {', '.join(d.get('features', []))}")
+            feats = ", ".join(d.get("features", []))
+            click.echo(f"{d.get('robot')} ({d.get('node')}): serves {feats}")
             for m in d.get("maps", []):
                 mark = "*" if m["name"] == d.get("active") else " "
                 click.echo(f"  {mark} {m['name']}  {_size(m['size'])}  {m['md5']}")
@@ -342,7 +349,8 @@ def maps(channel: str, robot: str | None, all_robots: bool, timeout: float,
         mark = "*" if m.get("active") else " "
         click.echo(f"{mark} {m['name']:<{width}}  {_size(m['size']):>9}  {m['md5']}")
     if listing.get("active"):
-        click.echo(f"active on {listing['robot']}: {listing['active']} (MD5 {listing.get('active_md5')})")
+        click.echo(f"active on {listing['robot']}: {listing['active']} "
+                   f"(MD5 {listing.get('active_md5')})")
 
 
 @ros.command("load")
@@ -378,4 +386,5 @@ def load(name: str | None, channel: str, robot: str | None, md5: str | None, rol
     ms = state.get("map_server")
     note = {None: "no map server answered", 0: "map server republished /map"}.get(
         ms, f"map server refused it (LoadMap result {ms})")
-    click.echo(f"active map on {state['robot']} is now {state['name']} (MD5 {state['md5']}); {note}")
+    click.echo(f"active map on {state['robot']} is now {state['name']} (MD5 {state['md5']}); "
+               f"{note}")

@@ -1,4 +1,4 @@
-"""What the map server serves, built from an ARIA ``.map`` or a map_server YAML, and its ROS messages.
+"""What the map server serves, from an ARIA ``.map`` or a map_server YAML, and its ROS messages.
 
 :func:`served_map` turns a file into a :class:`ServedMap`: the occupancy grid (from mapkit's
 rasteriser for a ``.map``, from the map_server YAML + image reader for a ``.yaml``), the keepout

@@ -125,7 +125,8 @@ class MapServer:
         pubs["map"].publish(self._grid_msg)
         if cur.keepout is not None:
             pubs["keepout_mask"].publish(grid_message(cur.keepout, self.frame_id, now, now))
-        for key, poses in (("map_goals", cur.goals), ("map_homes", cur.homes), ("map_docks", cur.docks)):
+        poses_by_topic = {"map_goals": cur.goals, "map_homes": cur.homes, "map_docks": cur.docks}
+        for key, poses in poses_by_topic.items():
             pubs[key].publish(pose_array_message(poses, self.frame_id, now))
         pubs["map_info"].publish(std.String(data=json.dumps(map_info(cur))))
 

@@ -37,9 +37,9 @@ from mapkit.ros.node import ros_import, rospy, wait_until
 from mapkit.ros.transport import RosLink
 from mapkit.transfer.protocol import (
     DEFAULT_CHUNK_SIZE,
-    AuthenticationError,
     MAGIC,
     MAX_CHUNK_SIZE,
+    AuthenticationError,
     Channel,
     ClientHandshake,
     Damaged,
@@ -126,9 +126,10 @@ class _RobotSession:
     def __init__(self, node: RobotNode, conn: _Conn, now: float) -> None:
         self.node = node
         self.conn = conn
-        self.hs = ServerHandshake(conn.channel, node.secret, insecure=node.insecure, peer=node.robot,
-                                  info={"max_chunk": MAX_CHUNK_SIZE, "max_size": node.folder.max_size,
-                                        "features": list(node.features)},
+        info = {"max_chunk": MAX_CHUNK_SIZE, "max_size": node.folder.max_size,
+                "features": list(node.features)}
+        self.hs = ServerHandshake(conn.channel, node.secret, insecure=node.insecure,
+                                  peer=node.robot, info=info,
                                   idle_timeout=node.idle_timeout)
         self.hs.start(now)
         self.active: Sender | Receiver | None = None
@@ -193,7 +194,8 @@ class _RobotSession:
         key = (t, ev.ref)
         if key in self.answers:  # a repeated request: its answer was lost
             return self.answers[key]
-        if self.active is not None and self.active.ref == ev.ref and t in (FrameType.OFFER, FrameType.GET):
+        active = self.active
+        if active is not None and active.ref == ev.ref and t in (FrameType.OFFER, FrameType.GET):
             return self._to_active(ev, now)
         try:
             out = self._request(ev, now)
@@ -381,7 +383,8 @@ class RobotNode:
                                "features": list(self.features), "auth": self.secret is not None}
         if "list" in self.features:
             listing = self.folder.listing()
-            doc["maps"] = [{k: m[k] for k in ("name", "size", "sha256", "md5")} for m in listing["maps"]]
+            keys = ("name", "size", "sha256", "md5")
+            doc["maps"] = [{k: m[k] for k in keys} for m in listing["maps"]]
             doc["active"] = listing.get("active")
             doc["active_md5"] = listing.get("active_md5")
         return doc
@@ -425,7 +428,8 @@ class RobotNode:
             if s is new or s.dest is None or s.dest.name != name:
                 continue
             if s.client == new.client or now - s.last >= STALE:
-                log.info("%s: taking over %s from a silent session of %s", new.client, name, s.client)
+                log.info("%s: taking over %s from a silent session of %s", new.client, name,
+                         s.client)
                 s.abort(f"taken over by a new session of {new.client}")
                 return True
         return False
@@ -456,7 +460,8 @@ class RobotNode:
         if s is None:
             if len(data) < 6 or data[5] != FrameType.HELLO:
                 return  # a frame of a session we forgot (or never had)
-            s = _RobotSession(self, _Conn(self.link, src, Channel(initiator=False, ordered=False)), now)
+            conn = _Conn(self.link, src, Channel(initiator=False, ordered=False))
+            s = _RobotSession(self, conn, now)
             self.sessions[sid] = s
         elif s.conn.peer != src:
             return  # another node using this session id
@@ -484,8 +489,8 @@ class _ClientSession:
 
     def __init__(self, link: RosLink, robot_node: str, secret: bytes | None, peer: str,
                  idle_timeout: float = 30.0, rto: float = 1.0) -> None:
-        self.conn = _Conn(link, robot_node, Channel(initiator=True, session=secrets.randbits(64) or 1,
-                                                     ordered=False))
+        channel = Channel(initiator=True, session=secrets.randbits(64) or 1, ordered=False)
+        self.conn = _Conn(link, robot_node, channel)
         self.secret = secret
         self.peer = peer
         self.idle_timeout = idle_timeout
@@ -595,8 +600,8 @@ class Robot:
 
 def _robot_from(doc: dict[str, Any]) -> Robot | None:
     if isinstance(doc.get("node"), str) and isinstance(doc.get("features"), list):
-        return Robot(str(doc.get("robot", doc["node"])), doc["node"], [str(f) for f in doc["features"]],
-                     doc)
+        features = [str(f) for f in doc["features"]]
+        return Robot(str(doc.get("robot", doc["node"])), doc["node"], features, doc)
     return None
 
 
@@ -604,7 +609,8 @@ class Watcher:
     """A client link that collects robot announcements as they arrive (latched: late joiners
     see them too)."""
 
-    def __init__(self, channel: str, *, window: int = 16, chunk_size: int = DEFAULT_CHUNK_SIZE) -> None:
+    def __init__(self, channel: str, *, window: int = 16,
+                 chunk_size: int = DEFAULT_CHUNK_SIZE) -> None:
         self.robots: dict[str, Robot] = {}
         self.link = RosLink(channel, robot=False, window=window, chunk_size=chunk_size,
                             on_announce=self._on)
@@ -650,7 +656,8 @@ class Watcher:
         return robots
 
 
-def discover(channel: str, *, timeout: float = 3.0, feature: str | None = None) -> list[dict[str, Any]]:
+def discover(channel: str, *, timeout: float = 3.0,
+             feature: str | None = None) -> list[dict[str, Any]]:
     """The announcements of the robot nodes on ``channel`` (the node must be started)."""
     w = Watcher(channel)
     try:
@@ -710,8 +717,9 @@ class Terminal:
         stopped: Returns True when the node is shutting down (then the transfer stops).
     """
 
-    def __init__(self, link: Any, secret: bytes | None, *, peer: str = "", idle_timeout: float = 30.0,
-                 rto: float = 1.0, stopped: Callable[[], bool] | None = None) -> None:
+    def __init__(self, link: Any, secret: bytes | None, *, peer: str = "",
+                 idle_timeout: float = 30.0, rto: float = 1.0,
+                 stopped: Callable[[], bool] | None = None) -> None:
         self.link = link
         self.secret = secret
         self.peer = peer or socket.gethostname()
@@ -724,7 +732,8 @@ class Terminal:
                               self.rto)
 
     def push(self, robots: list[Robot], data: bytes, offer: Offer, *, load: bool = False,
-             window: int = 16, progress: Callable[[int, int], None] | None = None) -> list[PushResult]:
+             window: int = 16,
+             progress: Callable[[int, int], None] | None = None) -> list[PushResult]:
         """Push ``data`` (described by ``offer``) to every robot at once; one result each."""
         view = memoryview(data)
         cs = offer.chunk_size
@@ -745,7 +754,7 @@ class Terminal:
                 progress(sum(t.bytes_acked for t in senders), total)
 
         _drive(self.link, sessions, tick=tick, stopped=self.stopped)
-        for s, res, tx, r in zip(sessions, results, senders, robots):
+        for s, res, tx, r in zip(sessions, results, senders, robots, strict=True):
             res.chunks_sent, res.chunks_resent = tx.chunks_sent, tx.chunks_resent
             if s.error is not None and res.error is None:
                 res.error = str(_named(s.error, r))
@@ -760,7 +769,8 @@ class Terminal:
             TransferError: When it does not answer.
         """
         s = self._session(robot)
-        req = Request(ftype, payload, ref=1, answers=answers, rto=self.rto, idle_timeout=self.idle_timeout)
+        req = Request(ftype, payload, ref=1, answers=answers, rto=self.rto,
+                      idle_timeout=self.idle_timeout)
 
         def script() -> Script:
             yield s.handshake()
@@ -795,14 +805,15 @@ class Terminal:
 
         def script() -> Script:
             yield s.handshake()
-            get = Request(FrameType.GET, payload, ref=1, answers=[FrameType.OFFER, FrameType.NOT_MODIFIED],
-                          rto=self.rto, idle_timeout=self.idle_timeout)
+            get = Request(FrameType.GET, payload, ref=1,
+                          answers=[FrameType.OFFER, FrameType.NOT_MODIFIED], rto=self.rto,
+                          idle_timeout=self.idle_timeout)
             yield get
             assert get.response is not None
             offer = Offer.from_json(get.response.json())
             if get.response.type == FrameType.NOT_MODIFIED:
-                out.update(name=name, path=dest, size=offer.size, sha256=offer.sha256, md5=offer.md5,
-                           changed=False, resumed=0)
+                out.update(name=name, path=dest, size=offer.size, sha256=offer.sha256,
+                           md5=offer.md5, changed=False, resumed=0)
                 return
             offer = Offer(target, offer.size, offer.sha256, offer.chunk_size, offer.md5, offer.kind,
                           offer.mtime)
@@ -945,7 +956,8 @@ def list_maps(channel: str, *, secret: bytes | None, robot: str | None = None,
 
 
 def load_map(name: str, *, channel: str, secret: bytes | None, robot: str | None = None,
-             md5: str | None = None, rollback: bool = False, timeout: float = 3.0) -> dict[str, Any]:
+             md5: str | None = None, rollback: bool = False,
+             timeout: float = 3.0) -> dict[str, Any]:
     """Make a map on the robot its active one (and tell its map server); the new state."""
     payload: dict[str, Any] = {"name": name}
     if md5:

@@ -3,16 +3,16 @@
 A *channel* (default ``maps``) is three topics, relative to the node's namespace (set
 ``ROS_NAMESPACE`` to give each robot its own):
 
-=============================  ==========================  ==========================================
-topic                          type                        what
-=============================  ==========================  ==========================================
-``mapkit/<channel>/c2r``       std_msgs/UInt8MultiArray    frames from clients (terminals) to robots
-``mapkit/<channel>/r2c``       std_msgs/UInt8MultiArray    frames from robots back to clients: acks,
-                                                           resend requests, answers, pulled data
-``mapkit/<channel>/announce``  std_msgs/String (latched)   JSON, one per robot node: its name, what
-                                                           it serves, its maps (name, size, SHA-256,
-                                                           MD5), the active map
-=============================  ==========================  ==========================================
+=============================  =========================  ========================================
+topic                          type                       what
+=============================  =========================  ========================================
+``mapkit/<channel>/c2r``       std_msgs/UInt8MultiArray   frames from terminals to robots
+``mapkit/<channel>/r2c``       std_msgs/UInt8MultiArray   frames from robots back: acks, resend
+                                                          requests, answers, pulled data
+``mapkit/<channel>/announce``  std_msgs/String, latched   JSON, one per robot node: its name,
+                                                          what it serves, its maps (name, size,
+                                                          SHA-256, MD5), the active map
+=============================  =========================  ========================================
 
 ``data`` holds the frame's bytes as ``bytes`` (genpy's fast path; never a list). A topic is a bus:
 every node on the channel sees every message, so each message is addressed in its layout:
@@ -61,10 +61,10 @@ def check_channel(channel: str) -> str:
     Examples:
         >>> check_channel("maps"), check_channel("fleet/floor2")
         ('maps', 'fleet/floor2')
-        >>> check_channel("2maps")
+        >>> check_channel("2maps")  # doctest: +ELLIPSIS
         Traceback (most recent call last):
         ...
-        mapkit.ros.errors.RosError: bad channel '2maps': use letters, digits and _ (starting with a letter), parts separated by /
+        mapkit.ros.errors.RosError: bad channel '2maps': use letters, digits and _ ...
     """
     if not _CHANNEL.match(channel):
         raise RosError(f"bad channel {channel!r}: use letters, digits and _ (starting with a "
@@ -100,7 +100,8 @@ class Faults:
     corrupt: float = 0.0
     seed: int = 0
     only_data: bool = False
-    counts: dict[str, int] = field(default_factory=lambda: {"dropped": 0, "duplicated": 0, "corrupted": 0})
+    counts: dict[str, int] = field(
+        default_factory=lambda: {"dropped": 0, "duplicated": 0, "corrupted": 0})
 
     def __post_init__(self) -> None:
         self._rng = random.Random(self.seed)

@@ -83,7 +83,8 @@ class Ros:
         res = subprocess.run(list(args), env=kw.pop("env", self.env), capture_output=True,
                              text=True, timeout=timeout, cwd=kw.pop("cwd", ROOT), **kw)
         if check and res.returncode != 0:
-            raise AssertionError(f"{' '.join(args)} exited {res.returncode}:\n{res.stdout}\n{res.stderr}")
+            raise AssertionError(f"{' '.join(args)} exited {res.returncode}:\n{res.stdout}\n"
+                                 f"{res.stderr}")
         return res
 
     def mapkit(self, *args: str, timeout: float = 90, check: bool = True,
@@ -93,11 +94,12 @@ class Ros:
 
     def start(self, args: Sequence[str], **kw: Any) -> subprocess.Popen[bytes]:
         """Start a background process (its own process group); stopped at teardown."""
-        log = tempfile.NamedTemporaryFile(dir=self.home, prefix="proc-", suffix=".log", delete=False)
-        proc = subprocess.Popen(list(args), env=kw.pop("env", self.env), stdout=log, stderr=subprocess.STDOUT,
-                                start_new_session=True, cwd=kw.pop("cwd", ROOT), **kw)
-        proc.log_path = Path(log.name)  # type: ignore[attr-defined]
-        log.close()
+        fd, log_path = tempfile.mkstemp(dir=self.home, prefix="proc-", suffix=".log")
+        with os.fdopen(fd, "wb") as log:
+            proc = subprocess.Popen(list(args), env=kw.pop("env", self.env), stdout=log,
+                                    stderr=subprocess.STDOUT, start_new_session=True,
+                                    cwd=kw.pop("cwd", ROOT), **kw)
+        proc.log_path = Path(log_path)  # type: ignore[attr-defined]
         self.procs.append(proc)
         return proc
 
@@ -110,7 +112,8 @@ class Ros:
         """What a background process printed so far."""
         return Path(proc.log_path).read_text(errors="replace")  # type: ignore[attr-defined]
 
-    def stop(self, proc: subprocess.Popen[bytes], sig: int = signal.SIGINT, timeout: float = 10) -> int:
+    def stop(self, proc: subprocess.Popen[bytes], sig: int = signal.SIGINT,
+             timeout: float = 10) -> int:
         """Stop a background process (its whole group); its exit code."""
         stop_group(proc, sig, timeout)
         return int(proc.returncode)
@@ -137,7 +140,8 @@ class Ros:
         return {name for name, nodes in state[2] if nodes}
 
 
-def stop_group(proc: subprocess.Popen[bytes], sig: int = signal.SIGINT, timeout: float = 10) -> None:
+def stop_group(proc: subprocess.Popen[bytes], sig: int = signal.SIGINT,
+               timeout: float = 10) -> None:
     """Signal a process group, wait, and kill it when it does not go."""
     if proc.poll() is None:
         with contextlib.suppress(ProcessLookupError):
@@ -174,7 +178,8 @@ def running_roscore(tmp: Path) -> Iterator[Ros]:
         uri = f"http://127.0.0.1:{port}"
         env = dict(os.environ)
         for key in list(env):
-            if key.startswith("ROS_") and key not in ("ROS_DISTRO", "ROS_VERSION", "ROS_PYTHON_VERSION"):
+            keep = ("ROS_DISTRO", "ROS_VERSION", "ROS_PYTHON_VERSION")
+            if key.startswith("ROS_") and key not in keep:
                 del env[key]
         env.update(ROS_MASTER_URI=uri, ROS_HOSTNAME="127.0.0.1", ROS_IP="127.0.0.1",
                    ROS_HOME=str(tmp), ROS_LOG_DIR=str(tmp / "log"), PYTHONUNBUFFERED="1")

@@ -18,8 +18,8 @@ def no_secret(monkeypatch: pytest.MonkeyPatch) -> None:
 
 @pytest.mark.parametrize("args", [["send", "{map}"], ["receive"], ["serve", "{dir}"],
                                   ["fetch", "x.map"], ["maps"], ["load", "x.map"]])
-def test_every_command_wants_a_secret_or_insecure(runner: CliRunner, no_secret: None, args: list[str],
-                                                  tmp_path: Path) -> None:
+def test_every_command_wants_a_secret_or_insecure(runner: CliRunner, no_secret: None,
+                                                  args: list[str], tmp_path: Path) -> None:
     (tmp_path / "a.map").write_bytes(b"2D-Map\nDATA\n")
     argv = ["ros", *(a.format(map=tmp_path / "a.map", dir=tmp_path) for a in args)]
     result = runner.invoke(cli, argv)
@@ -36,7 +36,8 @@ def test_load_needs_a_name_or_rollback(runner: CliRunner) -> None:
     assert result.exit_code == 2 and "give a map NAME or --rollback" in result.output
 
 
-def test_map_server_refuses_a_missing_or_bad_map_before_starting(runner: CliRunner, tmp_path: Path) -> None:
+def test_map_server_refuses_a_missing_or_bad_map_before_starting(runner: CliRunner,
+                                                                  tmp_path: Path) -> None:
     result = runner.invoke(cli, ["ros", "map-server", str(tmp_path / "none.map")])
     assert result.exit_code == 1 and "no such map file" in result.output
     (tmp_path / "bad.map").write_bytes(b"2D-Map\nMinPos: 1\n")
@@ -48,7 +49,7 @@ def test_fault_spec_is_checked() -> None:
     from mapkit.ros.errors import RosError
     from mapkit.ros.transport import Faults
 
-    with pytest.raises(RosError, match="bad entry 'loss=0.1'"):
+    with pytest.raises(RosError, match=r"bad entry 'loss=0\.1'"):
         Faults.parse("loss=0.1")
     with pytest.raises(RosError, match="bad entry 'drop=x'"):
         Faults.parse("drop=x")

@@ -46,7 +46,8 @@ def sample(shared_dir: Path) -> Path:
 def server(ros: Ros, sample: Path) -> subprocess.Popen[bytes]:
     proc = ros.start_mapkit("ros", "map-server", str(sample), "--resolution", str(RES))
     ros.wait_for("the map server's services",
-                 lambda: proc.poll() is not None or {"/static_map", "/change_map"} <= ros.services())
+                 lambda: proc.poll() is not None
+                 or {"/static_map", "/change_map"} <= ros.services())
     assert proc.poll() is None, ros.output(proc)
     return proc
 
@@ -108,7 +109,7 @@ def test_keepout_mask_and_poses(ros: Ros, server: Any, sample: Path) -> None:
     got = echo(ros, "/map_goals")
     assert got["header"]["frame_id"] == "map"
     assert len(got["poses"]) == len(goals) == sum(o.base_type == "Goal" for o in m.objects) > 0
-    for pose, msg in zip(goals, got["poses"]):
+    for pose, msg in zip(goals, got["poses"], strict=True):
         assert msg["position"]["x"] == pytest.approx(pose.x)
         assert msg["position"]["y"] == pytest.approx(pose.y)
         yaw = 2 * math.atan2(msg["orientation"]["z"], msg["orientation"]["w"])
@@ -140,7 +141,8 @@ def test_change_map_result_codes_and_republish(ros: Ros, server: Any, sample: Pa
     check_info(echo(ros, "/map_metadata"), expected_grid(sample))
 
 
-def test_change_map_to_a_map_server_yaml(ros: Ros, server: Any, sample: Path, tmp_path: Path) -> None:
+def test_change_map_to_a_map_server_yaml(ros: Ros, server: Any, sample: Path,
+                                         tmp_path: Path) -> None:
     from mapkit.raster.ros import write_ros_map
 
     def change(url: str) -> int:
@@ -150,14 +152,16 @@ def test_change_map_to_a_map_server_yaml(ros: Ros, server: Any, sample: Path, tm
     grid = expected_grid(sample).with_data(np.where(expected_grid(sample).data == 100, 100, 0))
     files = write_ros_map(grid, tmp_path / "exported.yaml")
     (tmp_path / "no_origin.yaml").write_text("image: exported.pgm\nresolution: 0.2\nnegate: 0\n")
-    (tmp_path / "no_image.yaml").write_text(files.yaml.read_text().replace("exported.pgm", "gone.pgm"))
+    no_image = files.yaml.read_text().replace("exported.pgm", "gone.pgm")
+    (tmp_path / "no_image.yaml").write_text(no_image)
     assert change(str(tmp_path / "no_origin.yaml")) == 3  # invalid metadata, as map_server says
     assert change(str(tmp_path / "no_image.yaml")) == 2  # the image cannot be read: invalid data
     try:
         assert change(str(files.yaml)) == 0
         msg = echo(ros, "/map")
         check_info(msg["info"], grid)
-        assert np.array_equal(np.array(msg["data"], dtype=np.int8).reshape(grid.data.shape), grid.data)
+        cells = np.array(msg["data"], dtype=np.int8).reshape(grid.data.shape)
+        assert np.array_equal(cells, grid.data)
     finally:
         assert change(str(sample)) == 0
 

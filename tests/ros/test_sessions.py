@@ -104,9 +104,9 @@ def terminal(bus: Bus, name: str = "/term", faults: Faults | None = None,
        chunk=st.sampled_from([1024, 4096, 32768]),
        drop=st.floats(0, 0.25), dup=st.floats(0, 0.25), corrupt=st.floats(0, 0.1),
        seed=st.integers(0, 2**16))
-def test_push_under_any_faults_is_exact_or_clean(tmp_path_factory: pytest.TempPathFactory, data: bytes,
-                                                 chunk: int, drop: float, dup: float, corrupt: float,
-                                                 seed: int) -> None:
+def test_push_under_any_faults_is_exact_or_clean(tmp_path_factory: pytest.TempPathFactory,
+                                                 data: bytes, chunk: int, drop: float, dup: float,
+                                                 corrupt: float, seed: int) -> None:
     bus = Bus()
     folder = tmp_path_factory.mktemp("rx")
     rt, robot = robot_on(bus, folder, faults=Faults(drop, dup, corrupt, seed))
@@ -126,12 +126,14 @@ def test_push_under_any_faults_is_exact_or_clean(tmp_path_factory: pytest.TempPa
 
 def test_fleet_push_then_load_and_list(bus: Bus, tmp_path: Path, shared_dir: Path) -> None:
     sample = (shared_dir / "real" / "aria-office.map").read_bytes()
-    robots = [robot_on(bus, tmp_path / f"r{i}", f"r{i}", Faults(0.1, 0.1, 0.02, i)) for i in range(3)]
+    robots = [robot_on(bus, tmp_path / f"r{i}", f"r{i}", Faults(0.1, 0.1, 0.02, i))
+              for i in range(3)]
     try:
         term = terminal(bus, faults=Faults(0.1, 0.1, 0.02, 9))
         offer = Offer.for_bytes("office.map", sample, chunk_size=512)
         results = term.push([r for _, r in robots], sample, offer, load=True)
-        assert [(r.robot, r.verified, r.loaded) for r in results] == [(f"r{i}", True, True) for i in range(3)]
+        rows = [(r.robot, r.verified, r.loaded) for r in results]
+        assert rows == [(f"r{i}", True, True) for i in range(3)]
         for i in range(3):
             assert (tmp_path / f"r{i}" / "office.map").read_bytes() == sample
             assert (tmp_path / f"r{i}" / "active.map").read_bytes() == sample

@@ -12,7 +12,6 @@ import json
 import os
 import signal
 import subprocess
-import time
 from pathlib import Path
 from typing import Any
 
@@ -84,7 +83,8 @@ def visible(folder: Path) -> list[str]:
 
 
 @pytest.fixture(scope="module")
-def solo(net: Ros, tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, subprocess.Popen[bytes]]:
+def solo(net: Ros,
+         tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, subprocess.Popen[bytes]]:
     out = tmp_path_factory.mktemp("solo")
     return out, start_receiver(net, out, "solo", channel="solo")
 
@@ -93,7 +93,8 @@ def test_push_one_robot_byte_identical(net: Ros, solo: Any, real_sample: Path) -
     out, rx = solo
     res = send(net, real_sample, "--channel", "solo", "--json")
     rows = json.loads(res.stdout)
-    assert [(r["robot"], r["received"], r["verified"], r["ok"]) for r in rows] == [("solo", True, True, True)]
+    got = [(r["robot"], r["received"], r["verified"], r["ok"]) for r in rows]
+    assert got == [("solo", True, True, True)]
     assert (out / real_sample.name).read_bytes() == real_sample.read_bytes()
     assert real_sample.name in visible(out) and not any(".mkpart" in n for n in visible(out))
     net.wait_for("the receiver's report", lambda: f"received {real_sample.name}" in net.output(rx))
@@ -133,7 +134,8 @@ def one_sample(shared_dir: Path) -> Path:
     return shared_dir / "real" / "aria291-columbia.map"
 
 
-def test_send_fails_when_a_named_robot_is_missing(net: Ros, tmp_path: Path, one_sample: Path) -> None:
+def test_send_fails_when_a_named_robot_is_missing(net: Ros, tmp_path: Path,
+                                                  one_sample: Path) -> None:
     real_sample = one_sample
     start_receiver(net, tmp_path / "a", "present", channel="partial")
     res = send(net, real_sample, "--channel", "partial", "--robot", "present", "--robot", "absent",
@@ -143,7 +145,8 @@ def test_send_fails_when_a_named_robot_is_missing(net: Ros, tmp_path: Path, one_
     assert not (tmp_path / "a" / real_sample.name).exists()
 
 
-def test_wrong_secret_is_refused_and_nothing_written(net: Ros, tmp_path: Path, one_sample: Path) -> None:
+def test_wrong_secret_is_refused_and_nothing_written(net: Ros, tmp_path: Path,
+                                                     one_sample: Path) -> None:
     real_sample = one_sample
     out = tmp_path / "locked"
     start_receiver(net, out, "locked", channel="locked")
@@ -162,14 +165,16 @@ def test_wrong_secret_is_refused_and_nothing_written(net: Ros, tmp_path: Path, o
 
 
 @pytest.mark.parametrize("seed", [1, 2])
-def test_drops_duplicates_and_corruption_still_byte_identical(net: Ros, tmp_path: Path, seed: int) -> None:
+def test_drops_duplicates_and_corruption_still_byte_identical(net: Ros, tmp_path: Path,
+                                                              seed: int) -> None:
     data = big_file(tmp_path / "scan.2d", 1_500_000, seed)
     out = tmp_path / "lossy"
     faults = f"drop=0.1,dup=0.1,corrupt=0.05,seed={seed}"
     env = dict(net.env, MAPKIT_ROS_FAULTS=faults)
     rx = start_receiver(net, out, "lossy", "--count", "1", env=env, channel=f"lossy{seed}")
     res = send(net, data, "--channel", f"lossy{seed}", "--chunk-size", "16384", "--json",
-               env=dict(net.env, MAPKIT_ROS_FAULTS=f"drop=0.1,dup=0.1,corrupt=0.05,seed={seed + 10}"))
+               env=dict(net.env,
+                        MAPKIT_ROS_FAULTS=f"drop=0.1,dup=0.1,corrupt=0.05,seed={seed + 10}"))
     (row,) = json.loads(res.stdout)
     assert row["ok"] and row["chunks_resent"] > 0, row  # losses happened and were repaired
     assert rx.wait(30) == 0, net.output(rx)
@@ -225,8 +230,8 @@ def robot(net: Ros, tmp_path_factory: pytest.TempPathFactory, shared_dir: Path) 
     server = net.start_mapkit("ros", "map-server", str(folder / "aria-triangle.map"),
                               "--resolution", "0.1")
     serve = net.start_mapkit("ros", "serve", str(folder), "--name", "robot1", "--channel", "robot")
-    net.wait_for("serve and map-server", lambda: {"/change_map", "/mapkit/robot/announce"} <= net.topics()
-                 | net.services())
+    wanted = {"/change_map", "/mapkit/robot/announce"}
+    net.wait_for("serve and map-server", lambda: wanted <= net.topics() | net.services())
     return {"folder": folder, "serve": serve, "server": server}
 
 
@@ -235,8 +240,9 @@ def test_list_pull_and_load_through_serve(net: Ros, robot: dict[str, Any], tmp_p
     folder = robot["folder"]
     listing = json.loads(net.mapkit("ros", "maps", "--channel", "robot", "--json").stdout)
     assert listing["robot"] == "robot1"
+    names = ("aria-office.map", "aria-triangle.map")
     assert {m["name"]: m["md5"] for m in listing["maps"]} == {
-        n: hashlib.md5((folder / n).read_bytes()).hexdigest() for n in ("aria-office.map", "aria-triangle.map")}
+        n: hashlib.md5((folder / n).read_bytes()).hexdigest() for n in names}
 
     dest = tmp_path / "pulled.map"
     got = json.loads(net.mapkit("ros", "fetch", "aria-office.map", "-o", str(dest), "--channel",
@@ -272,7 +278,8 @@ def test_list_pull_and_load_through_serve(net: Ros, robot: dict[str, Any], tmp_p
 def test_push_to_serve_then_pull_back(net: Ros, robot: dict[str, Any], tmp_path: Path,
                                       one_sample: Path) -> None:
     real_sample = one_sample
-    res = json.loads(send(net, real_sample, "--channel", "robot", "--name", "pushed.map", "--json").stdout)
+    out = send(net, real_sample, "--channel", "robot", "--name", "pushed.map", "--json").stdout
+    res = json.loads(out)
     assert res[0]["ok"]
     assert (robot["folder"] / "pushed.map").read_bytes() == real_sample.read_bytes()
     dest = tmp_path / "back.map"
