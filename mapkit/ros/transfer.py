@@ -34,7 +34,7 @@ from typing import Any
 from mapkit.errors import LocalTransferError, TransferError
 from mapkit.ros.errors import RosError
 from mapkit.ros.node import ros_import, rospy, wait_until
-from mapkit.ros.transport import RosLink
+from mapkit.ros.transport import DEFAULT_WINDOW, RosLink
 from mapkit.transfer.protocol import (
     DEFAULT_CHUNK_SIZE,
     MAGIC,
@@ -357,7 +357,7 @@ class RobotNode:
     def __init__(self, folder: MapFolder, link: RosLink, *, robot: str = "",
                  secret: bytes | None = None, insecure: bool = False,
                  features: Iterable[str] = FEATURES_SERVE, map_server: str | None = "change_map",
-                 idle_timeout: float = 30.0, window: int = 16, rto: float = 1.0,
+                 idle_timeout: float = 30.0, window: int = DEFAULT_WINDOW, rto: float = 1.0,
                  on_received: Callable[[dict[str, Any]], None] | None = None) -> None:
         if secret is None and not insecure:
             raise LocalTransferError("no shared secret: give --secret-file or MAPKIT_SECRET, or "
@@ -609,7 +609,7 @@ class Watcher:
     """A client link that collects robot announcements as they arrive (latched: late joiners
     see them too)."""
 
-    def __init__(self, channel: str, *, window: int = 16,
+    def __init__(self, channel: str, *, window: int = DEFAULT_WINDOW,
                  chunk_size: int = DEFAULT_CHUNK_SIZE) -> None:
         self.robots: dict[str, Robot] = {}
         self.link = RosLink(channel, robot=False, window=window, chunk_size=chunk_size,
@@ -732,7 +732,7 @@ class Terminal:
                               self.rto)
 
     def push(self, robots: list[Robot], data: bytes, offer: Offer, *, load: bool = False,
-             window: int = 16,
+             window: int = DEFAULT_WINDOW,
              progress: Callable[[int, int], None] | None = None) -> list[PushResult]:
         """Push ``data`` (described by ``offer``) to every robot at once; one result each."""
         view = memoryview(data)
@@ -896,7 +896,7 @@ def _terminal(w: Watcher, secret: bytes | None, **kw: Any) -> Terminal:
 
 def push(path: str, *, channel: str, secret: bytes | None, name: str | None = None,
          robots: Iterable[str] = (), expect: int = 0, wait: float = 3.0, load: bool = False,
-         chunk_size: int = DEFAULT_CHUNK_SIZE, window: int = 16, rto: float = 1.0,
+         chunk_size: int = DEFAULT_CHUNK_SIZE, window: int = DEFAULT_WINDOW, rto: float = 1.0,
          idle_timeout: float = 30.0,
          progress: Callable[[int, int], None] | None = None) -> list[PushResult]:
     """Push a file to every robot on ``channel`` that accepts pushes, at once; each verifies it.

@@ -45,9 +45,11 @@ from typing import Any
 from mapkit.ros.errors import RosError
 from mapkit.ros.node import ros_import, rospy, wait_until
 
-__all__ = ["DEFAULT_CHANNEL", "FAULTS_ENV", "Faults", "RosLink", "channel_topics", "check_channel"]
+__all__ = ["DEFAULT_CHANNEL", "DEFAULT_WINDOW", "FAULTS_ENV", "Faults", "RosLink", "channel_topics", "check_channel"]
 
 DEFAULT_CHANNEL = "maps"
+#: Frames in flight per session (32 x 256 KiB: 8 MiB), and what queues and buffers are sized for.
+DEFAULT_WINDOW = 32
 FAULTS_ENV = "MAPKIT_ROS_FAULTS"
 _CHANNEL = re.compile(r"^[A-Za-z][A-Za-z0-9_]*(/[A-Za-z][A-Za-z0-9_]*)*$")
 
@@ -174,7 +176,7 @@ class RosLink:
     The node must be started (:func:`mapkit.ros.node.start_node`).
     """
 
-    def __init__(self, channel: str = DEFAULT_CHANNEL, *, robot: bool, window: int = 16,
+    def __init__(self, channel: str = DEFAULT_CHANNEL, *, robot: bool, window: int = DEFAULT_WINDOW,
                  chunk_size: int = 256 * 1024, faults: Faults | None = None,
                  on_announce: Callable[[dict[str, Any]], None] | None = None) -> None:
         rp = rospy()
