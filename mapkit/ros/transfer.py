@@ -137,6 +137,7 @@ class _RobotSession:
         self.fd: int | None = None
         self.answers: dict[tuple[int, int], list[Out]] = {}
         self.last = now
+        self._checkpointed = now
         self.closed = False
 
     @property
@@ -332,10 +333,22 @@ class _RobotSession:
             self.conn.send(m.poll(now))
             if m.finished:
                 self._ended(m)
+        dest = self.dest
+        if dest is not None and now - self._checkpointed >= dest.checkpoint_interval:
+            # also when the link stalls: what is on disk is in the journal, ready for a resume
+            self._checkpointed = now
+            try:
+                dest.checkpoint()
+            except TransferError as err:
+                log.warning("%s: %s", self.client, err)
 
     def deadline(self) -> float | None:
         m = self.active
-        return m.deadline() if m is not None and not m.finished else None
+        dl = m.deadline() if m is not None and not m.finished else None
+        if self.dest is not None:
+            ck = self._checkpointed + self.dest.checkpoint_interval
+            dl = ck if dl is None else min(dl, ck)
+        return dl
 
 
 class RobotNode:

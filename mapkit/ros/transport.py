@@ -45,7 +45,8 @@ from typing import Any
 from mapkit.ros.errors import RosError
 from mapkit.ros.node import ros_import, rospy, wait_until
 
-__all__ = ["DEFAULT_CHANNEL", "DEFAULT_WINDOW", "FAULTS_ENV", "Faults", "RosLink", "channel_topics", "check_channel"]
+__all__ = ["DEFAULT_CHANNEL", "DEFAULT_WINDOW", "FAULTS_ENV", "Faults", "RosLink", "channel_topics",
+           "check_channel"]
 
 DEFAULT_CHANNEL = "maps"
 #: Frames in flight per session (32 x 256 KiB: 8 MiB), and what queues and buffers are sized for.
@@ -95,6 +96,7 @@ class Faults:
         corrupt: Probability that one of its bytes is flipped.
         seed: Random seed.
         only_data: Apply the faults to DATA frames only (control frames pass).
+        stall_after: Lose every DATA frame after this many (a link that dies), 0 for never.
     """
 
     drop: float = 0.0
@@ -102,16 +104,18 @@ class Faults:
     corrupt: float = 0.0
     seed: int = 0
     only_data: bool = False
+    stall_after: int = 0
     counts: dict[str, int] = field(
         default_factory=lambda: {"dropped": 0, "duplicated": 0, "corrupted": 0})
 
     def __post_init__(self) -> None:
         self._rng = random.Random(self.seed)
         self._lock = threading.Lock()
+        self._data_seen = 0
 
     @classmethod
     def parse(cls, spec: str) -> Faults:
-        """Read ``"drop=0.1,dup=0.05,corrupt=0.02,seed=1,only_data=1"``.
+        """Read ``"drop=0.1,dup=0.05,corrupt=0.02,seed=1,only_data=1,stall_after=0"``.
 
         Raises:
             RosError: For an unknown key or a value that is not a number.
@@ -127,21 +131,27 @@ class Faults:
             try:
                 if key in ("drop", "dup", "corrupt"):
                     kw[key] = float(value)
-                elif key in ("seed", "only_data"):
+                elif key in ("seed", "only_data", "stall_after"):
                     kw[key] = int(value)
                 else:
                     raise ValueError(key)
             except ValueError as err:
                 raise RosError(f"{FAULTS_ENV}: bad entry {part!r} (keys: drop, dup, corrupt, seed, "
-                               "only_data)") from err
+                               "only_data, stall_after)") from err
         kw["only_data"] = bool(kw.get("only_data", 0))
         return cls(**kw)
 
     def apply(self, data: bytes) -> list[bytes]:
         """What arrives for one message: nothing, the message (possibly damaged), or it twice."""
-        if self.only_data and not (len(data) > 5 and data[5] == 18):  # FrameType.DATA
+        is_data = len(data) > 5 and data[5] == 18  # FrameType.DATA
+        if self.only_data and not is_data:
             return [data]
         with self._lock:
+            if is_data and self.stall_after:
+                self._data_seen += 1
+                if self._data_seen > self.stall_after:
+                    self.counts["dropped"] += 1
+                    return []
             rng = self._rng
             if rng.random() < self.drop:
                 self.counts["dropped"] += 1

@@ -57,6 +57,10 @@ def test_fault_spec_is_checked() -> None:
     assert f.apply(b"MKT1 frame") == [] and f.counts["dropped"] == 1
     f = Faults.parse("dup=1,seed=2")
     assert f.apply(b"abc") == [b"abc", b"abc"]
+    f = Faults.parse("stall_after=2")
+    data = b"MKT1\x01\x12" + bytes(40)  # a DATA frame's first bytes
+    assert [len(f.apply(data)) for _ in range(4)] == [1, 1, 0, 0]
+    assert f.apply(b"MKT1\x01\x13" + bytes(40)) != []  # an ACK still passes
     f = Faults.parse("corrupt=1,seed=3")
     (bad,) = f.apply(b"\x00" * 64)
     assert sum(bin(b).count("1") for b in bad) == 1  # exactly one bit flipped
