@@ -13,7 +13,7 @@ from typing import Any
 import click
 
 from mapkit.cli.options import echo_json, err, json_option
-from mapkit.cli.transfer import _progress, _quiet, _secret_options, _size
+from mapkit.cli.transfer import _progress, _quiet, _secret_options, _size, print_listing
 
 
 @click.group()
@@ -80,6 +80,16 @@ def _channel_option(f: Any) -> Any:
     return click.option("--channel", default="maps", show_default=True, callback=_check_channel,
                         help="Channel: topics mapkit/CHANNEL/{c2r,r2c,announce} in "
                         "ROS_NAMESPACE.")(f)
+
+
+def _terminal_options(f: Any) -> Any:
+    """--channel, --robot, --timeout, the secret and --json: what fetch, maps and load share."""
+    f = json_option(f)
+    f = _secret_options(f)
+    f = click.option("--timeout", type=float, default=3.0, show_default=True,
+                     help="Seconds to wait for the robots' announcements.")(f)
+    f = click.option("--robot", help="The robot (needed when several serve the channel).")(f)
+    return _channel_option(f)
 
 
 def _robot_side(robot_name: str | None, secret_file: str | None,
@@ -264,13 +274,8 @@ def send(file: str, channel: str, name: str | None, robots: tuple[str, ...], exp
 @ros.command("fetch")
 @click.argument("name")
 @click.option("-o", "--output", type=click.Path(dir_okay=False), help="Local file (default: NAME).")
-@_channel_option
-@click.option("--robot", help="The robot to fetch from (needed when several serve the channel).")
 @click.option("--if-changed", is_flag=True, help="Skip when the local file already matches.")
-@click.option("--timeout", type=float, default=3.0, show_default=True,
-              help="Seconds to wait for the robot's announcement.")
-@_secret_options
-@json_option
+@_terminal_options
 def fetch(name: str, output: str | None, channel: str, robot: str | None, if_changed: bool,
           timeout: float, secret_file: str | None, insecure: bool, as_json: bool) -> None:
     """Fetch the map NAME from a robot running `mapkit ros serve` (`active.map`: its active map).
@@ -299,14 +304,9 @@ def fetch(name: str, output: str | None, channel: str, robot: str | None, if_cha
 
 
 @ros.command("maps")
-@_channel_option
-@click.option("--robot", help="The robot to ask (needed when several serve the channel).")
 @click.option("--all", "all_robots", is_flag=True,
               help="Every robot's announced maps (the latched topic; no authentication).")
-@click.option("--timeout", type=float, default=3.0, show_default=True,
-              help="Seconds to wait for announcements.")
-@_secret_options
-@json_option
+@_terminal_options
 def maps(channel: str, robot: str | None, all_robots: bool, timeout: float,
          secret_file: str | None, insecure: bool, as_json: bool) -> None:
     """List the maps on a robot: name, size, MD5, and which one is active.
@@ -340,29 +340,14 @@ def maps(channel: str, robot: str | None, all_robots: bool, timeout: float,
     if as_json:
         echo_json(listing)
         return
-    rows = listing.get("maps", [])
-    if not rows:
-        click.echo(f"no maps on {listing['robot']}")
-        return
-    width = max(len(m["name"]) for m in rows)
-    for m in rows:
-        mark = "*" if m.get("active") else " "
-        click.echo(f"{mark} {m['name']:<{width}}  {_size(m['size']):>9}  {m['md5']}")
-    if listing.get("active"):
-        click.echo(f"active on {listing['robot']}: {listing['active']} "
-                   f"(MD5 {listing.get('active_md5')})")
+    print_listing(listing, listing["robot"])
 
 
 @ros.command("load")
 @click.argument("name", required=False)
-@_channel_option
-@click.option("--robot", help="The robot (needed when several serve the channel).")
 @click.option("--md5", help="Only load if the robot's file has this MD5.")
 @click.option("--rollback", is_flag=True, help="Re-activate the previous map.")
-@click.option("--timeout", type=float, default=3.0, show_default=True,
-              help="Seconds to wait for the robot's announcement.")
-@_secret_options
-@json_option
+@_terminal_options
 def load(name: str | None, channel: str, robot: str | None, md5: str | None, rollback: bool,
          timeout: float, secret_file: str | None, insecure: bool, as_json: bool) -> None:
     """Make the map NAME on the robot its active map; its map server republishes /map.
