@@ -36,7 +36,15 @@ def _write_map(m: MapData, path: PathLike) -> str:
 _WRITERS: dict[str, Writer] = {".map": _write_map}
 
 #: suffix -> module that registers its writer (imported on first use).
-LAZY_WRITERS: dict[str, str] = {}
+LAZY_WRITERS: dict[str, str] = {
+    ".png": "mapkit.render",  # the picture; ROS map images are written by mapkit rasterize
+    ".svg": "mapkit.render",
+    ".pdf": "mapkit.render",
+    ".stl": "mapkit.mesh",
+    ".obj": "mapkit.mesh",
+    ".glb": "mapkit.mesh",
+    ".dae": "mapkit.mesh",
+}
 #: suffix -> module that registers its reader (imported on first use).
 LAZY_READERS: dict[str, str] = {}
 
