@@ -263,7 +263,7 @@ def send(file: str, address: str, name: str | None, and_load: bool, secret_file:
 @click.command()
 @click.argument("address", metavar="HOST[:PORT]")
 @click.argument("name")
-@click.option("-o", "--output", type=click.Path(dir_okay=False), help="Local file (default: NAME).")
+@click.option("-o", "--output", type=click.Path(), help="Local file or folder (default: NAME here).")
 @click.option("--if-changed", is_flag=True, help="Skip when the local file already matches (MD5).")
 @_client_options
 @json_option

@@ -201,7 +201,7 @@ class Client:
 
         Args:
             name: The map's name on the robot.
-            dest: Local file to write.
+            dest: Local file to write (or a folder: the file keeps its name).
             if_changed: Skip the transfer when ``dest`` already has the robot's content (by MD5
                 for maps, SHA-256 otherwise).
             progress: Progress callback.
@@ -217,6 +217,8 @@ class Client:
         """
         t0 = time.monotonic()
         dest = os.path.abspath(os.fspath(dest))
+        if os.path.isdir(dest):
+            dest = os.path.join(dest, check_name(name, suffixes=None))
         folder, local = os.path.dirname(dest), os.path.basename(dest)
         req: dict[str, Any] = {"name": name, "chunk_size": self.chunk_size}
         if if_changed and os.path.isfile(dest):

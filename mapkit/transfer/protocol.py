@@ -940,6 +940,11 @@ class _Machine:
         self._last_heard = 0.0
         self._events: list[Any] = []
 
+    @property
+    def last_heard(self) -> float:
+        """When (on the driver's clock) the last frame from the peer arrived."""
+        return self._last_heard
+
     def pop_events(self) -> list[Any]:
         """Events for the application since the last call."""
         ev, self._events = self._events, []
@@ -1487,10 +1492,10 @@ class Sender(_Machine):
             last = out[-1]  # window full or nothing more to send: ask for an ACK now
             out[-1] = Out(last.type, last.payload, ref=last.ref, flags=last.flags | Flag.ACKREQ)
         if self._acked_count == self.offer.chunks and self.state == "data":
+            # everything arrived: VERIFIED should follow; ask with DONE only if it is late
             self.state = "done"
-            self._tries = 1
+            self._tries = 0
             self._arm(now)
-            out.append(Out(FrameType.DONE, b"{}", ref=self.ref))
         elif self._flight and self._timer is None:
             self._arm(now)
         return out

@@ -33,7 +33,6 @@ from mapkit.formats.map import parse_map
 from mapkit.transfer.protocol import (
     DEFAULT_CHUNK_SIZE,
     DEFAULT_PORT,
-    MAX_CHUNK_SIZE,
     AuthenticationError,
     Channel,
     Frame,
@@ -112,6 +111,7 @@ class MapFolder:
         self.reserve = reserve
         self.on_load = on_load
         self._digests: dict[str, _Digest] = {}
+        self._valid: dict[str, None] = {}  # SHA-256 of map contents that parsed (recent first)
         self._lock = threading.Lock()
         self._load_lock = threading.Lock()
 
@@ -194,8 +194,23 @@ class MapFolder:
         if offer.size > self.max_size:
             raise StoreError(f"{name} has {offer.size} bytes, this robot accepts at most "
                              f"{self.max_size}", Status.TOO_LARGE)
+        check = _validator(name)
+
+        def validate(path: str) -> dict[str, Any]:
+            assert check is not None
+            info = check(path)  # called after the SHA-256 check: the content is offer.sha256
+            self._parsed(offer.sha256)
+            return info
+
         return PartialFile.open(self.root, name, offer, checkpoint_interval=checkpoint_interval,
-                                validate=_validator(name), reserve=self.reserve)
+                                validate=validate if check else None, reserve=self.reserve)
+
+    def _parsed(self, sha256: str) -> None:
+        with self._lock:
+            self._valid.pop(sha256, None)
+            self._valid[sha256] = None
+            while len(self._valid) > 256:
+                del self._valid[next(iter(self._valid))]
 
     def open_read(self, name: str, *, chunk_size: int = DEFAULT_CHUNK_SIZE) -> tuple[int, Offer]:
         """Open a map for a pull: ``(fd, offer)``; the fd is a snapshot even if the file is replaced.
@@ -254,10 +269,15 @@ class MapFolder:
             if md5 and got != md5.lower():
                 raise StoreError(f"{src_name} on the robot has MD5 {got}, expected {md5.lower()}",
                                  Status.MD5_MISMATCH)
-            try:
-                parse_map(data, source=src_name)
-            except MapFormatError as err:
-                raise StoreError(f"not a valid map: {err}", Status.PARSE_ERROR) from err
+            sha = hashlib.sha256(data).hexdigest()
+            with self._lock:
+                known = sha in self._valid
+            if not known:  # content that parsed when it arrived parses now: mapkit is deterministic
+                try:
+                    parse_map(data, source=src_name)
+                except MapFormatError as err:
+                    raise StoreError(f"not a valid map: {err}", Status.PARSE_ERROR) from err
+                self._parsed(sha)
             active = self.path(ACTIVE_NAME)
             try:
                 if os.path.exists(active):
@@ -272,7 +292,7 @@ class MapFolder:
                         shutil.copyfile(active, tmp)
                     os.replace(tmp, self.path(PREVIOUS_NAME))
                 atomic_write(active, data)
-                new = {"name": src_name, "md5": got, "sha256": hashlib.sha256(data).hexdigest(),
+                new = {"name": src_name, "md5": got, "sha256": sha,
                        "size": len(data), "loaded_at": round(time.time(), 3),
                        "previous": {k: state[k] for k in ("name", "md5", "sha256") if k in state} or None}
                 atomic_write(os.path.join(self.root, STATE_NAME), json.dumps(new, indent=1).encode())
@@ -301,6 +321,9 @@ class MapServer:
         idle_timeout: Seconds without a frame before a session is dropped.
         max_chunk: Largest chunk size accepted.
         name: This server's name in HELLO_ACK.
+        takeover_after: A push of a name whose current writer has sent nothing for this many
+            seconds ends that stale session and resumes its partial file (a terminal that lost
+            its Wi-Fi and reconnects); a writer active more recently makes the push ``busy``.
         on_received: Called with each VERIFIED info dict after a push was published.
 
     Examples:
@@ -313,8 +336,8 @@ class MapServer:
     def __init__(self, folder: str | os.PathLike[str] | MapFolder, *, host: str = "127.0.0.1",
                  port: int = DEFAULT_PORT, secret: bytes | None = None, insecure: bool = False,
                  tls: ssl.SSLContext | None = None, push_only: bool = False, max_clients: int = 64,
-                 idle_timeout: float = 30.0, max_chunk: int = MAX_CHUNK_SIZE, name: str = "",
-                 rto: float = 2.0, window: int = 16,
+                 idle_timeout: float = 30.0, max_chunk: int = 1 << 20, name: str = "",
+                 rto: float = 2.0, window: int = 16, takeover_after: float = 5.0,
                  on_received: Callable[[dict[str, Any]], None] | None = None) -> None:
         if secret is None and not insecure:
             raise LocalTransferError("no shared secret: give --secret-file or MAPKIT_SECRET, or "
@@ -331,6 +354,8 @@ class MapServer:
         self.window = window
         self.name = name or socket.gethostname()
         self.on_received = on_received
+        self.takeover_after = takeover_after
+        self._writers: dict[str, tuple[FrameLink, Receiver]] = {}
         self._sock = listen(host, port)
         self.address: tuple[str, int] = self._sock.getsockname()[:2]
         self._threads: set[threading.Thread] = set()
@@ -493,10 +518,12 @@ class MapServer:
     def _push(self, link: FrameLink, f: Frame, peer: str) -> Receiver:
         d = f.json()
         offer = Offer.from_json(d, max_chunk=self.max_chunk)
-        dest = self.folder.begin_write(offer)
+        dest = self._begin_write(offer, peer)
         w = d.get("window")
         rx = Receiver(offer, ref=f.ref, have=dest.have, window=max(self.window * 4, 64),
                       idle_timeout=self.idle_timeout, sender_window=w if isinstance(w, int) else None)
+        with self._lock:
+            self._writers[dest.name] = (link, rx)
         ok = False
         try:
             def on_events() -> list[Out]:
@@ -523,8 +550,34 @@ class MapServer:
             dest.close(keep=not no_space)  # a full disk keeps no partial file
             raise _Ended(str(err)) from err
         finally:
+            with self._lock:
+                if self._writers.get(dest.name, (None,))[0] is link:
+                    del self._writers[dest.name]
             if not ok:
                 dest.close(keep=True)
+
+    def _begin_write(self, offer: Offer, peer: str) -> PartialFile:
+        """:meth:`MapFolder.begin_write`, taking over from a writer that went silent."""
+        try:
+            return self.folder.begin_write(offer)
+        except StoreError as err:
+            if err.status != Status.BUSY:
+                raise
+            with self._lock:
+                holder = self._writers.get(offer.name)
+            if holder is None or time.monotonic() - holder[1].last_heard < self.takeover_after:
+                raise
+            log.warning("%s: taking over %s from a session silent for %.1f s", peer, offer.name,
+                        time.monotonic() - holder[1].last_heard)
+            holder[0].close()  # its thread ends, keeps the partial file, releases the lock
+            end = time.monotonic() + 5.0
+            while True:
+                time.sleep(0.02)
+                try:
+                    return self.folder.begin_write(offer)
+                except StoreError as again:
+                    if again.status != Status.BUSY or time.monotonic() > end:
+                        raise
 
     def _pull(self, link: FrameLink, f: Frame, peer: str) -> Sender | None:
         d = f.json()

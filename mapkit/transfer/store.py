@@ -145,10 +145,9 @@ class PartialFile:
         self._hashed = 0  # chunks fed to the hasher, in order
         self._dirty = False
         self._last_checkpoint = time.monotonic()
-        self._queue: queue.Queue[Any] | None = None
-        self._worker: threading.Thread | None = None
+        self._queues: list[queue.Queue[Any]] = []
+        self._threads: list[threading.Thread] = []
         self._error: BaseException | None = None
-        self._failed = False
 
     # opening ---------------------------------------------------------------------------------
     @classmethod
@@ -272,61 +271,71 @@ class PartialFile:
 
     # writing -----------------------------------------------------------------------------------
     def start_writer(self, depth: int = 8) -> None:
-        """Write and hash in a background thread from now on (overlaps disk and SHA-256 with
-        the network). :meth:`write` then queues; errors come out of the next call."""
-        if self._queue is None:
-            self._queue = queue.Queue(depth)
-            self._worker = threading.Thread(target=self._work, name=f"mapkit-write-{self.name}",
-                                            daemon=True)
-            self._worker.start()
+        """Write and hash in two background threads from now on, so that disk writes, the
+        SHA-256 and the network (the caller's thread) overlap. :meth:`write` then queues;
+        errors come out of the next call."""
+        if not self._threads:
+            self._queues = [queue.Queue(depth), queue.Queue(depth)]
+            for q, job, what in ((self._queues[0], self._write_now, "write"),
+                                 (self._queues[1], self._hash_now, "hash")):
+                t = threading.Thread(target=self._work, args=(q, job), daemon=True,
+                                     name=f"mapkit-{what}-{self.name}")
+                t.start()
+                self._threads.append(t)
 
-    def _work(self) -> None:
-        q = self._queue
-        assert q is not None
+    def _work(self, q: queue.Queue[Any], job: Callable[..., None]) -> None:
         while True:
             item = q.get()
             try:
                 if item is None:
                     return
                 if self._error is None:
-                    self._write_now(*item)
+                    job(*item)
             except BaseException as err:
                 self._error = err
             finally:
                 q.task_done()
 
     def flush(self) -> None:
-        """Wait until queued chunks are written.
+        """Wait until queued chunks are written and hashed.
 
         Raises:
-            StoreError: The background writer failed.
+            StoreError: A background thread failed.
         """
-        if self._queue is not None:
-            self._queue.join()
+        for q in self._queues:
+            q.join()
         if self._error is not None:
             err, self._error = self._error, None
-            self._failed = True
             raise err
 
     def _stop_writer(self) -> None:
-        if self._queue is not None:
-            self._queue.put(None)
-            if self._worker is not None:
-                self._worker.join()
-            self._queue = None
+        for q in self._queues:
+            q.put(None)
+        for t in self._threads:
+            if t is not threading.current_thread():
+                t.join()
+        self._queues, self._threads = [], []
 
     def write(self, index: int, data: bytes | bytearray | memoryview, crc: int | None = None) -> None:
         """Store chunk ``index`` (``crc``: its CRC-32 if already known).
 
         Raises:
-            StoreError: ``NO_SPACE`` or ``IO_ERROR`` (with a background writer: of an earlier chunk).
+            StoreError: ``NO_SPACE`` or ``IO_ERROR`` (with background threads: of an earlier chunk).
         """
         if self._error is not None:
             self.flush()
-        if self._queue is not None:
-            self._queue.put((index, data, crc))
+        if self._queues:
+            self._queues[0].put((index, data, crc))
+            self._queues[1].put((index, data))
         else:
             self._write_now(index, data, crc)
+            self._hash_now(index, data)
+
+    def _hash_now(self, index: int, data: bytes | bytearray | memoryview) -> None:
+        """Hash a chunk that continues the in-order prefix; others are read back at the end."""
+        if index == self._hashed:
+            self._hasher.update(data)
+            self._hashed += 1
 
     def _write_now(self, index: int, data: bytes | bytearray | memoryview, crc: int | None) -> None:
         assert self._fd is not None
@@ -341,10 +350,6 @@ class PartialFile:
         self.have[index] = 1
         self.crcs[index] = zlib.crc32(data) if crc is None else crc
         self._dirty = True
-        if index == self._hashed:
-            self._hasher.update(data)
-            self._hashed += 1
-            self._catch_up()
         if time.monotonic() - self._last_checkpoint >= self.checkpoint_interval:
             self.checkpoint()
 
@@ -472,7 +477,7 @@ class PartialFile:
             self._discard()
 
     def _discard(self) -> None:
-        if self._queue is not None and threading.current_thread() is not self._worker:
+        if self._threads and threading.current_thread() not in self._threads:
             self._error = self._error or StoreError("discarded", Status.INTERNAL)
             self._stop_writer()
         for p in (self.temp, self.journal):

@@ -61,6 +61,9 @@ def test_send_maps_load_fetch_json(tmp_path, runner, robot_dir, make_server, sec
     assert out.read_bytes() == m.read_bytes() and "SHA-256 verified" in r.stdout
     r = runner.invoke(cli, ["fetch", addr(srv), "office.map", "-o", str(out), "--if-changed", "--json", *sf])
     assert json.loads(r.stdout)["modified"] is False
+    (tmp_path / "into").mkdir()
+    r = runner.invoke(cli, ["fetch", addr(srv), "office.map", "-o", str(tmp_path / "into"), *sf])
+    assert r.exit_code == 0 and (tmp_path / "into" / "office.map").read_bytes() == m.read_bytes()
 
 
 def test_send_with_load_and_rollback_human_output(tmp_path, runner, robot_dir, make_server, secret_file,
@@ -186,7 +189,11 @@ def test_serve_process_killed_mid_transfer_then_resumed(tmp_path, robot_dir, sec
             time.sleep(0.8)  # the robot's next write saves a checkpoint of its journal
         elif state["phase"] == 1 and done > state["at"]:
             state["phase"] = 2
-            time.sleep(0.8)  # (it got new chunks after the pause: let the checkpoint finish)
+            journal = robot_dir / ".site.map.mkpart.json"
+            for _ in range(500):  # it got new chunks after the pause: wait for its checkpoint
+                if journal.exists():
+                    break
+                time.sleep(0.02)
             proc.send_signal(signal.SIGKILL)
             proc.wait()
 

@@ -463,3 +463,50 @@ def test_concurrent_threads_do_not_share_sessions(robot_dir, make_server) -> Non
         t.join()
     assert not errors
     assert srv.sessions == 40
+
+
+def test_a_pushed_map_is_parsed_once_even_when_loaded(tmp_path, robot_dir, make_server,
+                                                      monkeypatch) -> None:
+    import mapkit.transfer.server as server_mod
+
+    calls: list[str] = []
+    real = server_mod.parse_map
+
+    def counting(data, *, source="<string>"):
+        calls.append(source)
+        return real(data, source=source)
+
+    monkeypatch.setattr(server_mod, "parse_map", counting)
+    srv = make_server()
+    src = tmp_path / "a.map"
+    src.write_bytes(make_map(100))
+    send_file(src, *srv.address, load=True, **client_options())
+    assert calls == ["a.map"]  # parsed on arrival; LOAD knew that content
+    (robot_dir / "b.map").write_bytes(make_map(50, 7))  # put there by hand: parsed at LOAD
+    load_map(*srv.address[:1], "b.map", srv.address[1], **client_options())
+    assert calls == ["a.map", "b.map"]
+
+
+def test_a_silent_writer_is_taken_over_and_its_partial_file_resumed(tmp_path, robot_dir,
+                                                                    make_server) -> None:
+    """A terminal that lost its link and comes back need not wait for the stale session."""
+    import time
+
+    data = os.urandom(64 * 1024)
+    src = tmp_path / "big.2d"
+    src.write_bytes(data)
+    srv = make_server(takeover_after=0.3)
+    from mapkit.transfer.protocol import Offer
+
+    stale = Client(*srv.address, **client_options())
+    offer = Offer.for_bytes("big.2d", data, chunk_size=4096)
+    stale.link.send([Out(FrameType.OFFER, json.dumps(offer.json()).encode(), ref=1)])
+    assert stale.link.receive(5).type == FrameType.ACCEPT
+    stale.link.send([Out(FrameType.DATA, data[i * 4096:(i + 1) * 4096], ref=i) for i in range(5)])
+    with pytest.raises(Rejected, match=r"busy"):  # still active: refused
+        send_file(src, *srv.address, chunk_size=4096, **client_options())
+    time.sleep(0.5)  # now silent for longer than takeover_after
+    r = send_file(src, *srv.address, chunk_size=4096, **client_options())
+    assert (robot_dir / "big.2d").read_bytes() == data
+    assert r["chunks_skipped"] == 5  # what the stale session had written was kept
+    stale.link.close()
