@@ -50,8 +50,8 @@ def _master_answers(uri: str, timeout: float) -> bool:
     old = socket.getdefaulttimeout()
     socket.setdefaulttimeout(timeout)
     try:
-        code, _, _ = xmlrpc.client.ServerProxy(uri).getPid("/mapkit")
-        return bool(code == 1)
+        answer: Any = xmlrpc.client.ServerProxy(uri).getPid("/mapkit")
+        return bool(answer[0] == 1)
     except (OSError, xmlrpc.client.Error):
         return False
     finally:
