@@ -58,6 +58,7 @@ from mapkit.cli import info as _info  # noqa: E402
 from mapkit.cli import mesh as _mesh  # noqa: E402
 from mapkit.cli import rasterize as _rasterize  # noqa: E402
 from mapkit.cli import render as _render  # noqa: E402
+from mapkit.cli import ros as _ros  # noqa: E402
 from mapkit.cli import transfer as _transfer  # noqa: E402
 from mapkit.cli import validate as _validate  # noqa: E402
 
@@ -72,6 +73,7 @@ cli.add_command(_render.render)
 cli.add_command(_mesh.export_mesh)
 for _command in (*_transfer.COMMANDS, *_edit.COMMANDS):
     cli.add_command(_command)
+cli.add_command(_ros.ros)
 
 
 def main() -> None:
