@@ -1,19 +1,46 @@
-"""Data rows of a ``.map`` (``DATA``: 2 integers, ``LINES``: 4) to numpy and back.
+"""Data rows of a ``.map`` (``DATA``: 2 integers, ``LINES``: 4) to numpy and back, vectorised.
 
 ARIA's row rules (FORMATS.md A.8): a row is ``<int><ws+><int>...`` then anything; an int is an
 optional ``-`` and decimal digits (a lone ``-`` is 0); no ``+``, hex or decimals; a row that
 starts with whitespace or does not fit is skipped silently. Here every row is checked with those
 rules; rows that fail are reported by index.
+
+How it is fast (no Python loop per row):
+
+* **Reading.** Rows are taken in chunks of about 128 KiB (cut at a LF). A chunk is *canonical*
+  when it holds only digits, ``-`` at the start of a number, single spaces between the numbers,
+  ``LF`` (or ``CR LF``) line ends, exactly ``ncols`` numbers per row and at most 8 characters per
+  number: what ARIA and mapkit write. A few whole-chunk checks on the bytes (``uint8``) and on the
+  separator positions prove that; then each number is read as the 8 bytes that end it (one
+  unaligned ``uint64``), masked to its length and turned into an integer by the SWAR
+  digit-combining trick (3 multiplications for 8 digits). A leading ``-`` is kept in the word as
+  the digit 13, which no 8-digit run of real digits can reach, so the sign costs one comparison.
+  A chunk that is not canonical is split in halves (so one odd row does not slow its neighbours)
+  down to a few KiB, and those pieces go to the per-line reference parser, which applies every
+  rule and reports bad rows.
+* **Writing.** Each number is split into two 4-digit halves that index a 10,000-entry table of
+  ASCII digit words; the digits are shifted to the left of a ``uint64`` with the separator after
+  them and every word is stored at its offset in the output (computed with a cumulative sum), in
+  increasing order, so each word overwrites the spare bytes of the one before; minus signs are
+  stored last. Numbers with more than 8 digits go through the reference formatter.
+
+``_parse_rows_reference`` and ``_format_rows_reference`` are the plain implementations the fast
+ones are tested against.
 """
 
 from __future__ import annotations
 
 import re
+from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
 
-__all__ = ["format_rows", "parse_rows"]
+__all__ = ["RowReader", "format_rows", "iter_format_rows", "parse_rows"]
+
+IntArray = np.ndarray[Any, np.dtype[np.int64]]
+
+# -- reference implementations (the oracles) ---------------------------------------------------
 
 _WS = rb"[ \t\r\x0b\x0c]+"
 _INT = rb"(-[0-9]*|[0-9]+)"
@@ -27,20 +54,11 @@ def _int(tok: bytes) -> int:
     return 0 if tok == b"-" else int(tok)
 
 
-def parse_rows(seg: bytes, ncols: int) -> tuple[np.ndarray[Any, np.dtype[np.int64]], list[int]]:
-    """Parse complete data rows with ARIA's rules.
-
-    Args:
-        seg: LF-separated rows, each starting with a digit or ``-``. Every row, the last included,
-            ends with LF.
-        ncols: 2 for ``DATA`` rows, 4 for ``LINES`` rows.
-
-    Returns:
-        ``(values, bad)``: an ``(K, ncols)`` int64 array of the rows ARIA keeps, and the 0-based
-        indices (within ``seg``) of the rows it skips.
+def _parse_rows_reference(seg: bytes, ncols: int) -> tuple[IntArray, list[int]]:
+    """Parse rows one line at a time with a regular expression (the reference for :func:`parse_rows`).
 
     Examples:
-        >>> v, bad = parse_rows(b"1 2\\n12 34.7\\n1.5 2\\n- 3\\n", 2)
+        >>> v, bad = _parse_rows_reference(b"1 2\\n12 34.7\\n1.5 2\\n- 3\\n", 2)
         >>> v.tolist(), bad
         ([[1, 2], [12, 34], [0, 3]], [2])
     """
@@ -60,6 +78,250 @@ def parse_rows(seg: bytes, ncols: int) -> tuple[np.ndarray[Any, np.dtype[np.int6
     return values, bad
 
 
+def _format_rows_reference(values: np.ndarray[Any, Any]) -> bytes:
+    """Rows formatted with ``%d`` one at a time (the reference for :func:`format_rows`).
+
+    Examples:
+        >>> _format_rows_reference(np.array([[1, -2], [30, 4]]))
+        b'1 -2\\n30 4\\n'
+    """
+    if len(values) == 0:
+        return b""
+    fmt = " ".join(["%d"] * values.shape[1]) + "\n"
+    return "".join(fmt % tuple(row) for row in values.tolist()).encode("ascii")
+
+
+# -- constants of the fast paths ----------------------------------------------------------------
+
+_U64 = np.uint64
+_PARSE_CHUNK = 1 << 17  # bytes of text per vectorised step (stays in the L2 cache)
+_MIN_SPLIT = 1 << 12  # non-canonical pieces below this go to the reference parser
+_FORMAT_CHUNK = 1 << 14  # rows per vectorised formatting step
+_MAX_FAST = 10**8  # |value| below this has at most 8 digits
+
+# Separator bytes per row, read as one little-endian word: b" \n" and b"   \n".
+_SEP_WORD = {2: (np.uint16, 0x0A20), 4: (np.uint32, 0x0A202020)}
+_SEP_PATTERN_CRLF = {k: np.array([32] * (k - 1) + [13, 10], np.uint8) for k in (2, 4)}
+# For a number of n = ell - 1 characters ending at byte 7 of its word: keep those n bytes, low
+# nibble only ('0'..'9' -> 0..9, '-' -> 13).
+_DIGIT_MASK = np.array(
+    [0] + [int.from_bytes(b"\x00" * (9 - e) + b"\x0f" * (e - 1), "little") for e in range(1, 10)],
+    dtype=_U64,
+)
+# A number whose first character is '-' reads as 13 * 10**(n-1) + |value| and no n-character run
+# of digits (with at most '-' = 13 after the first) reaches that threshold.
+_NEG_THRESHOLD = np.array([0, 0] + [13 * 10 ** (e - 2) for e in range(2, 10)], dtype=np.int64)
+_B45 = np.uint8(45)
+_B57 = np.uint8(57)
+_B3 = np.uint8(3)
+
+# Writing: ASCII of 0..9999 as 4 digits (most significant first), and digit counts.
+_ASCII4 = np.array(
+    [int.from_bytes(b"%04d" % i, "little") for i in range(10000)], dtype=_U64
+)
+_NDIG = np.array([len(str(i)) for i in range(10000)], dtype=np.int64)
+_NDIG_HI = np.where(np.arange(10000) > 0, _NDIG + 4, 0).astype(np.int64)
+
+
+# -- reading --------------------------------------------------------------------------------
+
+
+class RowReader:
+    """Parses data rows in place inside one buffer (the whole file), chunk by chunk.
+
+    Args:
+        data: The buffer. Rows passed to :meth:`parse` must start at offset 8 or later (the
+            8 bytes before a number are read with it and masked off).
+    """
+
+    def __init__(self, data: bytes) -> None:
+        self.data = data
+        self.buf = np.frombuffer(data, np.uint8)
+        n = len(data)
+        # win[i] is the little-endian uint64 of data[i:i + 8].
+        self.win = np.ndarray(shape=(max(n - 7, 0),), dtype="<u8", buffer=data, strides=(1,))
+
+    def parse(self, start: int, end: int, ncols: int) -> tuple[list[IntArray], list[int], int]:
+        """Parse the rows in ``data[start:end]`` (each ending with LF, each starting with a digit or ``-``).
+
+        Returns:
+            ``(blocks, bad, nrows)``: arrays of kept rows in order, the 0-based indices of the
+            skipped rows, and the number of rows seen.
+        """
+        blocks: list[IntArray] = []
+        bad: list[int] = []
+        nrows = 0
+        data = self.data
+        s = start
+        while s < end:
+            e = end
+            if end - s > _PARSE_CHUNK:
+                cut = data.rfind(b"\n", s, s + _PARSE_CHUNK)
+                if cut < 0:
+                    cut = data.find(b"\n", s + _PARSE_CHUNK, end)
+                e = end if cut < 0 else cut + 1
+            nrows = self._piece(s, e, ncols, blocks, bad, nrows)
+            s = e
+        return blocks, bad, nrows
+
+    def _piece(self, s: int, e: int, k: int, blocks: list[IntArray], bad: list[int], nrows: int) -> int:
+        values = self.fast(s, e, k) if s >= 8 else None
+        if values is not None:
+            blocks.append(values)
+            return nrows + len(values)
+        if e - s > _MIN_SPLIT:
+            mid = self.data.rfind(b"\n", s, (s + e) // 2) + 1
+            if s < mid < e:
+                nrows = self._piece(s, mid, k, blocks, bad, nrows)
+                return self._piece(mid, e, k, blocks, bad, nrows)
+        seg = self.data[s:e]
+        values, skipped = _parse_rows_reference(seg, k)
+        blocks.append(values)
+        bad.extend(nrows + i for i in skipped)
+        return nrows + seg.count(b"\n") + (0 if seg.endswith(b"\n") else 1)
+
+    def fast(self, s: int, e: int, k: int) -> IntArray | None:
+        """Rows of ``data[s:e]`` as an ``(n, k)`` array if the text is canonical, else ``None``.
+
+        ``data[s:e]`` must end with LF and ``s >= 8``.
+        """
+        c = self.buf[s:e]
+        if c.size == 0 or c[-1] != 10 or c.max() > _B57:  # letters, ':' and above
+            return None
+        ends = np.flatnonzero(c < _B45)  # every byte below '-': the separators
+        nsep = ends.size
+        if nsep <= k:
+            return None
+        seps = c[ends]
+        dtype, word = _SEP_WORD[k]
+        if nsep % k == 0 and seps[k - 1] == 10:
+            if not (seps.view(dtype) == word).all():
+                return None
+            ell = _gaps(ends)
+        elif nsep % (k + 1) == 0 and seps[k - 1] == 13:  # CR LF line ends
+            if not (seps.reshape(-1, k + 1) == _SEP_PATTERN_CRLF[k]).all():
+                return None
+            ell = np.ascontiguousarray(_gaps(ends).reshape(-1, k + 1)[:, :k]).ravel()
+            ends = np.ascontiguousarray(ends.reshape(-1, k + 1)[:, :k]).ravel()
+        else:
+            return None
+        # ell = 1 + characters of the number ending at each separator: 1 to 8 characters.
+        if ell.min() < 2 or ell.max() > 9:
+            return None
+        # Inside numbers only digits and '-' ('.' and '/' are the other bytes in '-'..'9').
+        shifted = c - _B45
+        n_minus = int(np.count_nonzero(shifted == 0))
+        if np.count_nonzero(shifted < _B3) != n_minus:
+            return None
+        ends += s - 8
+        w = self.win[ends]
+        w &= _DIGIT_MASK[ell]
+        # SWAR: 8 digit bytes (most significant first) -> pairs -> quads -> value.
+        w *= _U64(10 * 256 + 1)
+        w >>= _U64(8)
+        w &= _U64(0x00FF00FF00FF00FF)
+        w *= _U64(100 * 65536 + 1)
+        w >>= _U64(16)
+        w &= _U64(0x0000FFFF0000FFFF)
+        w *= _U64((10000 << 32) + 1)
+        w >>= _U64(32)
+        v = w.view(np.int64)
+        if n_minus:
+            thr = _NEG_THRESHOLD[ell]
+            neg = v >= thr
+            if np.count_nonzero(neg) != n_minus:  # a '-' that does not start a number
+                return None
+            v = np.where(neg, thr - v, v)
+        return v.reshape(-1, k)
+
+
+def _gaps(ends: IntArray) -> IntArray:
+    out = np.empty_like(ends)
+    out[0] = ends[0] + 1
+    np.subtract(ends[1:], ends[:-1], out=out[1:])
+    return out
+
+
+def parse_rows(seg: bytes, ncols: int) -> tuple[IntArray, list[int]]:
+    """Parse complete data rows with ARIA's rules.
+
+    Args:
+        seg: LF-separated rows, each starting with a digit or ``-``. Every row, the last included,
+            ends with LF.
+        ncols: 2 for ``DATA`` rows, 4 for ``LINES`` rows.
+
+    Returns:
+        ``(values, bad)``: an ``(K, ncols)`` int64 array of the rows ARIA keeps, and the 0-based
+        indices (within ``seg``) of the rows it skips.
+
+    Examples:
+        >>> v, bad = parse_rows(b"1 2\\n12 34.7\\n1.5 2\\n- 3\\n", 2)
+        >>> v.tolist(), bad
+        ([[1, 2], [12, 34], [0, 3]], [2])
+    """
+    data = b"\n" * 8 + bytes(seg)
+    blocks, bad, _ = RowReader(data).parse(8, len(data), ncols)
+    return join_blocks(blocks, ncols), bad
+
+
+def join_blocks(blocks: list[IntArray], ncols: int) -> IntArray:
+    """One ``(n, ncols)`` array from parsed blocks (a single block is returned as it is)."""
+    if len(blocks) == 1:
+        return blocks[0].reshape(-1, ncols)
+    if not blocks:
+        return np.zeros((0, ncols), np.int64)
+    return np.concatenate(blocks).reshape(-1, ncols)
+
+
+# -- writing ----------------------------------------------------------------------------------
+
+
+def _format_fast(values: np.ndarray[Any, Any]) -> np.ndarray[Any, np.dtype[np.uint8]] | None:
+    """The text of an ``(n, k)`` block of rows, or ``None`` if a value has more than 8 digits."""
+    n, k = values.shape
+    v = np.ascontiguousarray(values, dtype=np.int64).ravel()
+    neg = v < 0
+    a = np.abs(v)
+    if a.size and (a.max() >= _MAX_FAST or a.min() < 0):  # min < 0: abs(-2**63)
+        return None
+    hi = a // 10000
+    lo = a - hi * 10000
+    word = _ASCII4[hi]
+    word |= _ASCII4[lo] << _U64(32)
+    ndig = np.maximum(_NDIG_HI[hi], _NDIG[lo])
+    # Left-align the digits and put the separator after them (a full 8-digit word has no room:
+    # its separator is stored separately below).
+    shift = ndig * -8
+    shift += 64
+    word >>= shift.view(_U64)
+    sep = np.empty((n, k), _U64)
+    sep[:, :-1] = 32
+    sep[:, -1] = 10
+    sep = sep.ravel()
+    word |= sep << (ndig * 8).view(_U64)
+    width = ndig + 1
+    width += neg
+    end = np.cumsum(width)
+    total = int(end[-1]) if end.size else 0
+    out = np.empty(total + 8, np.uint8)
+    start = end - width
+    at = start + neg
+    np.ndarray(shape=(total + 1,), dtype="<u8", buffer=out, strides=(1,))[at] = word
+    out[start[neg]] = 45
+    full = ndig == 8
+    if full.any():
+        out[end[full] - 1] = sep[full].astype(np.uint8)
+    return out[:total]
+
+
+def iter_format_rows(values: np.ndarray[Any, Any]) -> Iterator[bytes]:
+    """The text of rows as ARIA writes them, in pieces of about 200 KB."""
+    for i in range(0, len(values), _FORMAT_CHUNK):
+        block = values[i : i + _FORMAT_CHUNK]
+        text = _format_fast(block)
+        yield _format_rows_reference(block) if text is None else text.tobytes()
+
+
 def format_rows(values: np.ndarray[Any, Any]) -> bytes:
     """Rows of integers as ARIA writes them: single spaces, one row per line, LF-terminated.
 
@@ -67,7 +329,4 @@ def format_rows(values: np.ndarray[Any, Any]) -> bytes:
         >>> format_rows(np.array([[1, -2], [30, 4]]))
         b'1 -2\\n30 4\\n'
     """
-    if len(values) == 0:
-        return b""
-    fmt = " ".join(["%d"] * values.shape[1]) + "\n"
-    return "".join(fmt % tuple(row) for row in values.tolist()).encode("ascii")
+    return b"".join(iter_format_rows(values))

@@ -27,7 +27,7 @@ from mapkit._atomic import atomic_open
 from mapkit._typing import PathLike
 from mapkit.diagnostics import Issue, IssueCode
 from mapkit.errors import MapFormatError
-from mapkit.formats._rows import format_rows, parse_rows
+from mapkit.formats._rows import RowReader, iter_format_rows, join_blocks
 from mapkit.model import (
     CATEGORIES,
     INFO_KEYWORDS,
@@ -428,13 +428,39 @@ class _Parser:
                           "the last data row has no newline: ARIA drops it, mapkit keeps it")
             data = data + b"\n"
             n += 1
+        # The section is read in chunks cut at LF. A chunk of canonical rows (what ARIA writes) is
+        # parsed in one vectorised step; any other chunk (a tag, a blank line, a row ARIA skips)
+        # goes line by line through data_lines().
+        reader = RowReader(data)
+        line = lineno + 1  # number of the line starting at s
+        s = pos
+        while s < n:
+            e = n
+            if n - s > _DATA_CHUNK:
+                cut = data.rfind(b"\n", s, s + _DATA_CHUNK)
+                e = data.find(b"\n", s + _DATA_CHUNK) + 1 if cut < 0 else cut + 1
+            values = reader.fast(s, e, 2 if current[1] == "points" else 4) if s >= 8 else None
+            if values is not None:
+                self.blocks(current).append(values)
+                line += len(values)
+            else:
+                current, line = self.data_lines(reader, s, e, current, line)
+            s = e
+
+    def data_lines(
+        self, reader: RowReader, start: int, end: int, current: tuple[int, str], line: int
+    ) -> tuple[tuple[int, str], int]:
+        """Rows, tags and skipped lines of ``data[start:end]``; returns the section and line after it."""
+        data = reader.data
         # Lines that do not start with a digit or '-': tags, blank lines and rows ARIA skips.
-        seg_start = pos
-        seg_line = lineno + 1
-        for m in _NONNUMERIC_LINE.finditer(data, pos):
+        seg_start = start
+        seg_line = line
+        for m in _NONNUMERIC_LINE.finditer(data, start, end):
             s = m.start()
+            if s >= end:  # the empty "line" after the chunk's last LF
+                break
             if s > seg_start:
-                self.rows(data[seg_start:s], current, seg_line)
+                self.rows(reader, seg_start, s, current, seg_line)
             line_no = seg_line + data.count(b"\n", seg_start, s)
             raw = m.group()
             tag = self.match_tag(raw)
@@ -451,17 +477,23 @@ class _Parser:
                               f"data row {_decode(raw[:40])!r} is skipped (ARIA skips it silently)")
             seg_start = m.end() + 1
             seg_line = line_no + 1
-        if seg_start < n:
-            self.rows(data[seg_start:n], current, seg_line)
+        if seg_start < end:
+            seg_line += self.rows(reader, seg_start, end, current, seg_line)
+        return current, seg_line
 
-    def rows(self, seg: bytes, current: tuple[int, str], first_line: int) -> None:
-        idx, kind = current
-        scan = self.scans[idx]
-        values, bad = parse_rows(seg, 2 if kind == "points" else 4)
-        (scan.point_chunks if kind == "points" else scan.line_chunks).append(values)
+    def blocks(self, current: tuple[int, str]) -> list[np.ndarray[Any, Any]]:
+        scan = self.scans[current[0]]
+        return scan.point_chunks if current[1] == "points" else scan.line_chunks
+
+    def rows(self, reader: RowReader, start: int, end: int, current: tuple[int, str], first_line: int) -> int:
+        """Parse the rows of ``data[start:end]`` into the current section; returns the row count."""
+        kind = current[1]
+        values, bad, nrows = reader.parse(start, end, 2 if kind == "points" else 4)
+        self.blocks(current).extend(values)
         for b in bad:
             self.note(IssueCode.BAD_DATA_ROW, first_line + b,
                       f"{'DATA' if kind == 'points' else 'LINES'} row skipped (ARIA skips it silently)")
+        return nrows
 
     # -- build the model ----------------------------------------------------------------------
 
@@ -470,8 +502,8 @@ class _Parser:
         too_wide = False
         built: list[tuple[_ScanState, np.ndarray[Any, Any], np.ndarray[Any, Any]]] = []
         for st in self.scans:
-            pts = np.concatenate(st.point_chunks) if st.point_chunks else np.zeros((0, 2), np.int64)
-            lns = np.concatenate(st.line_chunks) if st.line_chunks else np.zeros((0, 4), np.int64)
+            pts = join_blocks(st.point_chunks, 2)
+            lns = join_blocks(st.line_chunks, 4)
             built.append((st, pts, lns))
         for st, pts, lns in built:
             h = st.header
@@ -557,6 +589,7 @@ _SCAN_KEYS = {
 }
 
 _NONNUMERIC_LINE = re.compile(rb"^(?![0-9-]).*$", re.M)
+_DATA_CHUNK = 1 << 17  # bytes of the data section per vectorised step
 
 
 def _aria_box(
@@ -775,10 +808,10 @@ def iter_map_chunks(m: MapData) -> Iterator[bytes]:
     for s in m.scans:
         if s.num_lines:
             yield (_scan_prefix(s) + "_LINES\n" if _scan_prefix(s) else "LINES\n").encode()
-            yield format_rows(s.lines)
+            yield from iter_format_rows(s.lines)
     for s in m.scans:
         yield (_scan_prefix(s) + "_DATA\n" if _scan_prefix(s) else "DATA\n").encode()
-        yield format_rows(s.points)
+        yield from iter_format_rows(s.points)
 
 
 def dumpb(m: MapData) -> bytes:
