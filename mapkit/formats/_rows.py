@@ -108,11 +108,11 @@ _DIGIT_MASK = np.array(
     [0] + [int.from_bytes(b"\x00" * (9 - e) + b"\x0f" * (e - 1), "little") for e in range(1, 10)],
     dtype=_U64,
 )
-# A number whose first character is '-' reads as 13 * 10**(n-1) + |value| and no n-character run
-# of digits (with at most '-' = 13 after the first) reaches that threshold.
+# A number of n characters whose first is '-' reads as 13 * 10**(n-1) + |value|.
 _NEG_THRESHOLD = np.array([0, 0] + [13 * 10 ** (e - 2) for e in range(2, 10)], dtype=np.int64)
-_B45 = np.uint8(45)
-_B57 = np.uint8(57)
+_LEAD_UNIT = np.array([0, 0] + [10 ** (e - 2) for e in range(2, 10)], dtype=_U64)
+_B45 = np.uint8(45)  # '-'
+_B57 = np.uint8(57)  # '9'
 _B3 = np.uint8(3)
 
 # Writing: ASCII of 0..9999 as 4 digits (most significant first), and digit counts.
@@ -208,11 +208,9 @@ class RowReader:
         # ell = 1 + characters of the number ending at each separator: 1 to 8 characters.
         if ell.min() < 2 or ell.max() > 9:
             return None
-        # Inside numbers only digits and '-' ('.' and '/' are the other bytes in '-'..'9').
-        shifted = c - _B45
-        n_minus = int(np.count_nonzero(shifted == 0))
-        if np.count_nonzero(shifted < _B3) != n_minus:
-            return None
+        # Inside numbers only digits and a leading '-': every byte in '-'..'/' must be the first
+        # character of a number that reads as negative (checked below).
+        n_minus = int(np.count_nonzero((c - _B45) < _B3))
         ends += s - 8
         w = self.win[ends]
         w &= _DIGIT_MASK[ell]
@@ -227,11 +225,15 @@ class RowReader:
         w >>= _U64(32)
         v = w.view(np.int64)
         if n_minus:
-            thr = _NEG_THRESHOLD[ell]
-            neg = v >= thr
-            if np.count_nonzero(neg) != n_minus:  # a '-' that does not start a number
+            d = v - _NEG_THRESHOLD[ell]
+            # A leading '-' reads as 13 * unit + |value| with |value| < unit; a leading '.' or
+            # '/' (14, 15) reads at least 14 * unit, a leading digit less than 13 * unit.
+            neg = d.view(_U64) < _LEAD_UNIT[ell]
+            if np.count_nonzero(neg) != n_minus:  # a '-' elsewhere, a '.' or a '/'
                 return None
-            v = np.where(neg, thr - v, v)
+            d += v  # v - (v + d) = -d where negative
+            d *= neg
+            v -= d
         return v.reshape(-1, k)
 
 

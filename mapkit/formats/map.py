@@ -602,17 +602,20 @@ def _aria_box(
     if count is not None and count <= 0:
         if len(xy) == 0:
             return None, None
-        lo, hi = xy.min(axis=0), xy.max(axis=0)
-        return (int(lo[0]), int(lo[1])), (int(hi[0]), int(hi[1]))
+        lo, hi = _column_bounds(xy)
+        return lo, hi
     lo0 = hmin if hmin is not None else (0, 0)
     hi0 = hmax if hmax is not None else (0, 0)
     if len(xy) == 0:
         return lo0, hi0
-    lo, hi = xy.min(axis=0), xy.max(axis=0)
-    return (
-        (min(lo0[0], int(lo[0])), min(lo0[1], int(lo[1]))),
-        (max(hi0[0], int(hi[0])), max(hi0[1], int(hi[1]))),
-    )
+    lo, hi = _column_bounds(xy)
+    return (min(lo0[0], lo[0]), min(lo0[1], lo[1])), (max(hi0[0], hi[0]), max(hi0[1], hi[1]))
+
+
+def _column_bounds(xy: np.ndarray[Any, Any]) -> tuple[tuple[int, int], tuple[int, int]]:
+    # Column by column: numpy's min(axis=0) over an (N, 2) array is ten times slower.
+    x, y = xy[:, 0], xy[:, 1]
+    return (int(x.min()), int(y.min())), (int(x.max()), int(y.max()))
 
 
 # -- public reading API ----------------------------------------------------------------------
