@@ -190,7 +190,7 @@ class RowReader:
             return None
         ends = np.flatnonzero(c < _B45)  # every byte below '-': the separators
         nsep = ends.size
-        if nsep <= k:
+        if nsep < k:
             return None
         seps = c[ends]
         dtype, word = _SEP_WORD[k]
