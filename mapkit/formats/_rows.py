@@ -36,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["RowReader", "format_rows", "iter_format_rows", "parse_rows"]
+__all__ = ["RowReader", "RowSink", "format_rows", "iter_format_rows", "parse_rows"]
 
 IntArray = np.ndarray[Any, np.dtype[np.int64]]
 
@@ -115,10 +115,10 @@ _B45 = np.uint8(45)  # '-'
 _B57 = np.uint8(57)  # '9'
 _B3 = np.uint8(3)
 
-# Writing: ASCII of 0..9999 as 4 digits (most significant first), and digit counts.
-_ASCII4 = np.array(
-    [int.from_bytes(b"%04d" % i, "little") for i in range(10000)], dtype=_U64
-)
+# Writing: ASCII of 0..9999 as 4 digits (most significant first) in the low or the high half of
+# a word, and digit counts; separators of rows of 2 and 4 values, one per value.
+_ASCII4_HI = np.array([int.from_bytes(b"%04d" % i, "little") for i in range(10000)], dtype=_U64)
+_ASCII4_LO = _ASCII4_HI << _U64(32)
 _NDIG = np.array([len(str(i)) for i in range(10000)], dtype=np.int64)
 _NDIG_HI = np.where(np.arange(10000) > 0, _NDIG + 4, 0).astype(np.int64)
 
@@ -244,6 +244,39 @@ def _gaps(ends: IntArray) -> IntArray:
     return out
 
 
+class RowSink:
+    """Rows appended block by block into one array that grows as needed (no final concatenation).
+
+    Args:
+        ncols: Values per row.
+        expected: Rows to make room for at the first append (e.g. the header's count).
+    """
+
+    def __init__(self, ncols: int, expected: int = 0) -> None:
+        self.ncols = ncols
+        self.expected = expected
+        self.buf = np.zeros((0, ncols), np.int64)
+        self.n = 0
+
+    def append(self, values: IntArray) -> None:
+        """Add rows at the end."""
+        need = self.n + len(values)
+        if need > len(self.buf):
+            grown = np.empty((max(need, self.expected, len(self.buf) * 3 // 2 + 1024), self.ncols), np.int64)
+            grown[: self.n] = self.buf[: self.n]
+            self.buf = grown
+        self.buf[self.n : need] = values
+        self.n = need
+
+    def result(self) -> IntArray:
+        """The rows as one ``(n, ncols)`` array (a copy only when much of the room is unused)."""
+        if self.n == len(self.buf):
+            return self.buf
+        if len(self.buf) - self.n > max(self.n // 8, 4096):
+            return self.buf[: self.n].copy()
+        return self.buf[: self.n]
+
+
 def parse_rows(seg: bytes, ncols: int) -> tuple[IntArray, list[int]]:
     """Parse complete data rows with ARIA's rules.
 
@@ -278,42 +311,52 @@ def join_blocks(blocks: list[IntArray], ncols: int) -> IntArray:
 # -- writing ----------------------------------------------------------------------------------
 
 
+_SEP = {k: np.tile(np.array([32] * (k - 1) + [10], _U64), _FORMAT_CHUNK) for k in (2, 4)}
+
+
 def _format_fast(values: np.ndarray[Any, Any]) -> np.ndarray[Any, np.dtype[np.uint8]] | None:
     """The text of an ``(n, k)`` block of rows, or ``None`` if a value has more than 8 digits."""
     n, k = values.shape
     v = np.ascontiguousarray(values, dtype=np.int64).ravel()
-    neg = v < 0
     a = np.abs(v)
-    if a.size and (a.max() >= _MAX_FAST or a.min() < 0):  # min < 0: abs(-2**63)
+    if a.size == 0 or a.view(_U64).max() >= _MAX_FAST:  # abs(-2**63) reads 2**63 here
         return None
+    neg = v < 0
     hi = a // 10000
     lo = a - hi * 10000
-    word = _ASCII4[hi]
-    word |= _ASCII4[lo] << _U64(32)
-    ndig = np.maximum(_NDIG_HI[hi], _NDIG[lo])
-    # Left-align the digits and put the separator after them (a full 8-digit word has no room:
-    # its separator is stored separately below).
-    shift = ndig * -8
-    shift += 64
-    word >>= shift.view(_U64)
-    sep = np.empty((n, k), _U64)
-    sep[:, :-1] = 32
-    sep[:, -1] = 10
-    sep = sep.ravel()
-    word |= sep << (ndig * 8).view(_U64)
-    width = ndig + 1
-    width += neg
-    end = np.cumsum(width)
-    total = int(end[-1]) if end.size else 0
+    word = _ASCII4_HI[hi]
+    word |= _ASCII4_LO[lo]
+    chars = np.maximum(_NDIG_HI[hi], _NDIG[lo])  # digits, then characters without the separator
+    chars += neg
+    # Keep the last `chars` bytes of the 8 digits (leading '0's included), moved to the start of
+    # the word; for a negative number the first of them is a padding '0': make it '-'.
+    bits = chars << 3
+    word >>= (64 - bits).view(_U64)
+    word -= neg * _U64(ord("0") - ord("-"))
+    word |= _SEP[k][: v.size] << bits.view(_U64)  # shifts of 64 bits give 0: no room, see below
+    chars += 1
+    end = np.cumsum(chars)
+    total = int(end[-1])
     out = np.empty(total + 8, np.uint8)
-    start = end - width
-    at = start + neg
-    np.ndarray(shape=(total + 1,), dtype="<u8", buffer=out, strides=(1,))[at] = word
-    out[start[neg]] = 45
-    full = ndig == 8
-    if full.any():
-        out[end[full] - 1] = sep[full].astype(np.uint8)
+    start = end - chars
+    # Increasing offsets: each word's spare bytes are overwritten by the words after it.
+    np.ndarray(shape=(total + 1,), dtype="<u8", buffer=out, strides=(1,))[start] = word
+    long = bits >= 64
+    if long.any():  # 8 characters or more: the separator (and a 9th character) come separately
+        _format_long(out, a[long], neg[long], start[long], end[long], _SEP[k][: v.size][long])
     return out[:total]
+
+
+def _format_long(
+    out: np.ndarray[Any, Any], a: IntArray, neg: Any, start: IntArray, end: IntArray, sep: Any
+) -> None:
+    hi = a // 10000
+    word = _ASCII4_HI[hi] | _ASCII4_LO[a - hi * 10000]
+    nine = neg & (a >= 10**7)  # '-' and 8 digits: the digits start one byte later
+    if nine.any():
+        np.ndarray(shape=(len(out) - 7,), dtype="<u8", buffer=out, strides=(1,))[start[nine] + 1] = word[nine]
+        out[start[nine]] = ord("-")
+    out[end - 1] = sep.astype(np.uint8)
 
 
 def iter_format_rows(values: np.ndarray[Any, Any]) -> Iterator[bytes]:

@@ -16,6 +16,7 @@ import hashlib
 import math
 import os
 import re
+import threading
 import types
 from collections.abc import Iterator
 from dataclasses import dataclass, field
@@ -27,7 +28,7 @@ from mapkit._atomic import atomic_open
 from mapkit._typing import PathLike
 from mapkit.diagnostics import Issue, IssueCode
 from mapkit.errors import MapFormatError
-from mapkit.formats._rows import RowReader, iter_format_rows, join_blocks
+from mapkit.formats._rows import RowReader, RowSink, iter_format_rows
 from mapkit.model import (
     CATEGORIES,
     INFO_KEYWORDS,
@@ -136,6 +137,9 @@ class _Parser:
         self.category = ""
         self.intro_line = 0
         self.first_data_line = 0
+        self.md5: _BackgroundMD5 | None = None
+        self.sinks: dict[tuple[int, str], RowSink] = {}
+        self.data_end = 0
 
     # -- reporting ----------------------------------------------------------------------------
 
@@ -420,32 +424,41 @@ class _Parser:
     def data_phase(self, pos: int, lineno: int, current: tuple[int, str]) -> None:
         data = self.data
         n = len(data)
+        if n >= _BACKGROUND_MD5_BYTES:
+            self.md5 = _BackgroundMD5(data)  # hashes on the other core while the rows are read
+        end = n
+        late_note = None
         if n > pos and not data.endswith(b"\n"):
-            last_start = data.rfind(b"\n", pos, n) + 1
-            last = data[last_start:]
-            if last[:1].isdigit() or last[:1] == b"-":
-                self.note(IssueCode.LAST_ROW_WITHOUT_NEWLINE, lineno + data.count(b"\n", pos, n) + 1,
-                          "the last data row has no newline: ARIA drops it, mapkit keeps it")
-            data = data + b"\n"
-            n += 1
+            end = max(pos, data.rfind(b"\n", pos, n) + 1)
+            if data[end:end + 1].isdigit() or data[end:end + 1] == b"-":
+                late_note = len(self.issues)
         # The section is read in chunks cut at LF. A chunk of canonical rows (what ARIA writes) is
         # parsed in one vectorised step; any other chunk (a tag, a blank line, a row ARIA skips)
-        # goes line by line through data_lines().
+        # goes line by line through data_lines(). Rows go straight into one array per section.
         reader = RowReader(data)
+        self.data_end = end
         line = lineno + 1  # number of the line starting at s
         s = pos
-        while s < n:
-            e = n
-            if n - s > _DATA_CHUNK:
+        while s < end:
+            e = end
+            if end - s > _DATA_CHUNK:
                 cut = data.rfind(b"\n", s, s + _DATA_CHUNK)
-                e = data.find(b"\n", s + _DATA_CHUNK) + 1 if cut < 0 else cut + 1
+                e = data.find(b"\n", s + _DATA_CHUNK, end) + 1 if cut < 0 else cut + 1
             values = reader.fast(s, e, 2 if current[1] == "points" else 4) if s >= 8 else None
             if values is not None:
-                self.blocks(current).append(values)
+                self.sink(current, end - s).append(values)
                 line += len(values)
             else:
                 current, line = self.data_lines(reader, s, e, current, line)
             s = e
+        if end < n:  # the last line has no newline: read it with one added (ARIA drops it)
+            if late_note is not None:
+                issue = Issue.make(IssueCode.LAST_ROW_WITHOUT_NEWLINE,
+                                   "the last data row has no newline: ARIA drops it, mapkit keeps it",
+                                   source=self.source, line=line)
+                self.issues.insert(late_note, issue)
+            tail = b"\n" * 8 + data[end:] + b"\n"
+            self.data_lines(RowReader(tail), 8, len(tail), current, line)
 
     def data_lines(
         self, reader: RowReader, start: int, end: int, current: tuple[int, str], line: int
@@ -481,15 +494,24 @@ class _Parser:
             seg_line += self.rows(reader, seg_start, end, current, seg_line)
         return current, seg_line
 
-    def blocks(self, current: tuple[int, str]) -> list[np.ndarray[Any, Any]]:
-        scan = self.scans[current[0]]
-        return scan.point_chunks if current[1] == "points" else scan.line_chunks
+    def sink(self, current: tuple[int, str], left: int = 0) -> RowSink:
+        """The growing array of the current section's rows (sized by the header's count)."""
+        got = self.sinks.get(current)
+        if got is None:
+            idx, kind = current
+            ncols = 2 if kind == "points" else 4
+            count = self.scans[idx].header.get("numpoints:" if kind == "points" else "numlines:")
+            expected = count if isinstance(count, int) and 0 < count <= left // (2 * ncols) else 0
+            got = self.sinks[current] = RowSink(ncols, expected)
+        return got
 
     def rows(self, reader: RowReader, start: int, end: int, current: tuple[int, str], first_line: int) -> int:
         """Parse the rows of ``data[start:end]`` into the current section; returns the row count."""
         kind = current[1]
         values, bad, nrows = reader.parse(start, end, 2 if kind == "points" else 4)
-        self.blocks(current).extend(values)
+        sink = self.sink(current, max(end, self.data_end) - start)
+        for block in values:
+            sink.append(block)
         for b in bad:
             self.note(IssueCode.BAD_DATA_ROW, first_line + b,
                       f"{'DATA' if kind == 'points' else 'LINES'} row skipped (ARIA skips it silently)")
@@ -501,9 +523,10 @@ class _Parser:
         scans = []
         too_wide = False
         built: list[tuple[_ScanState, np.ndarray[Any, Any], np.ndarray[Any, Any]]] = []
-        for st in self.scans:
-            pts = join_blocks(st.point_chunks, 2)
-            lns = join_blocks(st.line_chunks, 4)
+        for i, st in enumerate(self.scans):
+            pts = self.sink((i, "points")).result()
+            lns = self.sink((i, "lines")).result()
+            pts.flags.writeable = lns.flags.writeable = False  # private arrays: Scan need not copy
             built.append((st, pts, lns))
         for st, pts, lns in built:
             h = st.header
@@ -534,7 +557,7 @@ class _Parser:
             scans = self.recompute_wide(scans)
         prov = Provenance(
             source=self.source,
-            md5=hashlib.md5(self.data).hexdigest(),
+            md5=self.md5.hexdigest() if self.md5 is not None else hashlib.md5(self.data).hexdigest(),
             size=len(self.data),
             object_lines=tuple(self.object_lines["objects"]),
             inactive_object_lines=tuple(self.object_lines["inactive_objects"]),
@@ -588,6 +611,21 @@ _SCAN_KEYS = {
 }
 
 _NONNUMERIC_LINE = re.compile(rb"^(?![0-9-]).*$", re.M)
+_BACKGROUND_MD5_BYTES = 1 << 20
+
+
+class _BackgroundMD5:
+    """MD5 of a buffer computed by a thread (hashlib releases the GIL on large buffers)."""
+
+    def __init__(self, data: bytes) -> None:
+        self._hash = hashlib.md5()
+        self._thread = threading.Thread(target=self._hash.update, args=(data,), daemon=True)
+        self._thread.start()
+
+    def hexdigest(self) -> str:
+        self._thread.join()
+        return self._hash.hexdigest()
+
 _DATA_CHUNK = 1 << 17  # bytes of the data section per vectorised step
 
 
