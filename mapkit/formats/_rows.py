@@ -112,8 +112,8 @@ _DIGIT_MASK = np.array(
 _NEG_THRESHOLD = np.array([0, 0] + [13 * 10 ** (e - 2) for e in range(2, 10)], dtype=np.int64)
 _LEAD_UNIT = np.array([0, 0] + [10 ** (e - 2) for e in range(2, 10)], dtype=_U64)
 _B45 = np.uint8(45)  # '-'
-_B57 = np.uint8(57)  # '9'
 _B3 = np.uint8(3)
+_B12 = np.uint8(12)
 
 # Writing: ASCII of 0..9999 as 4 digits (most significant first) in the low or the high half of
 # a word, and digit counts; separators of rows of 2 and 4 values, one per value.
@@ -141,14 +141,14 @@ class RowReader:
         # win[i] is the little-endian uint64 of data[i:i + 8].
         self.win = np.ndarray(shape=(max(n - 7, 0),), dtype="<u8", buffer=data, strides=(1,))
 
-    def parse(self, start: int, end: int, ncols: int) -> tuple[list[IntArray], list[int], int]:
+    def parse(self, start: int, end: int, ncols: int, sink: RowSink) -> tuple[list[int], int]:
         """Parse the rows in ``data[start:end]`` (each ending with LF, each starting with a digit or ``-``).
 
+        The rows ARIA keeps are appended to ``sink``.
+
         Returns:
-            ``(blocks, bad, nrows)``: arrays of kept rows in order, the 0-based indices of the
-            skipped rows, and the number of rows seen.
+            ``(bad, nrows)``: the 0-based indices of the skipped rows and the number of rows seen.
         """
-        blocks: list[IntArray] = []
         bad: list[int] = []
         nrows = 0
         data = self.data
@@ -160,39 +160,75 @@ class RowReader:
                 if cut < 0:
                     cut = data.find(b"\n", s + _PARSE_CHUNK, end)
                 e = end if cut < 0 else cut + 1
-            nrows = self._piece(s, e, ncols, blocks, bad, nrows)
+            nrows = self._piece(s, e, ncols, sink, bad, nrows)
             s = e
-        return blocks, bad, nrows
+        return bad, nrows
 
-    def _piece(self, s: int, e: int, k: int, blocks: list[IntArray], bad: list[int], nrows: int) -> int:
-        values = self.fast(s, e, k) if s >= 8 else None
-        if values is not None:
-            blocks.append(values)
-            return nrows + len(values)
+    def _piece(self, s: int, e: int, k: int, sink: RowSink, bad: list[int], nrows: int) -> int:
+        n = self.fast_into(sink, s, e, k) if s >= 8 else None
+        if n is not None:
+            return nrows + n
         if e - s > _MIN_SPLIT:
             mid = self.data.rfind(b"\n", s, (s + e) // 2) + 1
             if s < mid < e:
-                nrows = self._piece(s, mid, k, blocks, bad, nrows)
-                return self._piece(mid, e, k, blocks, bad, nrows)
+                nrows = self._piece(s, mid, k, sink, bad, nrows)
+                return self._piece(mid, e, k, sink, bad, nrows)
         seg = self.data[s:e]
         values, skipped = _parse_rows_reference(seg, k)
-        blocks.append(values)
+        sink.append(values)
         bad.extend(nrows + i for i in skipped)
         return nrows + seg.count(b"\n") + (0 if seg.endswith(b"\n") else 1)
 
-    def fast(self, s: int, e: int, k: int) -> IntArray | None:
+    def fast(self, s: int, e: int, k: int | None = None) -> IntArray | None:
         """Rows of ``data[s:e]`` as an ``(n, k)`` array if the text is canonical, else ``None``.
 
+        With ``k=None`` the number of values per row is taken from the first row (2 or 4).
+        """
+        found = self._canonical(s, e, k)
+        if found is None:
+            return None
+        k, ends, ell, n_minus = found
+        out = np.empty((ell.size // k, k), np.int64)
+        return out if self._values(ends, ell, n_minus, out.reshape(-1)) else None
+
+    def fast_into(self, sink: RowSink, s: int, e: int, k: int) -> int | None:
+        """Append the rows of ``data[s:e]`` to ``sink`` if the text is canonical.
+
         ``data[s:e]`` must end with LF and ``s >= 8``.
+
+        Returns:
+            The number of rows, or ``None`` (and nothing appended) if the text is not canonical.
+        """
+        found = self._canonical(s, e, k)
+        if found is None:
+            return None
+        k, ends, ell, n_minus = found
+        nrows = ell.size // k
+        if not self._values(ends, ell, n_minus, sink.reserve(nrows).reshape(-1)):
+            return None
+        sink.commit(nrows)
+        return nrows
+
+    def _canonical(
+        self, s: int, e: int, k: int | None
+    ) -> tuple[int, IntArray, IntArray, int] | None:
+        """Check that ``data[s:e]`` is canonical; ``(k, ends, ell, n_minus)`` if it is.
+
+        ``ends`` are the offsets of the 8-byte words that end each number, ``ell`` is 1 + the
+        length of each number, ``n_minus`` the count of bytes '-', '.' and '/' (see _values).
         """
         c = self.buf[s:e]
-        if c.size == 0 or c[-1] != 10 or c.max() > _B57:  # letters, ':' and above
+        if c.size == 0 or c[-1] != 10 or s < 8:
             return None
-        ends = np.flatnonzero(c < _B45)  # every byte below '-': the separators
+        # Bytes '-' . / 0..9 become 0..12; every other byte (separators, letters) is above 12.
+        t = c - _B45
+        ends = np.flatnonzero(t > _B12)
         nsep = ends.size
-        if nsep < k:
-            return None
         seps = c[ends]
+        if k is None:  # the first row says: "a b\n", "a b\r\n", "a b c d\n", "a b c d\r\n"
+            k = next((j for j in (2, 4) if nsep > j and 10 in (seps[j - 1], seps[j])), 0)
+        if k not in _SEP_WORD or nsep < k:
+            return None
         dtype, word = _SEP_WORD[k]
         if nsep % k == 0 and seps[k - 1] == 10:
             if not (seps.view(dtype) == word).all():
@@ -209,9 +245,13 @@ class RowReader:
         if ell.min() < 2 or ell.max() > 9:
             return None
         # Inside numbers only digits and a leading '-': every byte in '-'..'/' must be the first
-        # character of a number that reads as negative (checked below).
-        n_minus = int(np.count_nonzero((c - _B45) < _B3))
+        # character of a number that reads as negative (checked by _values).
+        n_minus = int(np.count_nonzero(t < _B3))
         ends += s - 8
+        return k, ends, ell, n_minus
+
+    def _values(self, ends: IntArray, ell: IntArray, n_minus: int, out: IntArray) -> bool:
+        """The numbers into ``out`` (flat int64); ``False`` when a '-' is not where it may be."""
         w = self.win[ends]
         w &= _DIGIT_MASK[ell]
         # SWAR: 8 digit bytes (most significant first) -> pairs -> quads -> value.
@@ -222,19 +262,18 @@ class RowReader:
         w >>= _U64(16)
         w &= _U64(0x0000FFFF0000FFFF)
         w *= _U64((10000 << 32) + 1)
-        w >>= _U64(32)
-        v = w.view(np.int64)
+        np.right_shift(w, _U64(32), out=out.view(_U64))
         if n_minus:
-            d = v - _NEG_THRESHOLD[ell]
+            d = out - _NEG_THRESHOLD[ell]
             # A leading '-' reads as 13 * unit + |value| with |value| < unit; a leading '.' or
             # '/' (14, 15) reads at least 14 * unit, a leading digit less than 13 * unit.
             neg = d.view(_U64) < _LEAD_UNIT[ell]
             if np.count_nonzero(neg) != n_minus:  # a '-' elsewhere, a '.' or a '/'
-                return None
-            d += v  # v - (v + d) = -d where negative
+                return False
+            d += out  # v - (v + d) = -d where negative
             d *= neg
-            v -= d
-        return v.reshape(-1, k)
+            out -= d
+        return True
 
 
 def _gaps(ends: IntArray) -> IntArray:
@@ -258,15 +297,24 @@ class RowSink:
         self.buf = np.zeros((0, ncols), np.int64)
         self.n = 0
 
-    def append(self, values: IntArray) -> None:
-        """Add rows at the end."""
-        need = self.n + len(values)
+    def reserve(self, m: int) -> IntArray:
+        """Room for ``m`` more rows (a view to fill); they count once :meth:`commit` is called."""
+        need = self.n + m
         if need > len(self.buf):
-            grown = np.empty((max(need, self.expected, len(self.buf) * 3 // 2 + 1024), self.ncols), np.int64)
+            size = max(need, self.expected, len(self.buf) * 3 // 2 + 1024)
+            grown = np.empty((size, self.ncols), np.int64)
             grown[: self.n] = self.buf[: self.n]
             self.buf = grown
-        self.buf[self.n : need] = values
-        self.n = need
+        return self.buf[self.n : need]
+
+    def commit(self, m: int) -> None:
+        """Count ``m`` rows written into the last :meth:`reserve`."""
+        self.n += m
+
+    def append(self, values: IntArray) -> None:
+        """Add rows at the end."""
+        self.reserve(len(values))[...] = values
+        self.n += len(values)
 
     def result(self) -> IntArray:
         """The rows as one ``(n, ncols)`` array (a copy only when much of the room is unused)."""
@@ -295,17 +343,9 @@ def parse_rows(seg: bytes, ncols: int) -> tuple[IntArray, list[int]]:
         ([[1, 2], [12, 34], [0, 3]], [2])
     """
     data = b"\n" * 8 + bytes(seg)
-    blocks, bad, _ = RowReader(data).parse(8, len(data), ncols)
-    return join_blocks(blocks, ncols), bad
-
-
-def join_blocks(blocks: list[IntArray], ncols: int) -> IntArray:
-    """One ``(n, ncols)`` array from parsed blocks (a single block is returned as it is)."""
-    if len(blocks) == 1:
-        return blocks[0].reshape(-1, ncols)
-    if not blocks:
-        return np.zeros((0, ncols), np.int64)
-    return np.concatenate(blocks).reshape(-1, ncols)
+    sink = RowSink(ncols)
+    bad, _ = RowReader(data).parse(8, len(data), ncols, sink)
+    return sink.result(), bad
 
 
 # -- writing ----------------------------------------------------------------------------------

@@ -19,6 +19,7 @@ import re
 import threading
 import types
 from collections.abc import Iterator
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -435,22 +436,29 @@ class _Parser:
         # The section is read in chunks cut at LF. A chunk of canonical rows (what ARIA writes) is
         # parsed in one vectorised step; any other chunk (a tag, a blank line, a row ARIA skips)
         # goes line by line through data_lines(). Rows go straight into one array per section.
+        # Big sections are parsed by worker threads (numpy releases the GIL) and taken in order.
         reader = RowReader(data)
         self.data_end = end
         line = lineno + 1  # number of the line starting at s
-        s = pos
-        while s < end:
-            e = end
-            if end - s > _DATA_CHUNK:
-                cut = data.rfind(b"\n", s, s + _DATA_CHUNK)
-                e = data.find(b"\n", s + _DATA_CHUNK, end) + 1 if cut < 0 else cut + 1
-            values = reader.fast(s, e, 2 if current[1] == "points" else 4) if s >= 8 else None
-            if values is not None:
-                self.sink(current, end - s).append(values)
-                line += len(values)
-            else:
-                current, line = self.data_lines(reader, s, e, current, line)
-            s = e
+        spans = _spans(data, pos, end, _DATA_CHUNK)
+        workers = min(os.cpu_count() or 1, _MAX_WORKERS)
+        if len(spans) >= _PARALLEL_SPANS and workers > 1:
+            with ThreadPoolExecutor(workers) as pool:
+                parsed = pool.map(lambda span: reader.fast(*span), spans)
+                for (s, e), values in zip(spans, parsed):
+                    if values is not None and values.shape[1] == (2 if current[1] == "points" else 4):
+                        self.sink(current, end - s).append(values)
+                        line += len(values)
+                    else:
+                        current, line = self.data_lines(reader, s, e, current, line)
+        else:
+            for s, e in spans:
+                k = 2 if current[1] == "points" else 4
+                nrows = reader.fast_into(self.sink(current, end - s), s, e, k)
+                if nrows is not None:
+                    line += nrows
+                else:
+                    current, line = self.data_lines(reader, s, e, current, line)
         if end < n:  # the last line has no newline: read it with one added (ARIA drops it)
             if late_note is not None:
                 issue = Issue.make(IssueCode.LAST_ROW_WITHOUT_NEWLINE,
@@ -508,10 +516,8 @@ class _Parser:
     def rows(self, reader: RowReader, start: int, end: int, current: tuple[int, str], first_line: int) -> int:
         """Parse the rows of ``data[start:end]`` into the current section; returns the row count."""
         kind = current[1]
-        values, bad, nrows = reader.parse(start, end, 2 if kind == "points" else 4)
         sink = self.sink(current, max(end, self.data_end) - start)
-        for block in values:
-            sink.append(block)
+        bad, nrows = reader.parse(start, end, 2 if kind == "points" else 4, sink)
         for b in bad:
             self.note(IssueCode.BAD_DATA_ROW, first_line + b,
                       f"{'DATA' if kind == 'points' else 'LINES'} row skipped (ARIA skips it silently)")
@@ -627,6 +633,23 @@ class _BackgroundMD5:
         return self._hash.hexdigest()
 
 _DATA_CHUNK = 1 << 17  # bytes of the data section per vectorised step
+_PARALLEL_SPANS = 16  # chunks from which worker threads parse the data section
+_MAX_WORKERS = 4
+
+
+def _spans(data: bytes, start: int, end: int, size: int) -> list[tuple[int, int]]:
+    """``data[start:end]`` cut into pieces of about ``size`` bytes that end with LF."""
+    out = []
+    s = start
+    while s < end:
+        e = end
+        if end - s > size:
+            cut = data.rfind(b"\n", s, s + size)
+            e = data.find(b"\n", s + size, end) + 1 if cut < 0 else cut + 1
+            e = e or end
+        out.append((s, e))
+        s = e
+    return out
 
 
 def _aria_box(

@@ -31,15 +31,22 @@ INT32 = st.integers(-(2**31), 2**31 - 1)
 
 
 @contextlib.contextmanager
-def small_chunks(parse: int = 48, split: int = 16, fmt: int = 3, data: int = 40) -> Iterator[None]:
-    """Shrink the chunk sizes so small examples cross chunk and split boundaries."""
-    saved = (_rows._PARSE_CHUNK, _rows._MIN_SPLIT, _rows._FORMAT_CHUNK, mapformat._DATA_CHUNK)
-    _rows._PARSE_CHUNK, _rows._MIN_SPLIT, _rows._FORMAT_CHUNK, mapformat._DATA_CHUNK = (
-        parse, split, fmt, data)
+def small_chunks(threads: bool = True) -> Iterator[None]:
+    """Shrink the chunk sizes so small examples cross chunk and split boundaries.
+
+    With ``threads`` the map reader's worker threads parse from the second chunk on; without,
+    the data phase runs on the calling thread only.
+    """
+    names = [(_rows, "_PARSE_CHUNK", 48), (_rows, "_MIN_SPLIT", 16), (_rows, "_FORMAT_CHUNK", 3),
+             (mapformat, "_DATA_CHUNK", 40), (mapformat, "_PARALLEL_SPANS", 2 if threads else 1 << 40)]
+    saved = [getattr(module, name) for module, name, _ in names]
+    for module, name, value in names:
+        setattr(module, name, value)
     try:
         yield
     finally:
-        _rows._PARSE_CHUNK, _rows._MIN_SPLIT, _rows._FORMAT_CHUNK, mapformat._DATA_CHUNK = saved
+        for (module, name, _), value in zip(names, saved):
+            setattr(module, name, value)
 
 
 def same_parse(seg: bytes, ncols: int) -> None:
@@ -269,7 +276,7 @@ def data_sections(draw: st.DrawFn) -> bytes:
     tags = [b"DATA", b"LINES", b"data extra", b"LINESxyz", b"A_DATA", b"B_LINES"]
     lines = [draw(st.sampled_from(tags[:2] if header == b"2D-Map\n" else tags))]
     ncols = 2
-    for _ in range(draw(st.integers(0, 25))):
+    for _ in range(draw(st.integers(0, 40))):
         kind = draw(st.integers(0, 9))
         if kind == 0:
             lines.append(draw(st.sampled_from(tags)))
@@ -285,10 +292,11 @@ def data_sections(draw: st.DrawFn) -> bytes:
     return header + body
 
 
+@pytest.mark.parametrize("threads", [True, False])
 @given(text=data_sections())
 @example(text=b"2D-Map\nDATA\n1.5 2\n12 34.7\n5 6 7\n-7 -8\n+9 10\n0x10 5\n- 3\n 2 2\n\t3 3\n4\t4\n")
-def test_data_phase_equals_line_by_line(text: bytes) -> None:
-    with small_chunks():
+def test_data_phase_equals_line_by_line(threads: bool, text: bytes) -> None:
+    with small_chunks(threads):
         fast = outcome(text)
     with line_by_line():
         slow = outcome(text)
