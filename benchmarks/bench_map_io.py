@@ -73,13 +73,15 @@ def peak_bytes(fn: Callable[[], Any]) -> int:
 
 
 def rss_delta(path: Path) -> int:
-    """Growth of the peak resident size of a fresh process when it loads the map (bytes)."""
+    """Growth of the peak resident size (VmHWM) of a fresh process when it loads the map (bytes).
+
+    VmHWM rather than ru_maxrss: Linux carries ru_maxrss over from the parent across exec.
+    """
     code = (
-        "import resource, sys; sys.path.insert(0, sys.argv[2]); import mapkit, numpy;"
+        "import re, sys; sys.path.insert(0, sys.argv[2]); import mapkit, numpy;"
+        "hwm = lambda: int(re.search(r'VmHWM:\\s+(\\d+)', open('/proc/self/status').read())[1]);"
         "mapkit.loads(b'2D-Map\\nLINES\\n1 2 3 4\\nDATA\\n-1 2\\n');"  # warm up the code paths
-        "r0 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss;"
-        "m = mapkit.load(sys.argv[1]);"
-        "print((resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - r0) * 1024)"
+        "h0 = hwm(); m = mapkit.load(sys.argv[1]); print((hwm() - h0) * 1024)"
     )
     out = subprocess.run([sys.executable, "-c", code, str(path), str(ROOT)],
                          check=True, capture_output=True, text=True)

@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import re
 from collections.abc import Iterator
+from concurrent.futures import Executor
 from typing import Any
 
 import numpy as np
@@ -399,12 +400,23 @@ def _format_long(
     out[end - 1] = sep.astype(np.uint8)
 
 
-def iter_format_rows(values: np.ndarray[Any, Any]) -> Iterator[bytes]:
-    """The text of rows as ARIA writes them, in pieces of about 200 KB."""
-    for i in range(0, len(values), _FORMAT_CHUNK):
-        block = values[i : i + _FORMAT_CHUNK]
-        text = _format_fast(block)
-        yield _format_rows_reference(block) if text is None else text.tobytes()
+def _format_block(block: np.ndarray[Any, Any]) -> bytes:
+    text = _format_fast(block)
+    return _format_rows_reference(block) if text is None else text.tobytes()
+
+
+def iter_format_rows(values: np.ndarray[Any, Any], pool: Executor | None = None) -> Iterator[bytes]:
+    """The text of rows as ARIA writes them, in pieces of about 200 KB.
+
+    Args:
+        values: ``(n, k)`` integers.
+        pool: Threads to format the pieces on (they come out in order); ``None``: this thread.
+    """
+    blocks = (values[i : i + _FORMAT_CHUNK] for i in range(0, len(values), _FORMAT_CHUNK))
+    if pool is None:
+        yield from map(_format_block, blocks)
+    else:
+        yield from pool.map(_format_block, blocks)
 
 
 def format_rows(values: np.ndarray[Any, Any]) -> bytes:

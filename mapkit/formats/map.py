@@ -12,6 +12,7 @@ reports it in tolerant mode (:func:`recover`).
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import math
 import os
@@ -19,7 +20,7 @@ import re
 import threading
 import types
 from collections.abc import Iterator
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Executor, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -635,6 +636,7 @@ class _BackgroundMD5:
 _DATA_CHUNK = 1 << 17  # bytes of the data section per vectorised step
 _PARALLEL_SPANS = 16  # chunks from which worker threads parse the data section
 _MAX_WORKERS = 4
+_PARALLEL_ROWS = 100_000  # rows from which worker threads format a map
 
 
 def _spans(data: bytes, start: int, end: int, size: int) -> list[tuple[int, int]]:
@@ -866,15 +868,36 @@ def iter_header_lines(m: MapData) -> Iterator[str]:
 
 
 def iter_map_chunks(m: MapData) -> Iterator[bytes]:
-    """The canonical file as byte chunks (header, then each data section)."""
+    """The canonical file as byte chunks (header, then each data section).
+
+    For a big map, worker threads format the rows ahead of the consumer (numpy releases the GIL),
+    so that writing and hashing the chunks overlap with formatting the next ones.
+    """
+    with _format_pool(m) as pool:
+        yield from _map_chunks(m, pool)
+
+
+def _map_chunks(m: MapData, pool: Executor | None) -> Iterator[bytes]:
     yield _encode("".join(line + "\n" for line in iter_header_lines(m)))
     for s in m.scans:
         if s.num_lines:
             yield (_scan_prefix(s) + "_LINES\n" if _scan_prefix(s) else "LINES\n").encode()
-            yield from iter_format_rows(s.lines)
+            yield from iter_format_rows(s.lines, pool)
     for s in m.scans:
         yield (_scan_prefix(s) + "_DATA\n" if _scan_prefix(s) else "DATA\n").encode()
-        yield from iter_format_rows(s.points)
+        yield from iter_format_rows(s.points, pool)
+
+
+@contextlib.contextmanager
+def _format_pool(m: MapData) -> Iterator[Executor | None]:
+    """Worker threads to format a big map's rows, else ``None``."""
+    rows = sum(s.num_points + s.num_lines for s in m.scans)
+    workers = min(os.cpu_count() or 1, _MAX_WORKERS)
+    if rows < _PARALLEL_ROWS or workers < 2:
+        yield None
+        return
+    with ThreadPoolExecutor(workers) as pool:
+        yield pool
 
 
 def dumpb(m: MapData) -> bytes:

@@ -26,6 +26,7 @@ from mapkit.formats._rows import (
     format_rows,
     parse_rows,
 )
+from tests.strategies import maps
 
 INT32 = st.integers(-(2**31), 2**31 - 1)
 
@@ -323,3 +324,20 @@ def test_large_map_with_odd_rows_between_chunks() -> None:
     assert fast == slow
     m = mapkit.loads(text)
     assert len(m.points) == 40_000 and m.lines.tolist() == [[1, 2, 3, 4]]
+
+
+# -- the map writer's threads ---------------------------------------------------------------
+
+@given(m=maps())
+def test_threaded_writer_and_reader_round_trip(m: mapkit.MapData) -> None:
+    sequential = b"".join(mapformat._map_chunks(m, None))
+    saved = mapformat._PARALLEL_ROWS
+    mapformat._PARALLEL_ROWS = 1
+    try:
+        with small_chunks(threads=True):
+            text = mapkit.dumpb(m)
+            back = mapkit.loads(text)
+    finally:
+        mapformat._PARALLEL_ROWS = saved
+    assert text == sequential
+    assert back.equals(m)
