@@ -1,4 +1,4 @@
-"""Read and write the 1,000,000-point benchmark map; compare with baselines measured in the same run.
+"""Read and write the 1,000,000-point benchmark map; compare with baselines from the same run.
 
     python benchmarks/bench_map_io.py [--repeat N] [--keep DIR]
 
@@ -36,8 +36,9 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
-import mapkit  # noqa: E402
 from bigmap import write_big_map  # noqa: E402
+
+import mapkit  # noqa: E402
 from mapkit.formats import _rows  # noqa: E402
 
 ARIA_READ_S = 0.135

@@ -56,7 +56,7 @@ def _int(tok: bytes) -> int:
 
 
 def _parse_rows_reference(seg: bytes, ncols: int) -> tuple[IntArray, list[int]]:
-    """Parse rows one line at a time with a regular expression (the reference for :func:`parse_rows`).
+    """Parse rows one line at a time with regular expressions (the reference for parse_rows).
 
     Examples:
         >>> v, bad = _parse_rows_reference(b"1 2\\n12 34.7\\n1.5 2\\n- 3\\n", 2)
@@ -143,7 +143,7 @@ class RowReader:
         self.win = np.ndarray(shape=(max(n - 7, 0),), dtype="<u8", buffer=data, strides=(1,))
 
     def parse(self, start: int, end: int, ncols: int, sink: RowSink) -> tuple[list[int], int]:
-        """Parse the rows in ``data[start:end]`` (each ending with LF, each starting with a digit or ``-``).
+        """Parse the rows of ``data[start:end]`` (each starts with a digit or ``-``, ends with LF).
 
         The rows ARIA keeps are appended to ``sink``.
 
@@ -357,7 +357,7 @@ _SEP = {k: np.tile(np.array([32] * (k - 1) + [10], _U64), _FORMAT_CHUNK) for k i
 
 def _format_fast(values: np.ndarray[Any, Any]) -> np.ndarray[Any, np.dtype[np.uint8]] | None:
     """The text of an ``(n, k)`` block of rows, or ``None`` if a value has more than 8 digits."""
-    n, k = values.shape
+    k = values.shape[1]
     v = np.ascontiguousarray(values, dtype=np.int64).ravel()
     a = np.abs(v)
     if a.size == 0 or a.view(_U64).max() >= _MAX_FAST:  # abs(-2**63) reads 2**63 here
@@ -395,7 +395,8 @@ def _format_long(
     word = _ASCII4_HI[hi] | _ASCII4_LO[a - hi * 10000]
     nine = neg & (a >= 10**7)  # '-' and 8 digits: the digits start one byte later
     if nine.any():
-        np.ndarray(shape=(len(out) - 7,), dtype="<u8", buffer=out, strides=(1,))[start[nine] + 1] = word[nine]
+        words = np.ndarray(shape=(len(out) - 7,), dtype="<u8", buffer=out, strides=(1,))
+        words[start[nine] + 1] = word[nine]
         out[start[nine]] = ord("-")
     out[end - 1] = sep.astype(np.uint8)
 

@@ -446,8 +446,9 @@ class _Parser:
         if len(spans) >= _PARALLEL_SPANS and workers > 1:
             with ThreadPoolExecutor(workers) as pool:
                 parsed = pool.map(lambda span: reader.fast(*span), spans)
-                for (s, e), values in zip(spans, parsed):
-                    if values is not None and values.shape[1] == (2 if current[1] == "points" else 4):
+                for (s, e), values in zip(spans, parsed, strict=True):
+                    k = 2 if current[1] == "points" else 4
+                    if values is not None and values.shape[1] == k:
                         self.sink(current, end - s).append(values)
                         line += len(values)
                     else:
@@ -462,9 +463,11 @@ class _Parser:
                     current, line = self.data_lines(reader, s, e, current, line)
         if end < n:  # the last line has no newline: read it with one added (ARIA drops it)
             if late_note is not None:
-                issue = Issue.make(IssueCode.LAST_ROW_WITHOUT_NEWLINE,
-                                   "the last data row has no newline: ARIA drops it, mapkit keeps it",
-                                   source=self.source, line=line)
+                issue = Issue.make(
+                    IssueCode.LAST_ROW_WITHOUT_NEWLINE,
+                    "the last data row has no newline: ARIA drops it, mapkit keeps it",
+                    source=self.source, line=line,
+                )
                 self.issues.insert(late_note, issue)
             tail = b"\n" * 8 + data[end:] + b"\n"
             self.data_lines(RowReader(tail), 8, len(tail), current, line)
@@ -472,7 +475,7 @@ class _Parser:
     def data_lines(
         self, reader: RowReader, start: int, end: int, current: tuple[int, str], line: int
     ) -> tuple[tuple[int, str], int]:
-        """Rows, tags and skipped lines of ``data[start:end]``; returns the section and line after it."""
+        """Rows, tags and skipped lines of ``data[start:end]``; returns the section and next line."""
         data = reader.data
         # Lines that do not start with a digit or '-': tags, blank lines and rows ARIA skips.
         seg_start = start
@@ -514,14 +517,17 @@ class _Parser:
             got = self.sinks[current] = RowSink(ncols, expected)
         return got
 
-    def rows(self, reader: RowReader, start: int, end: int, current: tuple[int, str], first_line: int) -> int:
+    def rows(
+        self, reader: RowReader, start: int, end: int, current: tuple[int, str], first_line: int
+    ) -> int:
         """Parse the rows of ``data[start:end]`` into the current section; returns the row count."""
         kind = current[1]
         sink = self.sink(current, max(end, self.data_end) - start)
         bad, nrows = reader.parse(start, end, 2 if kind == "points" else 4, sink)
         for b in bad:
             self.note(IssueCode.BAD_DATA_ROW, first_line + b,
-                      f"{'DATA' if kind == 'points' else 'LINES'} row skipped (ARIA skips it silently)")
+                      f"{'DATA' if kind == 'points' else 'LINES'} row skipped "
+                      "(ARIA skips it silently)")
         return nrows
 
     # -- build the model ----------------------------------------------------------------------
@@ -562,9 +568,10 @@ class _Parser:
             scans.append(scan)
         if too_wide:
             scans = self.recompute_wide(scans)
+        md5 = self.md5.hexdigest() if self.md5 is not None else hashlib.md5(self.data).hexdigest()
         prov = Provenance(
             source=self.source,
-            md5=self.md5.hexdigest() if self.md5 is not None else hashlib.md5(self.data).hexdigest(),
+            md5=md5,
             size=len(self.data),
             object_lines=tuple(self.object_lines["objects"]),
             inactive_object_lines=tuple(self.object_lines["inactive_objects"]),
