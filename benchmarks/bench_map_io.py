@@ -156,28 +156,31 @@ def main() -> None:
         ratio = f"{t[0] / base:6.2f}x" if base else "       "
         print(f"  {label:44s} {t[0]:8.4f} s  (cpu {t[1]:.4f} s)  {ratio}  {note}")
 
+    def target(label: str, t: tuple[float, float], aria: float, goal: float) -> None:
+        met = "met" if t[0] < goal else "NOT met"
+        row(label, t, aria, f"of ARIA C++ {aria} s; target < {goal} s: {met}")
+
+    def memory(peak: int, extra: str = "") -> None:
+        print(f"  peak memory: {peak / 1e6:.1f} MB traced = {peak / size:.2f}x the file{extra} "
+              f"(target < {TARGET_MEMORY:.0f}x)")
+
     print("read")
-    row("mapkit.load", load_t, ARIA_READ_S,
-        f"of ARIA C++ {ARIA_READ_S} s; target < {TARGET_READ_S} s: "
-        f"{'met' if load_t[0] < TARGET_READ_S else 'NOT met'}")
-    row("file bytes only (open().read())", read_t, load_t[0], "of mapkit.load")
-    row("MD5 of the bytes (mapkit hashes on a 2nd thread)", md5_t, load_t[0], "of mapkit.load")
-    row("bytes + np.fromstring(sep=' ') on the rows", fromstring_t, load_t[0], "of mapkit.load")
+    target("mapkit.load", load_t, ARIA_READ_S, TARGET_READ_S)
+    for label, t in [("file bytes only (open().read())", read_t),
+                     ("MD5 of the bytes (mapkit hashes on a 2nd thread)", md5_t),
+                     ("bytes + np.fromstring(sep=' ') on the rows", fromstring_t)]:
+        row(label, t, load_t[0], "of mapkit.load")
     row("rows: mapkit parse_rows (vectorised)", fast_parse_t, ref_parse_t[0], "of the reference")
     row("rows: reference parser (per-line regex)", ref_parse_t, load_t[0], "of mapkit.load")
-    print(f"  peak memory: {load_mem / 1e6:.1f} MB traced = {load_mem / size:.2f}x the file, "
-          f"RSS growth {load_rss / 1e6:.1f} MB = {load_rss / size:.2f}x "
-          f"(target < {TARGET_MEMORY:.0f}x)")
+    memory(load_mem, f", RSS growth {load_rss / 1e6:.1f} MB = {load_rss / size:.2f}x")
     print("write")
-    row("mapkit.save (atomic: temp file, fsync, rename)", save_t, ARIA_WRITE_S,
-        f"of ARIA C++ {ARIA_WRITE_S} s; target < {TARGET_WRITE_S} s: "
-        f"{'met' if save_t[0] < TARGET_WRITE_S else 'NOT met'}")
-    row("mapkit.dumpb (in memory)", dump_t, save_t[0], "of mapkit.save")
-    row("writing the bytes (plain open/write)", write_t, save_t[0], "of mapkit.save")
+    target("mapkit.save (atomic: temp file, fsync, rename)", save_t, ARIA_WRITE_S, TARGET_WRITE_S)
+    for label, t in [("mapkit.dumpb (in memory)", dump_t),
+                     ("writing the bytes (plain open/write)", write_t)]:
+        row(label, t, save_t[0], "of mapkit.save")
     row("rows: mapkit format_rows (vectorised)", fast_format_t, ref_format_t[0], "of the reference")
     row("rows: reference formatter (per-row %d)", ref_format_t, save_t[0], "of mapkit.save")
-    print(f"  peak memory: {save_mem / 1e6:.1f} MB traced = {save_mem / size:.2f}x the file "
-          f"(target < {TARGET_MEMORY:.0f}x)")
+    memory(save_mem)
 
 
 if __name__ == "__main__":
