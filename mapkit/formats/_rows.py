@@ -30,14 +30,25 @@ ones are tested against.
 
 from __future__ import annotations
 
+import contextlib
+import os
 import re
-from collections.abc import Iterator
-from concurrent.futures import Executor
-from typing import Any
+from collections import deque
+from collections.abc import Callable, Iterable, Iterator
+from concurrent.futures import Future, ThreadPoolExecutor
+from typing import Any, TypeVar
 
 import numpy as np
 
-__all__ = ["RowReader", "RowSink", "format_rows", "iter_format_rows", "parse_rows"]
+__all__ = [
+    "RowReader",
+    "RowSink",
+    "format_rows",
+    "iter_format_rows",
+    "ordered_map",
+    "parse_rows",
+    "worker_pool",
+]
 
 IntArray = np.ndarray[Any, np.dtype[np.int64]]
 
@@ -344,7 +355,7 @@ def parse_rows(seg: bytes, ncols: int) -> tuple[IntArray, list[int]]:
         ([[1, 2], [12, 34], [0, 3]], [2])
     """
     data = b"\n" * 8 + bytes(seg)
-    sink = RowSink(ncols)
+    sink = RowSink(ncols, int(np.count_nonzero(np.frombuffer(data, np.uint8) == 10)))
     bad, _ = RowReader(data).parse(8, len(data), ncols, sink)
     return sink.result(), bad
 
@@ -406,7 +417,9 @@ def _format_block(block: np.ndarray[Any, Any]) -> bytes:
     return _format_rows_reference(block) if text is None else text.tobytes()
 
 
-def iter_format_rows(values: np.ndarray[Any, Any], pool: Executor | None = None) -> Iterator[bytes]:
+def iter_format_rows(
+    values: np.ndarray[Any, Any], pool: ThreadPoolExecutor | None = None
+) -> Iterator[bytes]:
     """The text of rows as ARIA writes them, in pieces of about 200 KB.
 
     Args:
@@ -414,10 +427,55 @@ def iter_format_rows(values: np.ndarray[Any, Any], pool: Executor | None = None)
         pool: Threads to format the pieces on (they come out in order); ``None``: this thread.
     """
     blocks = (values[i : i + _FORMAT_CHUNK] for i in range(0, len(values), _FORMAT_CHUNK))
+    yield from ordered_map(pool, _format_block, blocks)
+
+
+# -- worker threads ---------------------------------------------------------------------------
+
+_MAX_WORKERS = 4
+T = TypeVar("T")
+R = TypeVar("R")
+
+
+@contextlib.contextmanager
+def worker_pool(big: bool) -> Iterator[ThreadPoolExecutor | None]:
+    """Threads for the vectorised steps of a big job (numpy and hashlib release the GIL).
+
+    Yields ``None`` (work on the calling thread) for small jobs or a single CPU. Pending work is
+    cancelled if the caller stops early.
+    """
+    cpus = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    workers = min(cpus or 1, _MAX_WORKERS)
+    if not big or workers < 2:
+        yield None
+        return
+    pool = ThreadPoolExecutor(workers, thread_name_prefix="mapkit-rows")
+    try:
+        yield pool
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
+
+
+def ordered_map(
+    pool: ThreadPoolExecutor | None, fn: Callable[[T], R], items: Iterable[T]
+) -> Iterator[R]:
+    """``map(fn, items)``, run on ``pool`` when given, in order, with a few items in flight.
+
+    Examples:
+        >>> with worker_pool(True) as pool:
+        ...     list(ordered_map(pool, abs, range(-3, 3)))
+        [3, 2, 1, 0, 1, 2]
+    """
     if pool is None:
-        yield from map(_format_block, blocks)
-    else:
-        yield from pool.map(_format_block, blocks)
+        yield from map(fn, items)
+        return
+    pending: deque[Future[R]] = deque()
+    for item in items:
+        pending.append(pool.submit(fn, item))
+        if len(pending) > 2 * _MAX_WORKERS + 2:  # bounds the memory of finished pieces
+            yield pending.popleft().result()
+    while pending:
+        yield pending.popleft().result()
 
 
 def format_rows(values: np.ndarray[Any, Any]) -> bytes:

@@ -12,7 +12,6 @@ reports it in tolerant mode (:func:`recover`).
 
 from __future__ import annotations
 
-import contextlib
 import hashlib
 import math
 import os
@@ -20,7 +19,7 @@ import re
 import threading
 import types
 from collections.abc import Iterator
-from concurrent.futures import Executor, ThreadPoolExecutor
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -30,7 +29,13 @@ from mapkit._atomic import atomic_open
 from mapkit._typing import PathLike
 from mapkit.diagnostics import Issue, IssueCode
 from mapkit.errors import MapFormatError
-from mapkit.formats._rows import RowReader, RowSink, iter_format_rows
+from mapkit.formats._rows import (
+    RowReader,
+    RowSink,
+    iter_format_rows,
+    ordered_map,
+    worker_pool,
+)
 from mapkit.model import (
     CATEGORIES,
     INFO_KEYWORDS,
@@ -442,10 +447,9 @@ class _Parser:
         self.data_end = end
         line = lineno + 1  # number of the line starting at s
         spans = _spans(data, pos, end, _DATA_CHUNK)
-        workers = min(os.cpu_count() or 1, _MAX_WORKERS)
-        if len(spans) >= _PARALLEL_SPANS and workers > 1:
-            with ThreadPoolExecutor(workers) as pool:
-                parsed = pool.map(lambda span: reader.fast(*span), spans)
+        with worker_pool(len(spans) >= _PARALLEL_SPANS) as pool:
+            if pool is not None:
+                parsed = ordered_map(pool, lambda span: reader.fast(*span), spans)
                 for (s, e), values in zip(spans, parsed, strict=True):
                     k = 2 if current[1] == "points" else 4
                     if values is not None and values.shape[1] == k:
@@ -453,14 +457,14 @@ class _Parser:
                         line += len(values)
                     else:
                         current, line = self.data_lines(reader, s, e, current, line)
-        else:
-            for s, e in spans:
-                k = 2 if current[1] == "points" else 4
-                nrows = reader.fast_into(self.sink(current, end - s), s, e, k)
-                if nrows is not None:
-                    line += nrows
-                else:
-                    current, line = self.data_lines(reader, s, e, current, line)
+            else:
+                for s, e in spans:
+                    k = 2 if current[1] == "points" else 4
+                    nrows = reader.fast_into(self.sink(current, end - s), s, e, k)
+                    if nrows is not None:
+                        line += nrows
+                    else:
+                        current, line = self.data_lines(reader, s, e, current, line)
         if end < n:  # the last line has no newline: read it with one added (ARIA drops it)
             if late_note is not None:
                 issue = Issue.make(
@@ -642,7 +646,6 @@ class _BackgroundMD5:
 
 _DATA_CHUNK = 1 << 17  # bytes of the data section per vectorised step
 _PARALLEL_SPANS = 16  # chunks from which worker threads parse the data section
-_MAX_WORKERS = 4
 _PARALLEL_ROWS = 100_000  # rows from which worker threads format a map
 
 
@@ -880,11 +883,11 @@ def iter_map_chunks(m: MapData) -> Iterator[bytes]:
     For a big map, worker threads format the rows ahead of the consumer (numpy releases the GIL),
     so that writing and hashing the chunks overlap with formatting the next ones.
     """
-    with _format_pool(m) as pool:
+    with worker_pool(sum(s.num_points + s.num_lines for s in m.scans) >= _PARALLEL_ROWS) as pool:
         yield from _map_chunks(m, pool)
 
 
-def _map_chunks(m: MapData, pool: Executor | None) -> Iterator[bytes]:
+def _map_chunks(m: MapData, pool: ThreadPoolExecutor | None) -> Iterator[bytes]:
     yield _encode("".join(line + "\n" for line in iter_header_lines(m)))
     for s in m.scans:
         if s.num_lines:
@@ -893,18 +896,6 @@ def _map_chunks(m: MapData, pool: Executor | None) -> Iterator[bytes]:
     for s in m.scans:
         yield (_scan_prefix(s) + "_DATA\n" if _scan_prefix(s) else "DATA\n").encode()
         yield from iter_format_rows(s.points, pool)
-
-
-@contextlib.contextmanager
-def _format_pool(m: MapData) -> Iterator[Executor | None]:
-    """Worker threads to format a big map's rows, else ``None``."""
-    rows = sum(s.num_points + s.num_lines for s in m.scans)
-    workers = min(os.cpu_count() or 1, _MAX_WORKERS)
-    if rows < _PARALLEL_ROWS or workers < 2:
-        yield None
-        return
-    with ThreadPoolExecutor(workers) as pool:
-        yield pool
 
 
 def dumpb(m: MapData) -> bytes:
