@@ -479,7 +479,7 @@ class _Parser:
     def data_lines(
         self, reader: RowReader, start: int, end: int, current: tuple[int, str], line: int
     ) -> tuple[tuple[int, str], int]:
-        """Rows, tags and skipped lines of ``data[start:end]``; returns the section and next line."""
+        """Rows, tags and skipped lines of ``data[start:end]``; the section and the next line."""
         data = reader.data
         # Lines that do not start with a digit or '-': tags, blank lines and rows ARIA skips.
         seg_start = start
