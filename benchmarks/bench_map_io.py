@@ -39,6 +39,7 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 from bigmap import write_big_map  # noqa: E402
 
 import mapkit  # noqa: E402
+from mapkit._atomic import atomic_write  # noqa: E402
 from mapkit.formats import _rows  # noqa: E402
 
 ARIA_READ_S = 0.135
@@ -143,6 +144,7 @@ def main() -> None:
             fh.write(data)
 
     write_t = best_of(write_bytes, args.repeat)
+    atomic_t = best_of(lambda: atomic_write(out, data), args.repeat)
     ref_parse_t = best_of(lambda: (_rows._parse_rows_reference(lines_text, 4),
                                    _rows._parse_rows_reference(data_text, 2)), 1)
     ref_format_t = best_of(lambda: (_rows._format_rows_reference(m.lines),
@@ -176,7 +178,8 @@ def main() -> None:
     print("write")
     target("mapkit.save (atomic: temp file, fsync, rename)", save_t, ARIA_WRITE_S, TARGET_WRITE_S)
     for label, t in [("mapkit.dumpb (in memory)", dump_t),
-                     ("writing the bytes (plain open/write)", write_t)]:
+                     ("writing the bytes (plain open/write)", write_t),
+                     ("writing the bytes atomically (fsync, rename)", atomic_t)]:
         row(label, t, save_t[0], "of mapkit.save")
     row("rows: mapkit format_rows (vectorised)", fast_format_t, ref_format_t[0], "of the reference")
     row("rows: reference formatter (per-row %d)", ref_format_t, save_t[0], "of mapkit.save")
