@@ -13,16 +13,23 @@ How it is fast (no Python loop per row):
   number: what ARIA and mapkit write. A few whole-chunk checks on the bytes (``uint8``) and on the
   separator positions prove that; then each number is read as the 8 bytes that end it (one
   unaligned ``uint64``), masked to its length and turned into an integer by the SWAR
-  digit-combining trick (3 multiplications for 8 digits). A leading ``-`` is kept in the word as
-  the digit 13, which no 8-digit run of real digits can reach, so the sign costs one comparison.
-  A chunk that is not canonical is split in halves (so one odd row does not slow its neighbours)
-  down to a few KiB, and those pieces go to the per-line reference parser, which applies every
-  rule and reports bad rows.
+  digit-combining trick (3 multiplications for 8 digits). A leading ``-`` stays in the word as
+  the digit 13: an n-character number starting with ``-`` reads as ``13 * 10**(n-1) + |value|``,
+  above any run of n digits, so one range check gives the sign (and rejects a leading ``.`` or
+  ``/``); the count of ``-``, ``.`` and ``/`` bytes in the chunk must equal the count of negative
+  numbers, which proves there is no other. A chunk that is not canonical is split in halves (so
+  one odd row does not slow its neighbours) down to a few KiB, and those pieces go to the
+  per-line reference parser, which applies every rule and reports bad rows.
 * **Writing.** Each number is split into two 4-digit halves that index a 10,000-entry table of
-  ASCII digit words; the digits are shifted to the left of a ``uint64`` with the separator after
-  them and every word is stored at its offset in the output (computed with a cumulative sum), in
-  increasing order, so each word overwrites the spare bytes of the one before; minus signs are
-  stored last. Numbers with more than 8 digits go through the reference formatter.
+  ASCII digit words; the digits (with the padding ``0`` before them turned into ``-`` for a
+  negative number) are shifted to the start of a ``uint64`` with the separator after them, and
+  every word is stored at its offset in the output (a cumulative sum of the widths), in
+  increasing order, so each word overwrites the spare bytes of the one before. Numbers of 8
+  characters or more get their separator (and a 9th character) stored separately; numbers with
+  more than 8 digits go through the reference formatter.
+* **Threads.** Chunks are independent, so :func:`worker_pool` and :func:`ordered_map` let the map
+  reader and writer run them on worker threads (numpy releases the GIL) and take the results in
+  order.
 
 ``_parse_rows_reference`` and ``_format_rows_reference`` are the plain implementations the fast
 ones are tested against.
@@ -391,12 +398,15 @@ def _format_fast(values: np.ndarray[Any, Any]) -> np.ndarray[Any, np.dtype[np.ui
     total = int(end[-1])
     out = np.empty(total + 8, np.uint8)
     start = end - chars
-    # Increasing offsets: each word's spare bytes are overwritten by the words after it.
+    # Increasing offsets: each word's spare (zero) bytes are overwritten by the words after it.
     np.ndarray(shape=(total + 1,), dtype="<u8", buffer=out, strides=(1,))[start] = word
     long = bits >= 64
     if long.any():  # 8 characters or more: the separator (and a 9th character) come separately
         _format_long(out, a[long], neg[long], start[long], end[long], _SEP[k][: v.size][long])
-    return out[:total]
+    text = out[:total]
+    # numpy stores fancy-indexed words in index order; were that ever not so, spare zero bytes
+    # would be left in the text: then take the safe path.
+    return text if text.all() else None
 
 
 def _format_long(
