@@ -50,6 +50,7 @@ import numpy as np
 __all__ = [
     "RowReader",
     "RowSink",
+    "column_extremes",
     "format_rows",
     "iter_format_rows",
     "ordered_map",
@@ -315,6 +316,9 @@ class RowSink:
         self.expected = expected
         self.buf = np.zeros((0, ncols), np.int64)
         self.n = 0
+        # Per-column minimum and maximum of the rows, while every block came with them.
+        self.lo: IntArray | None = np.full(ncols, np.iinfo(np.int64).max)
+        self.hi: IntArray | None = np.full(ncols, np.iinfo(np.int64).min)
 
     def reserve(self, m: int) -> IntArray:
         """Room for ``m`` more rows (a view to fill); they count once :meth:`commit` is called."""
@@ -329,11 +333,26 @@ class RowSink:
     def commit(self, m: int) -> None:
         """Count ``m`` rows written into the last :meth:`reserve`."""
         self.n += m
+        self.lo = self.hi = None
 
-    def append(self, values: IntArray) -> None:
-        """Add rows at the end."""
+    def append(self, values: IntArray, extremes: tuple[IntArray, IntArray] | None = None) -> None:
+        """Add rows at the end (with their :func:`column_extremes`, if known)."""
+        if len(values) == 0:
+            return
         self.reserve(len(values))[...] = values
         self.n += len(values)
+        if extremes is None or self.lo is None or self.hi is None:
+            self.lo = self.hi = None
+        else:
+            np.minimum(self.lo, extremes[0], out=self.lo)
+            np.maximum(self.hi, extremes[1], out=self.hi)
+
+    def box(self) -> tuple[tuple[int, int], tuple[int, int]] | None:
+        """Min and max corner of the rows read as points (x y [x y]), if known and not empty."""
+        if self.lo is None or self.hi is None or self.n == 0:
+            return None
+        lo, hi = self.lo.reshape(-1, 2).min(axis=0), self.hi.reshape(-1, 2).max(axis=0)
+        return (int(lo[0]), int(lo[1])), (int(hi[0]), int(hi[1]))
 
     def result(self) -> IntArray:
         """The rows as one ``(n, ncols)`` array (a copy only when much of the room is unused)."""
@@ -342,6 +361,16 @@ class RowSink:
         if len(self.buf) - self.n > max(self.n // 8, 4096):
             return self.buf[: self.n].copy()
         return self.buf[: self.n]
+
+
+def column_extremes(values: IntArray) -> tuple[IntArray, IntArray]:
+    """Per-column minimum and maximum of an ``(n, k)`` array (``n > 0``), column by column.
+
+    (``values.min(axis=0)`` on a narrow array is many times slower.)
+    """
+    cols = range(values.shape[1])
+    return (np.array([values[:, j].min() for j in cols]),
+            np.array([values[:, j].max() for j in cols]))
 
 
 def parse_rows(seg: bytes, ncols: int) -> tuple[IntArray, list[int]]:

@@ -32,6 +32,7 @@ from mapkit.errors import MapFormatError
 from mapkit.formats._rows import (
     RowReader,
     RowSink,
+    column_extremes,
     iter_format_rows,
     ordered_map,
     worker_pool,
@@ -449,12 +450,12 @@ class _Parser:
         spans = _spans(data, pos, end, _DATA_CHUNK)
         with worker_pool(len(spans) >= _PARALLEL_SPANS) as pool:
             if pool is not None:
-                parsed = ordered_map(pool, lambda span: reader.fast(*span), spans)
-                for (s, e), values in zip(spans, parsed, strict=True):
+                parsed = ordered_map(pool, lambda span: _parse_span(reader, span), spans)
+                for (s, e), got in zip(spans, parsed, strict=True):
                     k = 2 if current[1] == "points" else 4
-                    if values is not None and values.shape[1] == k:
-                        self.sink(current, end - s).append(values)
-                        line += len(values)
+                    if got is not None and got[0].shape[1] == k:
+                        self.sink(current, end - s).append(*got)
+                        line += len(got[0])
                     else:
                         current, line = self.data_lines(reader, s, e, current, line)
             else:
@@ -539,13 +540,13 @@ class _Parser:
     def build(self) -> MapData:
         scans = []
         too_wide = False
-        built: list[tuple[_ScanState, np.ndarray[Any, Any], np.ndarray[Any, Any]]] = []
+        built: list[tuple[int, _ScanState, np.ndarray[Any, Any], np.ndarray[Any, Any]]] = []
         for i, st in enumerate(self.scans):
             pts = self.sink((i, "points")).result()
             lns = self.sink((i, "lines")).result()
             pts.flags.writeable = lns.flags.writeable = False  # private arrays: Scan need not copy
-            built.append((st, pts, lns))
-        for st, pts, lns in built:
+            built.append((i, st, pts, lns))
+        for i, st, pts, lns in built:
             h = st.header
             header = ScanHeader(
                 min_pos=h.get("minpos:"), max_pos=h.get("maxpos:"), num_points=h.get("numpoints:"),
@@ -554,9 +555,10 @@ class _Parser:
                 num_lines=h.get("numlines:"), lines_sorted=h.get("linesaresorted:"),
                 display=h.get("display:"),
             )
-            pmin, pmax = _aria_box(pts.reshape(-1, 2), header.min_pos, header.max_pos, header.num_points)
+            pmin, pmax = _aria_box(pts.reshape(-1, 2), header.min_pos, header.max_pos,
+                                   header.num_points, self.sink((i, "points")).box())
             lmin, lmax = _aria_box(lns.reshape(-1, 2), header.line_min_pos, header.line_max_pos,
-                                   header.num_lines)
+                                   header.num_lines, self.sink((i, "lines")).box())
             scan = Scan(
                 name=st.name,
                 display=header.display if header.display is not None else st.name,
@@ -649,6 +651,16 @@ _PARALLEL_SPANS = 16  # chunks from which worker threads parse the data section
 _PARALLEL_ROWS = 100_000  # rows from which worker threads format a map
 
 
+def _parse_span(
+    reader: RowReader, span: tuple[int, int]
+) -> tuple[np.ndarray[Any, Any], tuple[np.ndarray[Any, Any], np.ndarray[Any, Any]]] | None:
+    """A worker thread's job: the rows of a canonical chunk and their extremes (or ``None``)."""
+    values = reader.fast(*span)
+    if values is None or len(values) == 0:
+        return None
+    return values, column_extremes(values)
+
+
 def _spans(data: bytes, start: int, end: int, size: int) -> list[tuple[int, int]]:
     """``data[start:end]`` cut into pieces of about ``size`` bytes that end with LF."""
     out = []
@@ -669,18 +681,19 @@ def _aria_box(
     hmin: tuple[int, int] | None,
     hmax: tuple[int, int] | None,
     count: int | None,
+    data_box: tuple[tuple[int, int], tuple[int, int]] | None = None,
 ) -> tuple[tuple[int, int] | None, tuple[int, int] | None]:
-    """ARIA's box: the header box (or the origin) widened by the data; empty if ``NumX: 0``."""
-    if count is not None and count <= 0:
-        if len(xy) == 0:
-            return None, None
-        lo, hi = _column_bounds(xy)
-        return lo, hi
+    """ARIA's box: the header box (or the origin) widened by the data; empty if ``NumX: 0``.
+
+    ``data_box`` is the data's own box when already known (``None``: computed here).
+    """
     if len(xy) == 0:
         return None, None  # nothing to bound; the writer writes no box then
+    lo, hi = data_box or _column_bounds(xy)
+    if count is not None and count <= 0:
+        return lo, hi
     lo0 = hmin if hmin is not None else (0, 0)
     hi0 = hmax if hmax is not None else (0, 0)
-    lo, hi = _column_bounds(xy)
     return (min(lo0[0], lo[0]), min(lo0[1], lo[1])), (max(hi0[0], hi[0]), max(hi0[1], hi[1]))
 
 
