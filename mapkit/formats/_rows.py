@@ -128,8 +128,7 @@ _DIGIT_MASK = np.array(
     [0] + [int.from_bytes(b"\x00" * (9 - e) + b"\x0f" * (e - 1), "little") for e in range(1, 10)],
     dtype=_U64,
 )
-# A number of n characters whose first is '-' reads as 13 * 10**(n-1) + |value|.
-_NEG_THRESHOLD = np.array([0, 0] + [13 * 10 ** (e - 2) for e in range(2, 10)], dtype=np.int64)
+# 10**(n-1) for a number of n = ell - 1 characters (see _values).
 _LEAD_UNIT = np.array([0, 0] + [10 ** (e - 2) for e in range(2, 10)], dtype=_U64)
 _B45 = np.uint8(45)  # '-'
 _B3 = np.uint8(3)
@@ -284,10 +283,13 @@ class RowReader:
         w *= _U64((10000 << 32) + 1)
         np.right_shift(w, _U64(32), out=out.view(_U64))
         if n_minus:
-            d = out - _NEG_THRESHOLD[ell]
             # A leading '-' reads as 13 * unit + |value| with |value| < unit; a leading '.' or
             # '/' (14, 15) reads at least 14 * unit, a leading digit less than 13 * unit.
-            neg = d.view(_U64) < _LEAD_UNIT[ell]
+            unit = _LEAD_UNIT[ell]
+            d = unit * _U64(13)
+            np.subtract(out.view(_U64), d, out=d)
+            neg = d < unit
+            d = d.view(np.int64)
             if np.count_nonzero(neg) != n_minus:  # a '-' elsewhere, a '.' or a '/'
                 return False
             d += out  # v - (v + d) = -d where negative
