@@ -158,32 +158,38 @@ def main() -> None:
         ratio = f"{t[0] / base:6.2f}x" if base else "       "
         print(f"  {label:44s} {t[0]:8.4f} s  (cpu {t[1]:.4f} s)  {ratio}  {note}")
 
-    def target(label: str, t: tuple[float, float], aria: float, goal: float) -> None:
-        met = "met" if t[0] < goal else "NOT met"
-        row(label, t, aria, f"of ARIA C++ {aria} s; target < {goal} s: {met}")
-
-    def memory(peak: int, extra: str = "") -> None:
+    def section(
+        what: str, mapkit_t: tuple[float, float], aria: float, goal: float,
+        baselines: list[tuple[str, tuple[float, float]]],
+        rows_fast: tuple[str, tuple[float, float]], rows_ref: tuple[str, tuple[float, float]],
+        peak: int, extra: str = "",
+    ) -> None:
+        name, call = what.split(" ", 1)
+        met = "met" if mapkit_t[0] < goal else "NOT met"
+        print(name)
+        row(call, mapkit_t, aria, f"of ARIA C++ {aria} s; target < {goal} s: {met}")
+        for label, t in baselines:
+            row(label, t, mapkit_t[0], f"of {call.split()[0]}")
+        row(rows_fast[0], rows_fast[1], rows_ref[1][0], "of the reference")
+        row(rows_ref[0], rows_ref[1], mapkit_t[0], f"of {call.split()[0]}")
         print(f"  peak memory: {peak / 1e6:.1f} MB traced = {peak / size:.2f}x the file{extra} "
               f"(target < {TARGET_MEMORY:.0f}x)")
 
-    print("read")
-    target("mapkit.load", load_t, ARIA_READ_S, TARGET_READ_S)
-    for label, t in [("file bytes only (open().read())", read_t),
-                     ("MD5 of the bytes (mapkit hashes on a 2nd thread)", md5_t),
-                     ("bytes + np.fromstring(sep=' ') on the rows", fromstring_t)]:
-        row(label, t, load_t[0], "of mapkit.load")
-    row("rows: mapkit parse_rows (vectorised)", fast_parse_t, ref_parse_t[0], "of the reference")
-    row("rows: reference parser (per-line regex)", ref_parse_t, load_t[0], "of mapkit.load")
-    memory(load_mem, f", RSS growth {load_rss / 1e6:.1f} MB = {load_rss / size:.2f}x")
-    print("write")
-    target("mapkit.save (atomic: temp file, fsync, rename)", save_t, ARIA_WRITE_S, TARGET_WRITE_S)
-    for label, t in [("mapkit.dumpb (in memory)", dump_t),
-                     ("writing the bytes (plain open/write)", write_t),
-                     ("writing the bytes atomically (fsync, rename)", atomic_t)]:
-        row(label, t, save_t[0], "of mapkit.save")
-    row("rows: mapkit format_rows (vectorised)", fast_format_t, ref_format_t[0], "of the reference")
-    row("rows: reference formatter (per-row %d)", ref_format_t, save_t[0], "of mapkit.save")
-    memory(save_mem)
+    section("read mapkit.load", load_t, ARIA_READ_S, TARGET_READ_S,
+            [("file bytes only (open().read())", read_t),
+             ("MD5 of the bytes (mapkit hashes on a 2nd thread)", md5_t),
+             ("bytes + np.fromstring(sep=' ') on the rows", fromstring_t)],
+            ("rows: mapkit parse_rows (vectorised)", fast_parse_t),
+            ("rows: reference parser (per-line regex)", ref_parse_t),
+            load_mem, f", RSS growth {load_rss / 1e6:.1f} MB = {load_rss / size:.2f}x")
+    section("write mapkit.save (atomic: temp file, fsync, rename)", save_t, ARIA_WRITE_S,
+            TARGET_WRITE_S,
+            [("mapkit.dumpb (in memory)", dump_t),
+             ("writing the bytes (plain open/write)", write_t),
+             ("writing the bytes atomically (fsync, rename)", atomic_t)],
+            ("rows: mapkit format_rows (vectorised)", fast_format_t),
+            ("rows: reference formatter (per-row %d)", ref_format_t),
+            save_mem)
 
 
 if __name__ == "__main__":
