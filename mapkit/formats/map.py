@@ -646,6 +646,7 @@ class _BackgroundMD5:
         self._thread.join()
         return self._hash.hexdigest()
 
+
 _DATA_CHUNK = 1 << 17  # bytes of the data section per vectorised step
 _PARALLEL_SPANS = 16  # chunks from which worker threads parse the data section
 _PARALLEL_ROWS = 100_000  # rows from which worker threads format a map
