@@ -1,0 +1,530 @@
+"""Build a ``.map`` from a ``.2d`` laser log, as Mapper3 did.
+
+The pipeline (:func:`build_map`):
+
+1. **Odometry replay**: each scan's ``robot:`` pose (or ``robotGlobal:``) gives the motion since
+   the previous scan.
+2. **Scan-to-map registration**: each scan is matched by point-to-line ICP (scipy's ``cKDTree``)
+   against a local map made of the scans registered just before it, starting from the pose
+   odometry predicts.
+3. **Loop closure**: a ``loop: start K`` / ``loop: stop K`` pair in the log says the robot came
+   back where it was; revisits are also detected (the robot is near a pose it had long before).
+   Each is matched (a correlative search, then ICP) and becomes an edge of a pose graph, which is
+   optimised (sparse Gauss-Newton) when it moves poses noticeably, and once at the end.
+4. **Map**: every scan's points through its final pose, quantised to the resolution lattice
+   (20 mm, as ARIA maps), cells hit too rarely dropped, walls thinned to the cells hit most; the
+   points are sorted as ARIA's are.
+5. **Lines**: segments fitted to the points (direction bins, split at gaps and corners, merge).
+6. **Objects**: ``cairn:`` goal events become ``GoalWithHeading`` objects at their corrected
+   pose; the first scan's pose becomes ``RobotHome``.
+
+``register=False`` skips 2 and 3: the map of raw odometry.
+
+Examples:
+    >>> from mapkit.model import MapData, Scan
+    >>> from mapkit.simulate import simulate_log
+    >>> room = Scan.from_arrays(lines=[[0, 0, 8000, 0], [8000, 0, 8000, 5000],
+    ...                                [8000, 5000, 0, 5000], [0, 5000, 0, 0]])
+    >>> sim = simulate_log(MapData(scans=(room,)), start=(1500, 2500, 0),
+    ...                    waypoints=[(6500, 2500), (6500, 1500)], seed=2)
+    >>> result = build_map(sim.log)
+    >>> m = result.map
+    >>> m.scan.resolution, m.scan.points_sorted, len(m.lines) >= 3, m.objects[0].type
+    (20, True, True, 'RobotHome')
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from mapkit._typing import PathLike
+from mapkit.build._graph import PoseGraph, between, wrap
+from mapkit.build._lines import extract_lines
+from mapkit.build._match import correlative, icp, scan_normals, transform, voxel_keep
+from mapkit.diagnostics import Issue, IssueCode
+from mapkit.errors import LogFormatError
+from mapkit.formats.laser2d import goal_fields, read_log, recover_log
+from mapkit.model import MapData, MapObject, Scan
+from mapkit.model.scan import LaserLog, LaserScan
+
+__all__ = ["BuildResult", "build_map", "extract_lines"]
+
+FloatArray = np.ndarray[Any, np.dtype[np.float64]]
+#: progress(done, total): called as scans are registered.
+Progress = Callable[[int, int], None]
+
+
+@dataclass(frozen=True)
+class BuildResult:
+    """A built map and how it was made.
+
+    Attributes:
+        map: The map.
+        poses: ``(N, 3)`` final pose of each scan used (mm, mm, degrees).
+        odometry: ``(N, 3)`` the same scans' odometry poses.
+        scan_ids: ``(N,)`` their ``scanId``.
+        summary: Figures for people and ``--json`` (scans, registration, loops, timings).
+        issues: Problems met in the log (tolerant reading) and while building.
+    """
+
+    map: MapData
+    poses: FloatArray
+    odometry: FloatArray
+    scan_ids: np.ndarray[Any, Any]
+    summary: dict[str, Any] = field(default_factory=dict)
+    issues: tuple[Issue, ...] = ()
+
+
+def _deg(p: FloatArray) -> FloatArray:
+    out = np.array(p, dtype=np.float64)
+    out[..., 2] = np.degrees(out[..., 2])
+    return out
+
+
+def _rad(p: Any) -> FloatArray:
+    out = np.array(p, dtype=np.float64)
+    out[..., 2] = np.radians(out[..., 2])
+    return out
+
+
+class _Submap:
+    """The local map scans are registered against: recent scans, thinned, with normals."""
+
+    def __init__(self, voxel: float) -> None:
+        self.voxel = voxel
+        self.tree: Any = None
+        self.pts = np.zeros((0, 2))
+        self.nrm = np.zeros((0, 2))
+        self._cache: dict[int, tuple[tuple[float, ...], FloatArray, FloatArray]] = {}
+
+    def rebuild(self, idx: Iterable[int], pts: list[FloatArray], nrm: list[FloatArray],
+                poses: FloatArray) -> None:
+        from scipy.spatial import cKDTree
+
+        P, N = [], []
+        cache: dict[int, tuple[tuple[float, ...], FloatArray, FloatArray]] = {}
+        for k in idx:
+            key = tuple(poses[k])
+            hit = self._cache.get(k)
+            if hit is None or hit[0] != key:
+                good = np.isfinite(nrm[k][:, 0])
+                c, s = math.cos(poses[k][2]), math.sin(poses[k][2])
+                hit = (key, transform(pts[k][good], poses[k]),
+                       nrm[k][good] @ np.array([[c, s], [-s, c]]))
+            cache[k] = hit
+            if len(hit[1]):
+                P.append(hit[1])
+                N.append(hit[2])
+        self._cache = cache
+        if not P:
+            self.tree = None
+            self.pts = np.zeros((0, 2))
+            return
+        p = np.concatenate(P)
+        n = np.concatenate(N)
+        keep = voxel_keep(p, self.voxel)
+        self.pts, self.nrm = p[keep], n[keep]
+        self.tree = cKDTree(self.pts)
+
+
+def _scan_arrays(log: LaserLog, pose_source: str, max_range: float
+                 ) -> tuple[list[LaserScan], FloatArray, list[FloatArray], list[FloatArray]]:
+    scans, odo, pts, nrm = [], [], [], []
+    for s in log.scans:
+        las = log.header.laser(s.laser)
+        p = s.robot_points(las, max_range=max_range)
+        if len(p) < 10:
+            continue
+        pose = s.robot_global if pose_source == "robotGlobal" and s.robot_global is not None else s.robot
+        scans.append(s)
+        odo.append(pose)
+        pts.append(p)
+        # Normals in the laser's beam order, then into the robot frame (rotation by the mount).
+        lp = s.laser_points(las, max_range=max_range)
+        nr = scan_normals(lp)
+        th = math.radians(las.pose.th)
+        if th:
+            c, sn = math.cos(th), math.sin(th)
+            nr = nr @ np.array([[c, sn], [-sn, c]])
+        nrm.append(nr)
+    return scans, _rad(np.array(odo, dtype=np.float64).reshape(-1, 3)), pts, nrm
+
+
+def _loop_pairs(log: LaserLog, scan_records: list[LaserScan], issues: list[Issue]
+                ) -> list[tuple[int, int, str]]:
+    """(start scan index, stop scan index, tag) for each ``loop: start``/``stop`` pair."""
+    position = {id(s): k for k, s in enumerate(scan_records)}
+    last_scan = -1
+    open_tags: dict[str, int] = {}
+    pairs = []
+    for rec in log.records:
+        if isinstance(rec, LaserScan):
+            if id(rec) in position:
+                last_scan = position[id(rec)]
+            continue
+        if rec.kind != "loop":
+            continue
+        where = max(last_scan, 0)
+        if rec.action == "start":
+            open_tags[rec.name] = where
+        elif rec.name in open_tags:
+            pairs.append((open_tags.pop(rec.name), where, rec.name))
+        else:
+            issues.append(Issue.make(IssueCode.LOG_UNPAIRED_LOOP,
+                                     f"loop: {rec.action} {rec.name} without a start",
+                                     source=log.source, line=rec.line or None))
+    for tag in open_tags:
+        issues.append(Issue.make(IssueCode.LOG_UNPAIRED_LOOP, f"loop: start {tag} without a stop",
+                                 source=log.source))
+    return pairs
+
+
+def _quantise(world: FloatArray, res: float, min_hits: int, thin: float) -> np.ndarray[Any, Any]:
+    """Lattice points hit at least ``min_hits`` times and at least ``thin`` x their best neighbour."""
+    cells = np.rint(world / res).astype(np.int64)
+    off = 1 << 24
+    key = ((cells[:, 0] + off) << 32) | (cells[:, 1] + off)
+    uk, counts = np.unique(key, return_counts=True)
+    cx = (uk >> 32) - off
+    cy = (uk & 0xFFFFFFFF) - off
+    best = counts.copy()
+    for dx in (-1, 0, 1):
+        for dy in (-1, 0, 1):
+            if dx == 0 and dy == 0:
+                continue
+            nk = ((cx + dx + off) << 32) | (cy + dy + off)
+            pos = np.searchsorted(uk, nk)
+            pos = np.minimum(pos, len(uk) - 1)
+            found = uk[pos] == nk
+            best = np.maximum(best, np.where(found, counts[pos], 0))
+    keep = (counts >= min_hits) & (counts >= thin * best)
+    return np.stack([cx[keep], cy[keep]], axis=1) * int(res)
+
+
+def build_map(
+    source: LaserLog | PathLike,
+    *,
+    resolution: int = 20,
+    register: bool = True,
+    loop_closure: bool = True,
+    pose_source: str = "robot",
+    max_range: float = 16000.0,
+    min_hits: int = 2,
+    thin: float = 0.3,
+    lines: bool = True,
+    min_line_length: float = 300.0,
+    strict: bool = True,
+    progress: Progress | None = None,
+) -> BuildResult:
+    """Turn a ``.2d`` laser log into a map (see the module's description of the pipeline).
+
+    Args:
+        source: A :class:`~mapkit.model.LaserLog` or the path of a ``.2d`` file.
+        resolution: Grid of the map's points in mm (ARIA maps: 20).
+        register: Register scans and close loops; ``False`` gives the raw odometry map.
+        loop_closure: Close loops (``loop:`` tags and detected revisits).
+        pose_source: ``"robot"`` (odometry, as Mapper3) or ``"robotGlobal"``.
+        max_range: Readings at or beyond this range (mm) are not used.
+        min_hits: A map point needs at least this many laser hits in its cell.
+        thin: A cell is kept only when hit at least this fraction of its most-hit neighbour
+            (thins walls to the cells the laser hit most; 0 keeps every cell).
+        lines: Fit line segments to the points (the map's ``LINES``).
+        min_line_length: Shortest line kept (mm).
+        strict: Read a file strictly (the first bad record raises); ``False`` skips bad records
+            and lists them in :attr:`BuildResult.issues`.
+        progress: Called as ``progress(done, total)`` while scans are registered.
+
+    Returns:
+        The map and the figures of how it was built.
+
+    Raises:
+        LogFormatError: When the log cannot be read, or has no usable scan.
+        ValueError: For a parameter out of range.
+        OSError: When the file cannot be read.
+    """
+    if resolution < 1:
+        raise ValueError("resolution must be at least 1 mm")
+    if pose_source not in ("robot", "robotGlobal"):
+        raise ValueError("pose_source is 'robot' or 'robotGlobal'")
+    t0 = time.perf_counter()
+    issues: list[Issue] = []
+    if isinstance(source, LaserLog):
+        log = source
+    elif strict:
+        log = read_log(source)
+    else:
+        log, found = recover_log(source)
+        issues.extend(found)
+    t_read = time.perf_counter() - t0
+    scans, odo, pts, nrm = _scan_arrays(log, pose_source, max_range)
+    n = len(scans)
+    if n == 0:
+        raise LogFormatError("the log has no scan with enough valid readings to build a map",
+                             source=log.source)
+    est = odo.copy()
+    stats: dict[str, Any] = {"registered": 0, "odometry_only": 0, "residuals": [],
+                             "tag_loops": 0, "tag_loops_matched": 0, "revisits": 0,
+                             "optimisations": 0, "corrections_mm": [], "corrections_deg": []}
+    t1 = time.perf_counter()
+    if register and n > 1:
+        est = _register(scans, odo, pts, nrm, log, issues, stats, loop_closure, progress)
+    elif progress:
+        progress(n, n)
+    t_reg = time.perf_counter() - t1
+    # The map.
+    t2 = time.perf_counter()
+    world = np.concatenate([transform(p, e) for p, e in zip(pts, est)])
+    points = _quantise(world, float(resolution), min_hits, thin)
+    segs = (extract_lines(points.astype(np.float64), resolution=resolution,
+                          min_length=min_line_length) if lines and len(points) else np.zeros((0, 4)))
+    t_map = time.perf_counter() - t2
+    objects = [MapObject("RobotHome", *_obj_pose(est[0]), name="Home")]
+    objects.extend(_goals(log, scans, odo, est, pose_source))
+    scan = Scan.from_arrays(points, np.rint(segs).astype(np.int64), resolution=resolution, sort=True)
+    m = MapData(category="2D-Map", scans=(scan,), objects=tuple(objects))
+    poses = _deg(est)
+    odom = _deg(odo)
+    res = stats.pop("residuals")
+    cm, cd = stats.pop("corrections_mm"), stats.pop("corrections_deg")
+    length = float(np.sum(np.hypot(*np.diff(odo[:, :2], axis=0).T))) if n > 1 else 0.0
+    summary = {
+        "source": log.source,
+        "version": log.header.version,
+        "scans_in_log": len(log.scans),
+        "scans_used": n,
+        "register": register,
+        "resolution": resolution,
+        "path_length_m": round(length / 1000.0, 2),
+        "registration": {
+            "registered": stats["registered"],
+            "odometry_only": stats["odometry_only"],
+            "median_residual_mm": round(float(np.median(res)), 2) if res else None,
+        },
+        "loops": {
+            "tags": stats["tag_loops"],
+            "tags_matched": stats["tag_loops_matched"],
+            "revisits": stats["revisits"],
+            "optimisations": stats["optimisations"],
+            "max_correction_mm": round(max(cm), 1) if cm else 0.0,
+            "max_correction_deg": round(max(cd), 2) if cd else 0.0,
+        },
+        "end_shift_from_odometry_mm": round(float(np.hypot(*(est[-1, :2] - odo[-1, :2]))), 1),
+        "points": int(len(points)),
+        "lines": int(len(segs)),
+        "goals": len(objects) - 1,
+        "seconds": {"read": round(t_read, 2), "register": round(t_reg, 2), "map": round(t_map, 2)},
+    }
+    return BuildResult(map=m, poses=poses, odometry=odom,
+                       scan_ids=np.array([s.scan_id for s in scans]), summary=summary,
+                       issues=tuple(issues))
+
+
+def _obj_pose(p: FloatArray) -> tuple[float, float, float]:
+    return float(round(p[0])), float(round(p[1])), float(round(math.degrees(p[2]), 1))
+
+
+def _goals(log: LaserLog, scans: list[LaserScan], odo: FloatArray, est: FloatArray,
+           pose_source: str) -> list[MapObject]:
+    position = {id(s): k for k, s in enumerate(scans)}
+    last = 0
+    out = []
+    for rec in log.records:
+        if isinstance(rec, LaserScan):
+            last = position.get(id(rec), last)
+            continue
+        if rec.kind != "goal" or rec.robot is None:
+            continue
+        pose = rec.robot_global if pose_source == "robotGlobal" and rec.robot_global else rec.robot
+        g = _rad(np.array(pose, dtype=np.float64))
+        # The goal's pose relative to the nearest scan's odometry, put on that scan's final pose.
+        rel = between(odo[last], g)
+        c, s = math.cos(est[last][2]), math.sin(est[last][2])
+        x = est[last][0] + c * rel[0] - s * rel[1]
+        y = est[last][1] + s * rel[0] + c * rel[1]
+        th = wrap(est[last][2] + rel[2])
+        typ, desc, _icon, name = goal_fields(rec)
+        out.append(MapObject(typ, *_obj_pose(np.array([x, y, th])), name=name, description=desc))
+    return out
+
+
+def _register(scans: list[LaserScan], odo: FloatArray, pts: list[FloatArray],
+              nrm: list[FloatArray], log: LaserLog, issues: list[Issue], stats: dict[str, Any],
+              loop_closure: bool, progress: Progress | None) -> FloatArray:
+    """The front end (scan-to-local-map ICP) with loop closures and pose-graph optimisation."""
+    n = len(scans)
+    est = odo.copy()
+    graph = PoseGraph()
+    sub = _Submap(voxel=40.0)
+    src = [p[::2] if len(p) > 200 else p for p in pts]
+    path = np.zeros(n)
+    pairs = _loop_pairs(log, scans, issues) if loop_closure else []
+    stats["tag_loops"] = len(pairs)
+    tag_at: dict[int, list[tuple[int, str]]] = {}
+    for s0, s1, tag in pairs:
+        tag_at.setdefault(s1, []).append((s0, tag))
+    window: list[int] = [0]
+    sub.rebuild(window, pts, nrm, est)
+    next_check = 0
+    last_sub = 0
+    report_every = max(1, n // 200)
+    for i in range(1, n):
+        step = between(odo[i - 1], odo[i])
+        c, s = math.cos(est[i - 1][2]), math.sin(est[i - 1][2])
+        pred = np.array([est[i - 1][0] + c * step[0] - s * step[1],
+                         est[i - 1][1] + s * step[0] + c * step[1],
+                         wrap(est[i - 1][2] + step[2])])
+        path[i] = path[i - 1] + math.hypot(step[0], step[1])
+        r = icp(src[i], sub.tree, sub.pts, sub.nrm, pred) if sub.tree is not None else None
+        trans = math.hypot(step[0], step[1])
+        if r is not None and r.ok and r.inliers > 0.3 and r.rms < 60.0 and r.weakest > 0.02 \
+                and math.hypot(*(r.pose[:2] - pred[:2])) < 300.0 + 0.1 * trans \
+                and abs(wrap(r.pose[2] - pred[2])) < math.radians(8.0):
+            est[i] = r.pose
+            est[i, 2] = wrap(est[i, 2])
+            stats["registered"] += 1
+            stats["residuals"].append(r.rms)
+            graph.add(i - 1, i, between(est[i - 1], est[i]), (15.0, 15.0, math.radians(0.3)))
+        else:
+            est[i] = pred
+            stats["odometry_only"] += 1
+            graph.add(i - 1, i, step, (20.0 + 0.05 * trans, 20.0 + 0.05 * trans,
+                                       math.radians(1.0) + 0.05 * abs(step[2])))
+        # Loop closures.
+        moved = False
+        for s0, _tag in tag_at.get(i, []):
+            if _close(i, s0, est, src, pts, nrm, path, graph, stats, tagged=True):
+                stats["tag_loops_matched"] += 1
+                moved = moved or stats.pop("_moved", False)
+            else:
+                graph.add(s0, i, np.zeros(3), (500.0, 500.0, math.radians(10.0)), robust=True)
+                issues.append(Issue.make(IssueCode.LOG_UNPAIRED_LOOP,
+                                         f"loop tag {_tag}: the scans at its start and stop do "
+                                         "not match; used as a weak hint only",
+                                         source=log.source))
+                moved = True
+        if loop_closure and i >= next_check:
+            j = _revisit_candidate(i, est, path)
+            if j is not None:
+                if _close(i, j, est, src, pts, nrm, path, graph, stats, tagged=False):
+                    stats["revisits"] += 1
+                    moved = moved or stats.pop("_moved", False)
+                    next_check = i + 10
+                else:
+                    next_check = i + 10
+            else:
+                next_check = i + 3
+        if moved:
+            est = graph.optimize(est)
+            stats["optimisations"] += 1
+            window = [k for k in window if k <= i]
+            last_sub = -1
+        # The local map: scans within the last 8 m of path (at most 40).
+        window.append(i)
+        while len(window) > 25 or (path[i] - path[window[0]] > 8000.0 and len(window) > 5):
+            window.pop(0)
+        if i - last_sub >= 2 or last_sub < 0:
+            sub.rebuild(window, pts, nrm, est)
+            last_sub = i
+        if progress and (i % report_every == 0 or i == n - 1):
+            progress(i + 1, n)
+    if loop_closure and (stats["revisits"] or stats["tag_loops"]):
+        est = graph.optimize(est, iterations=20)
+        stats["optimisations"] += 1
+    return est
+
+
+def _revisit_candidate(i: int, est: FloatArray, path: FloatArray) -> int | None:
+    """An old scan near the current pose (path-wise far away), or None."""
+    old = np.flatnonzero(path[:i] < path[i] - 10000.0)
+    if len(old) == 0:
+        return None
+    d = np.hypot(est[old, 0] - est[i, 0], est[old, 1] - est[i, 1])
+    gap = path[i] - path[old]
+    allow = np.minimum(1000.0 + 0.02 * gap, 4000.0)
+    near = d < allow
+    if not near.any():
+        return None
+    cand = old[near]
+    return int(cand[np.argmin(d[near])])
+
+
+def _local(idx: range, est: FloatArray, pts: list[FloatArray], nrm: list[FloatArray]
+           ) -> tuple[FloatArray, FloatArray]:
+    P, N = [], []
+    for k in idx:
+        good = np.isfinite(nrm[k][:, 0])
+        if not good.any():
+            continue
+        P.append(transform(pts[k][good], est[k]))
+        c, s = math.cos(est[k][2]), math.sin(est[k][2])
+        N.append(nrm[k][good] @ np.array([[c, s], [-s, c]]))
+    if not P:
+        return np.zeros((0, 2)), np.zeros((0, 2))
+    p, nn = np.concatenate(P), np.concatenate(N)
+    keep = voxel_keep(p, 40.0)
+    return p[keep], nn[keep]
+
+
+def _close(i: int, j: int, est: FloatArray, src: list[FloatArray], pts: list[FloatArray],
+           nrm: list[FloatArray], path: FloatArray, graph: PoseGraph, stats: dict[str, Any], *,
+           tagged: bool) -> bool:
+    """Match scan i (with its predecessors) against the map around old scan j; add an edge."""
+    from scipy.spatial import cKDTree
+
+    n = len(est)
+    lo = j
+    while lo > 0 and path[j] - path[lo - 1] < 3000.0 and j - lo < 15:
+        lo -= 1
+    hi = j
+    while hi < n - 1 and hi < i and path[hi + 1] - path[j] < 3000.0 and hi - j < 15 \
+            and path[i] - path[hi + 1] > 5000.0:
+        hi += 1
+    tgt, tn = _local(range(lo, hi + 1), est, pts, nrm)
+    if len(tgt) < 50:
+        return False
+    tree = cKDTree(tgt)
+    # Source: scan i and a few before it, in scan i's frame.
+    s_parts = [src[i]]
+    for k in range(max(0, i - 4), i):
+        rel = between(est[i], est[k])
+        s_parts.append(transform(src[k], rel))
+    source = np.concatenate(s_parts)
+    source = source[voxel_keep(source, 60.0)]
+    guess = est[i].copy()
+    if tagged:
+        guess = est[j].copy()
+    r = icp(source, tree, tgt, tn, guess, schedule=(400.0, 200.0, 100.0, 60.0), max_iter=25)
+    good = _good_closure(r)
+    if not good:
+        gap = path[i] - path[j]
+        win = 3000.0 if tagged else min(800.0 + 0.02 * gap, 3000.0)
+        thw = math.radians(25.0 if tagged else min(5.0 + 0.2 * gap / 1000.0, 20.0))
+        sub = source[:: max(1, len(source) // 150)]
+        for center in ([est[j], est[i]] if tagged else [est[i]]):
+            cp, score = correlative(sub, tgt, center, xy_window=win, th_window=thw, cell=50.0)
+            if score < 0.25:
+                continue
+            r = icp(source, tree, tgt, tn, cp, schedule=(200.0, 100.0, 60.0), max_iter=25)
+            good = _good_closure(r)
+            if good:
+                break
+    if not good:
+        return False
+    corr = math.hypot(*(r.pose[:2] - est[i][:2]))
+    dth = abs(float(wrap(r.pose[2] - est[i][2])))
+    graph.add(j, i, between(est[j], r.pose), (30.0, 30.0, math.radians(0.5)), robust=True)
+    stats["corrections_mm"].append(corr)
+    stats["corrections_deg"].append(math.degrees(dth))
+    stats["_moved"] = corr > 30.0 or dth > math.radians(0.5)
+    return True
+
+
+def _good_closure(r: Any) -> bool:
+    return bool(r.ok and r.inliers > 0.45 and r.n > 80 and r.rms < 35.0 and r.weakest > 0.03)
+

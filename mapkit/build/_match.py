@@ -1,0 +1,204 @@
+"""Scan matching: point-to-line ICP against a KD-tree, and a correlative search for loop closures.
+
+Poses here are ``(x mm, y mm, theta radians)`` numpy arrays.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+FloatArray = np.ndarray[Any, np.dtype[np.float64]]
+
+
+def transform(pts: FloatArray, pose: FloatArray) -> FloatArray:
+    """Points through a pose (theta in radians)."""
+    c, s = math.cos(pose[2]), math.sin(pose[2])
+    out = pts @ np.array([[c, s], [-s, c]])
+    out[:, 0] += pose[0]
+    out[:, 1] += pose[1]
+    return out
+
+
+def rotate(v: FloatArray, th: float) -> FloatArray:
+    """Vectors rotated by ``th`` radians."""
+    c, s = math.cos(th), math.sin(th)
+    return v @ np.array([[c, s], [-s, c]])  # type: ignore[no-any-return]
+
+
+def scan_normals(pts: FloatArray, window: int = 3) -> FloatArray:
+    """Unit normals of beam-ordered scan points by PCA over ``2*window+1`` neighbours.
+
+    NaN where the neighbourhood is not a straight, continuous piece of wall.
+    """
+    n = len(pts)
+    out = np.full((n, 2), np.nan)
+    w = 2 * window + 1
+    if n < w:
+        return out
+    win = np.lib.stride_tricks.sliding_window_view(pts, (w, 2))[:, 0]  # (n-w+1, w, 2)
+    mean = win.mean(axis=1)
+    d = win - mean[:, None, :]
+    cxx = (d[..., 0] ** 2).mean(axis=1)
+    cyy = (d[..., 1] ** 2).mean(axis=1)
+    cxy = (d[..., 0] * d[..., 1]).mean(axis=1)
+    ang = 0.5 * np.arctan2(2 * cxy, cxx - cyy)  # direction of the line
+    tr = cxx + cyy
+    det = cxx * cyy - cxy ** 2
+    disc = np.sqrt(np.maximum(tr * tr / 4 - det, 0))
+    l1, l2 = tr / 2 + disc, tr / 2 - disc
+    span = np.hypot(*(win[:, -1] - win[:, 0]).T)
+    gaps = np.hypot(*np.diff(win, axis=1).transpose(2, 0, 1)).max(axis=1)
+    rng = np.hypot(mean[:, 0], mean[:, 1])
+    good = (l2 < 0.05 * np.maximum(l1, 1e-9)) & (gaps < 0.08 * rng + 60.0) & (span > 20.0)
+    nrm = np.stack([-np.sin(ang), np.cos(ang)], axis=1)
+    nrm[~good] = np.nan
+    out[window:n - window] = nrm
+    return out
+
+
+@dataclass
+class MatchResult:
+    """What a registration found."""
+
+    pose: FloatArray
+    ok: bool
+    inliers: float  # fraction of source points within the final distance
+    rms: float  # RMS point-to-line residual of the inliers (mm)
+    n: int
+    weakest: float  # smallest eigenvalue of the normalised translation information
+
+
+def icp(
+    src: FloatArray, tree: Any, tgt_pts: FloatArray, tgt_nrm: FloatArray, init: FloatArray, *,
+    schedule: tuple[float, ...] = (300.0, 150.0, 80.0, 50.0), max_iter: int = 15,
+    huber: float = 20.0, min_points: int = 20,
+) -> MatchResult:
+    """Point-to-line ICP of ``src`` (robot frame) against a target with normals.
+
+    Args:
+        src: ``(n, 2)`` source points in the robot frame.
+        tree: ``scipy.spatial.cKDTree`` of ``tgt_pts``.
+        tgt_pts: ``(m, 2)`` target points (world).
+        tgt_nrm: ``(m, 2)`` unit normals of the target points.
+        init: Initial pose (x, y, theta radians).
+        schedule: Correspondence distance per iteration (the last one repeats).
+
+    Returns:
+        The refined pose and fit statistics.
+    """
+    pose = np.array(init, dtype=np.float64)
+    n_src = len(src)
+    last = MatchResult(pose, False, 0.0, math.inf, 0, 0.0)
+    if n_src < min_points or len(tgt_pts) < min_points:
+        return last
+    for it in range(max_iter):
+        dmax = schedule[min(it, len(schedule) - 1)]
+        p = transform(src, pose)
+        d, idx = tree.query(p, k=1, distance_upper_bound=dmax)
+        ok = np.isfinite(d)
+        cnt = int(ok.sum())
+        if cnt < min_points:
+            return MatchResult(pose, False, cnt / n_src, math.inf, cnt, 0.0)
+        q = tgt_pts[idx[ok]]
+        nn = tgt_nrm[idx[ok]]
+        pp = p[ok]
+        r = ((pp - q) * nn).sum(axis=1)
+        v = pp - pose[:2]
+        jt = nn[:, 1] * v[:, 0] - nn[:, 0] * v[:, 1]
+        a = np.abs(r)
+        w = np.where(a <= huber, 1.0, huber / np.maximum(a, 1e-9))
+        J = np.stack([nn[:, 0], nn[:, 1], jt], axis=1)
+        Jw = J * w[:, None]
+        H = Jw.T @ J
+        g = Jw.T @ r
+        try:
+            delta = -np.linalg.solve(H + np.diag([1e-6, 1e-6, 1e-3]), g)
+        except np.linalg.LinAlgError:
+            return MatchResult(pose, False, cnt / n_src, math.inf, cnt, 0.0)
+        pose = pose + delta
+        if it >= len(schedule) - 1 and abs(delta[0]) + abs(delta[1]) < 0.2 and abs(delta[2]) < 2e-5:
+            break
+    p = transform(src, pose)
+    dfin = schedule[-1]
+    d, idx = tree.query(p, k=1, distance_upper_bound=dfin)
+    ok = np.isfinite(d)
+    cnt = int(ok.sum())
+    if cnt < min_points:
+        return MatchResult(pose, False, cnt / n_src, math.inf, cnt, 0.0)
+    nn = tgt_nrm[idx[ok]]
+    r = ((p[ok] - tgt_pts[idx[ok]]) * nn).sum(axis=1)
+    info = nn.T @ nn / cnt
+    weakest = float(np.linalg.eigvalsh(info)[0])
+    return MatchResult(pose, True, cnt / n_src, float(np.sqrt(np.mean(r * r))), cnt, weakest)
+
+
+def _likelihood(tgt_pts: FloatArray, cell: float) -> tuple[FloatArray, np.ndarray[Any, Any]]:
+    from scipy import ndimage
+
+    lo = tgt_pts.min(axis=0) - cell * 4
+    hi = tgt_pts.max(axis=0) + cell * 4
+    shape = (int((hi[0] - lo[0]) / cell) + 1, int((hi[1] - lo[1]) / cell) + 1)
+    occ = np.zeros(shape, dtype=bool)
+    ij = ((tgt_pts - lo) / cell).astype(np.int64)
+    occ[ij[:, 0], ij[:, 1]] = True
+    dist = ndimage.distance_transform_edt(~occ) * cell
+    return lo, np.exp(-0.5 * (dist / cell) ** 2).astype(np.float32)
+
+
+def _search(src: FloatArray, lo: FloatArray, like: np.ndarray[Any, Any], cell: float,
+            center: FloatArray, k: int, ths: FloatArray) -> tuple[FloatArray, float]:
+    shape = like.shape
+    offs = np.arange(-k, k + 1)
+    best_sc, best = -1.0, center.copy()
+    for th in ths:
+        p = transform(src, np.array([center[0], center[1], th]))
+        base = np.floor((p - lo) / cell).astype(np.int64)
+        ix = np.clip(base[:, 0][None, :] + offs[:, None], 0, shape[0] - 1)  # (K, n)
+        iy = np.clip(base[:, 1][None, :] + offs[:, None], 0, shape[1] - 1)
+        score = like[ix[:, None, :], iy[None, :, :]].sum(axis=2)  # (K, K)
+        a, b = np.unravel_index(int(np.argmax(score)), score.shape)
+        sc = float(score[a, b])
+        if sc > best_sc:
+            best_sc = sc
+            best = np.array([center[0] + offs[a] * cell, center[1] + offs[b] * cell, th])
+    return best, best_sc / max(len(src), 1)
+
+
+def correlative(
+    src: FloatArray, tgt_pts: FloatArray, center: FloatArray, *, xy_window: float,
+    th_window: float, cell: float = 50.0,
+) -> tuple[FloatArray, float]:
+    """Brute-force search of the pose that best lays ``src`` on ``tgt_pts``, coarse to fine.
+
+    Scores poses on a grid within the windows around ``center`` by the likelihood of each source
+    point under a blurred occupancy grid of the target: first with cells 4 x ``cell`` and 2 degree
+    steps, then with ``cell`` and 0.5 degrees around the best coarse pose.
+
+    Returns:
+        ``(best pose, score)``; the score is the mean per-point likelihood in [0, 1].
+    """
+    if len(src) == 0 or len(tgt_pts) == 0:
+        return center.copy(), 0.0
+    coarse = 4 * cell
+    lo, like = _likelihood(tgt_pts, coarse)
+    k = max(1, int(round(xy_window / coarse)))
+    step = math.radians(2.0)
+    ths = center[2] + np.arange(-th_window, th_window + 1e-12, step)
+    best, _ = _search(src, lo, like, coarse, center, k, ths)
+    lo, like = _likelihood(tgt_pts, cell)
+    ths = best[2] + np.radians(np.arange(-2.0, 2.01, 0.5))
+    return _search(src, lo, like, cell, best, 5, ths)
+
+
+def voxel_keep(pts: FloatArray, size: float) -> np.ndarray[Any, Any]:
+    """Indices of one point per ``size`` mm cell (the first one met)."""
+    if len(pts) == 0:
+        return np.zeros(0, dtype=np.int64)
+    k = np.floor(pts / size).astype(np.int64)
+    key = (k[:, 0] << 32) + (k[:, 1] & 0xFFFFFFFF)
+    _, idx = np.unique(key, return_index=True)
+    return np.sort(idx)
