@@ -39,7 +39,7 @@ from mapkit.errors import (
     TransferError,
     UnsupportedFormatError,
 )
-from mapkit.formats.map import dumps, dumpb, load, loads, recover, save
+from mapkit.formats.map import dumpb, dumps, load, loads, recover, save
 from mapkit.model import MapData, MapObject, Provenance, Scan, ScanHeader
 
 logging.getLogger(__name__).addHandler(logging.NullHandler())

@@ -493,11 +493,10 @@ class _Parser:
                 points_sorted=bool(header.points_sorted), lines_sorted=bool(header.lines_sorted),
                 min_pos=pmin, max_pos=pmax, line_min_pos=lmin, line_max_pos=lmax, header=header,
             )
-            boxes = [b for b in ((pmin, pmax), (lmin, lmax)) if b[0] is not None]
-            if boxes:
-                lo = np.min([b[0] for b in boxes], axis=0)
-                hi = np.max([b[1] for b in boxes], axis=0)
-                too_wide = too_wide or bool(np.any(hi - lo > _MAX_SPAN_MM))
+            corners = [c for c in (pmin, pmax, lmin, lmax) if c is not None]
+            if corners:
+                span = np.ptp(np.array(corners), axis=0)
+                too_wide = too_wide or bool(np.any(span > _MAX_SPAN_MM))
             scans.append(scan)
         if too_wide:
             scans = self.recompute_wide(scans)
@@ -520,8 +519,8 @@ class _Parser:
             objects=tuple(self.objects["objects"]),
             inactive_objects=tuple(self.objects["inactive_objects"]),
             child_objects=tuple(self.objects["child_objects"]),
-            info=self.info,
-            inactive_info=self.inactive_info,
+            info={k: tuple(v) for k, v in self.info.items()},
+            inactive_info={k: tuple(v) for k, v in self.inactive_info.items()},
             origin_lla=self.origin_lla,
             remainder=tuple(self.remainder),
             provenance=prov,
@@ -571,10 +570,10 @@ def _aria_box(
             return None, None
         lo, hi = xy.min(axis=0), xy.max(axis=0)
         return (int(lo[0]), int(lo[1])), (int(hi[0]), int(hi[1]))
+    if len(xy) == 0:
+        return None, None  # nothing to bound; the writer writes no box then
     lo0 = hmin if hmin is not None else (0, 0)
     hi0 = hmax if hmax is not None else (0, 0)
-    if len(xy) == 0:
-        return lo0, hi0
     lo, hi = xy.min(axis=0), xy.max(axis=0)
     return (
         (min(lo0[0], int(lo[0])), min(lo0[1], int(lo[1]))),
@@ -621,7 +620,7 @@ def loads(data: str | bytes, *, source: str = "<string>") -> MapData:
     Examples:
         >>> m = loads("2D-Map\\nDATA\\n1 2\\n")
         >>> m.points.tolist(), m.md5
-        ([[1, 2]], 'a0c7eb7cb0aaa20c3b0a0ab3a9b5e0b9')
+        ([[1, 2]], '688ea5a151f70b05bdfb3e892a0574ec')
     """
     return parse_map(data, source=source)
 
