@@ -2,7 +2,8 @@
 
 :func:`simulate_log` plans a route through the map (from its goals, or through given waypoints),
 drives it, ray-casts a laser against the map's lines and points (vectorised with numpy: each
-line or point is turned into the range of beams it covers, then each beam keeps its nearest hit),
+line or point is turned into the range of beams it covers, then each beam keeps its nearest hit;
+a point lying on a line is the same wall scanned, and is left out so walls stay flat),
 adds range noise, and integrates odometry with drift. The result holds the log's records (in the
 :mod:`mapkit.model.scan` convention) and the **true** pose of every scan.
 
@@ -407,6 +408,26 @@ def read_truth(path: PathLike) -> tuple[np.ndarray[Any, Any], FloatArray]:
     return np.array(ids, dtype=np.int64), np.array(poses, dtype=np.float64).reshape(-1, 3)
 
 
+def _points_off_lines(points: FloatArray, segments: FloatArray, tol: float) -> FloatArray:
+    """The points that are not copies of a line (farther than ``tol`` from every line).
+
+    Scanned maps hold each wall twice, as points and as a fitted line; the laser should see one
+    wall, not a line with a rough skin of points in front of it. Points elsewhere (furniture,
+    walls without a line) stay.
+    """
+    from scipy.spatial import cKDTree
+
+    if len(points) == 0 or len(segments) == 0:
+        return points
+    length = np.hypot(segments[:, 2] - segments[:, 0], segments[:, 3] - segments[:, 1])
+    k = np.maximum(np.ceil(length / (tol / 2)).astype(np.int64), 1) + 1
+    idx = np.repeat(np.arange(len(segments)), k)
+    t = (np.arange(int(k.sum())) - np.repeat(np.cumsum(k) - k, k)) / np.repeat(k - 1, k)
+    samples = segments[idx, :2] + t[:, None] * (segments[idx, 2:] - segments[idx, :2])
+    d, _ = cKDTree(samples).query(points, k=1, distance_upper_bound=tol * 1.2)
+    return points[~(d <= tol * 1.1)]
+
+
 def _map_home(m: MapData) -> tuple[float, float, float] | None:
     for kind in ("RobotHome", "Dock"):
         for o in m.objects:
@@ -516,8 +537,8 @@ def simulate_log(
 
     grid = _grid(m, 100.0)
     segments = m.lines.astype(np.float64)
-    points = m.points.astype(np.float64)
     point_size = float(max(m.scan.resolution, 20))
+    points = _points_off_lines(m.points.astype(np.float64), segments, 1.5 * point_size)
     half = fov / 2.0
     laser = LaserConfig(number=1, pose=Pose2D(*laser_pose), start=-half, end=half,
                         count=readings, name="sim_laser_1", z=0.0)

@@ -44,7 +44,7 @@ from typing import Any
 import numpy as np
 
 from mapkit._typing import PathLike
-from mapkit.build._graph import PoseGraph, between, wrap
+from mapkit.build._graph import PoseGraph, between, sigma_info, wrap
 from mapkit.build._lines import extract_lines
 from mapkit.build._match import correlative, icp, scan_normals, transform, voxel_keep
 from mapkit.diagnostics import Issue, IssueCode
@@ -379,22 +379,27 @@ def _register(scans: list[LaserScan], odo: FloatArray, pts: list[FloatArray],
         pred = np.array([est[i - 1][0] + c * step[0] - s * step[1],
                          est[i - 1][1] + s * step[0] + c * step[1],
                          wrap(est[i - 1][2] + step[2])])
-        path[i] = path[i - 1] + math.hypot(step[0], step[1])
-        r = icp(src[i], sub.tree, sub.pts, sub.nrm, pred) if sub.tree is not None else None
         trans = math.hypot(step[0], step[1])
-        if r is not None and r.ok and r.inliers > 0.3 and r.rms < 60.0 and r.weakest > 0.02 \
+        path[i] = path[i - 1] + trans
+        # Odometry as a prior: it holds what the scan cannot tell (along a corridor).
+        s_xy = 10.0 + 0.05 * trans
+        odo_info = sigma_info(s_xy, s_xy, math.radians(0.5) + 0.05 * abs(step[2])
+                              + math.radians(0.2) * trans / 1000.0)
+        r = (icp(src[i], sub.tree, sub.pts, sub.nrm, pred, prior=pred, prior_info=odo_info)
+             if sub.tree is not None else None)
+        if r is not None and r.ok and r.inliers > 0.25 and r.rms < 60.0 \
                 and math.hypot(*(r.pose[:2] - pred[:2])) < 300.0 + 0.1 * trans \
                 and abs(wrap(r.pose[2] - pred[2])) < math.radians(8.0):
             est[i] = r.pose
             est[i, 2] = wrap(est[i, 2])
             stats["registered"] += 1
             stats["residuals"].append(r.rms)
-            graph.add(i - 1, i, between(est[i - 1], est[i]), (15.0, 15.0, math.radians(0.3)))
+            graph.add(i - 1, i, between(est[i - 1], est[i]),
+                      _edge_info(r.info() + odo_info, est[i]))
         else:
             est[i] = pred
             stats["odometry_only"] += 1
-            graph.add(i - 1, i, step, (20.0 + 0.05 * trans, 20.0 + 0.05 * trans,
-                                       math.radians(1.0) + 0.05 * abs(step[2])))
+            graph.add(i - 1, i, step, odo_info)
         # Loop closures.
         moved = False
         for s0, _tag in tag_at.get(i, []):
@@ -402,7 +407,8 @@ def _register(scans: list[LaserScan], odo: FloatArray, pts: list[FloatArray],
                 stats["tag_loops_matched"] += 1
                 moved = moved or stats.pop("_moved", False)
             else:
-                graph.add(s0, i, np.zeros(3), (500.0, 500.0, math.radians(10.0)), robust=True)
+                graph.add(s0, i, np.zeros(3), sigma_info(500.0, 500.0, math.radians(10.0)),
+                          robust=True)
                 issues.append(Issue.make(IssueCode.LOG_UNPAIRED_LOOP,
                                          f"loop tag {_tag}: the scans at its start and stop do "
                                          "not match; used as a weak hint only",
@@ -471,10 +477,22 @@ def _local(idx: range, est: FloatArray, pts: list[FloatArray], nrm: list[FloatAr
     return p[keep], nn[keep]
 
 
+def _edge_info(world_info: FloatArray, pose_j: FloatArray) -> FloatArray:
+    """A world-frame pose information turned into the frame of an edge's error (pose j)."""
+    c, s = math.cos(pose_j[2]), math.sin(pose_j[2])
+    M = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    return M.T @ world_info @ M + np.eye(3) * 1e-9
+
+
 def _close(i: int, j: int, est: FloatArray, src: list[FloatArray], pts: list[FloatArray],
            nrm: list[FloatArray], path: FloatArray, graph: PoseGraph, stats: dict[str, Any], *,
            tagged: bool) -> bool:
-    """Match scan i (with its predecessors) against the map around old scan j; add an edge."""
+    """Match scan i (with its predecessors) against the map around old scan j; add an edge.
+
+    A ``loop:`` tag claims the robot is back where it was at the tag's start: the match then
+    starts there and the claim holds the directions the scans cannot fix. A detected revisit
+    starts from the current estimate, which also holds the unconstrained directions.
+    """
     from scipy.spatial import cKDTree
 
     n = len(est)
@@ -492,39 +510,50 @@ def _close(i: int, j: int, est: FloatArray, src: list[FloatArray], pts: list[Flo
     # Source: scan i and a few before it, in scan i's frame.
     s_parts = [src[i]]
     for k in range(max(0, i - 4), i):
-        rel = between(est[i], est[k])
-        s_parts.append(transform(src[k], rel))
+        s_parts.append(transform(src[k], between(est[i], est[k])))
     source = np.concatenate(s_parts)
     source = source[voxel_keep(source, 60.0)]
-    guess = est[i].copy()
+    gap = path[i] - path[j]
     if tagged:
-        guess = est[j].copy()
-    r = icp(source, tree, tgt, tn, guess, schedule=(400.0, 200.0, 100.0, 60.0), max_iter=25)
-    good = _good_closure(r)
+        guess = np.array([est[j][0], est[j][1], est[i][2]])
+        claim = sigma_info(400.0, 400.0, 10.0)
+        win, thw = 3000.0, math.radians(25.0)
+    else:
+        guess = est[i].copy()
+        allow = min(800.0 + 0.02 * gap, 3000.0)
+        claim = sigma_info(allow, allow, 10.0)
+        win, thw = allow, math.radians(min(5.0 + 0.2 * gap / 1000.0, 20.0))
+    sched = (400.0, 200.0, 100.0, 60.0)
+    r = icp(source, tree, tgt, tn, guess, schedule=sched, max_iter=25, prior=guess,
+            prior_info=claim)
+    good = _good_closure(r, tagged)
     if not good:
-        gap = path[i] - path[j]
-        win = 3000.0 if tagged else min(800.0 + 0.02 * gap, 3000.0)
-        thw = math.radians(25.0 if tagged else min(5.0 + 0.2 * gap / 1000.0, 20.0))
         sub = source[:: max(1, len(source) // 150)]
-        for center in ([est[j], est[i]] if tagged else [est[i]]):
-            cp, score = correlative(sub, tgt, center, xy_window=win, th_window=thw, cell=50.0)
-            if score < 0.25:
-                continue
-            r = icp(source, tree, tgt, tn, cp, schedule=(200.0, 100.0, 60.0), max_iter=25)
-            good = _good_closure(r)
-            if good:
-                break
+        cp, score = correlative(sub, tgt, guess, xy_window=win, th_window=thw, cell=50.0)
+        if score >= 0.25:
+            r = icp(source, tree, tgt, tn, cp, schedule=(200.0, 100.0, 60.0), max_iter=25,
+                    prior=guess, prior_info=claim)
+            good = _good_closure(r, tagged)
     if not good:
         return False
+    weak = r.weak_direction()
+    if weak is not None:
+        # Along a corridor the match says nothing: keep the estimate there.
+        r.pose[:2] -= weak * float((r.pose[:2] - guess[:2]) @ weak)
+        if not tagged:
+            r.pose[:2] += weak * float((guess[:2] - est[i][:2]) @ weak)
     corr = math.hypot(*(r.pose[:2] - est[i][:2]))
     dth = abs(float(wrap(r.pose[2] - est[i][2])))
-    graph.add(j, i, between(est[j], r.pose), (30.0, 30.0, math.radians(0.5)), robust=True)
+    info = r.info() + (claim if tagged else 0.0)
+    graph.add(j, i, between(est[j], r.pose), _edge_info(info, r.pose), robust=True)
     stats["corrections_mm"].append(corr)
     stats["corrections_deg"].append(math.degrees(dth))
     stats["_moved"] = corr > 30.0 or dth > math.radians(0.5)
     return True
 
 
-def _good_closure(r: Any) -> bool:
-    return bool(r.ok and r.inliers > 0.45 and r.n > 80 and r.rms < 35.0 and r.weakest > 0.03)
+def _good_closure(r: Any, tagged: bool) -> bool:
+    if tagged:
+        return bool(r.ok and r.inliers > 0.35 and r.n > 60 and r.rms < 35.0)
+    return bool(r.ok and r.inliers > 0.45 and r.n > 80 and r.rms < 35.0)
 

@@ -1,7 +1,7 @@
 """A 2D pose graph and its Gauss-Newton optimisation (sparse, scipy).
 
 Nodes are poses ``(x mm, y mm, theta radians)``; an edge says "pose j seen from pose i is z" with
-a diagonal information (1/sigma^2 per component). Node 0 is held fixed. Loop edges get a robust
+a 3x3 information matrix (in the frame of the expected pose j, as the error is). Node 0 is held fixed. Loop edges get a robust
 (Huber) weight so that one bad closure cannot bend the whole map.
 """
 
@@ -18,6 +18,11 @@ FloatArray = np.ndarray[Any, np.dtype[np.float64]]
 def wrap(a: Any) -> Any:
     """Angles (radians) to [-pi, pi)."""
     return (np.asarray(a) + math.pi) % (2 * math.pi) - math.pi
+
+
+def sigma_info(sx: float, sy: float, sth: float) -> FloatArray:
+    """A diagonal information matrix from standard deviations (mm, mm, radians)."""
+    return np.diag([1.0 / sx ** 2, 1.0 / sy ** 2, 1.0 / sth ** 2])
 
 
 def between(a: FloatArray, b: FloatArray) -> FloatArray:
@@ -37,13 +42,12 @@ class PoseGraph:
         self.info: list[FloatArray] = []
         self.robust: list[bool] = []
 
-    def add(self, i: int, j: int, z: FloatArray, sigma: tuple[float, float, float], *,
-            robust: bool = False) -> None:
-        """Add an edge with standard deviations (mm, mm, radians)."""
+    def add(self, i: int, j: int, z: FloatArray, info: FloatArray, *, robust: bool = False) -> None:
+        """Add an edge with a 3x3 information matrix (see :func:`sigma_info`)."""
         self.i.append(i)
         self.j.append(j)
         self.z.append(np.asarray(z, dtype=np.float64))
-        self.info.append(1.0 / np.square(np.asarray(sigma, dtype=np.float64)))
+        self.info.append(np.asarray(info, dtype=np.float64).reshape(3, 3))
         self.robust.append(robust)
 
     def __len__(self) -> int:
@@ -87,12 +91,11 @@ class PoseGraph:
             A[:, 2, 2] = -1.0
             B[:, :2, :2] = M
             B[:, 2, 2] = 1.0
-            om = OM.copy()
-            chi = np.sqrt(np.einsum("ea,ea->e", e * om, e))
+            chi = np.sqrt(np.maximum(np.einsum("ea,eab,eb->e", e, OM, e), 0.0))
             scale = np.where(RB & (chi > huber), huber / np.maximum(chi, 1e-12), 1.0)
-            om *= scale[:, None]
-            Ao = A * om[:, :, None]  # rows scaled: Omega A  (diag Omega)
-            Bo = B * om[:, :, None]
+            om = OM * scale[:, None, None]
+            Ao = np.einsum("ekl,elb->ekb", om, A)  # Omega A
+            Bo = np.einsum("ekl,elb->ekb", om, B)
             Hii = np.einsum("eka,ekb->eab", A, Ao)
             Hij = np.einsum("eka,ekb->eab", A, Bo)
             Hjj = np.einsum("eka,ekb->eab", B, Bo)

@@ -70,12 +70,38 @@ class MatchResult:
     rms: float  # RMS point-to-line residual of the inliers (mm)
     n: int
     weakest: float  # smallest eigenvalue of the normalised translation information
+    hessian: FloatArray | None = None  # sum of J^T J of the final fit (world frame)
+    normals: FloatArray | None = None  # mean n n^T of the matched target normals (2x2)
+
+    def weak_direction(self, floor: float = 0.12) -> FloatArray | None:
+        """Unit vector along which the match tells nothing (a corridor's axis), or None."""
+        if self.normals is None:
+            return None
+        w, v = np.linalg.eigh(self.normals)
+        return v[:, 0] if w[0] < floor else None
+
+    def info(self, sigma: float = 15.0, points: float = 10.0) -> FloatArray:
+        """Information of the match in the world frame, as if from ``points`` points of ``sigma``.
+
+        A direction the matched walls do not constrain (a corridor's axis) gets none, however
+        many points happen to face it, so a closure in a corridor cannot pull along it.
+        """
+        if self.hessian is None or self.n == 0:
+            return np.zeros((3, 3))
+        info = self.hessian * (points / (self.n * sigma * sigma))
+        weak = self.weak_direction()
+        if weak is not None:
+            P = np.eye(3)
+            P[:2, :2] -= np.outer(weak, weak)
+            info = P.T @ info @ P
+        return info  # type: ignore[no-any-return]
 
 
 def icp(
     src: FloatArray, tree: Any, tgt_pts: FloatArray, tgt_nrm: FloatArray, init: FloatArray, *,
     schedule: tuple[float, ...] = (300.0, 150.0, 80.0, 50.0), max_iter: int = 15,
-    huber: float = 20.0, min_points: int = 20,
+    huber: float = 20.0, min_points: int = 20, prior: FloatArray | None = None,
+    prior_info: FloatArray | None = None, sigma: float = 15.0,
 ) -> MatchResult:
     """Point-to-line ICP of ``src`` (robot frame) against a target with normals.
 
@@ -86,6 +112,10 @@ def icp(
         tgt_nrm: ``(m, 2)`` unit normals of the target points.
         init: Initial pose (x, y, theta radians).
         schedule: Correspondence distance per iteration (the last one repeats).
+        prior: A pose the result should stay near (e.g. the odometry prediction), with
+            ``prior_info`` its 3x3 information (world frame): it fills the directions the
+            scan does not constrain (a corridor's length).
+        sigma: Range noise assumed for the points (mm), weighting them against the prior.
 
     Returns:
         The refined pose and fit statistics.
@@ -113,10 +143,15 @@ def icp(
         w = np.where(a <= huber, 1.0, huber / np.maximum(a, 1e-9))
         J = np.stack([nn[:, 0], nn[:, 1], jt], axis=1)
         Jw = J * w[:, None]
-        H = Jw.T @ J
-        g = Jw.T @ r
+        H = Jw.T @ J / (sigma * sigma)
+        g = Jw.T @ r / (sigma * sigma)
+        if prior is not None and prior_info is not None:
+            dp = pose - prior
+            dp[2] = (dp[2] + math.pi) % (2 * math.pi) - math.pi
+            H = H + prior_info
+            g = g + prior_info @ dp
         try:
-            delta = -np.linalg.solve(H + np.diag([1e-6, 1e-6, 1e-3]), g)
+            delta = -np.linalg.solve(H + np.diag([1e-9, 1e-9, 1e-6]), g)
         except np.linalg.LinAlgError:
             return MatchResult(pose, False, cnt / n_src, math.inf, cnt, 0.0)
         pose = pose + delta
@@ -133,7 +168,10 @@ def icp(
     r = ((p[ok] - tgt_pts[idx[ok]]) * nn).sum(axis=1)
     info = nn.T @ nn / cnt
     weakest = float(np.linalg.eigvalsh(info)[0])
-    return MatchResult(pose, True, cnt / n_src, float(np.sqrt(np.mean(r * r))), cnt, weakest)
+    v = p[ok] - pose[:2]
+    J = np.stack([nn[:, 0], nn[:, 1], nn[:, 1] * v[:, 0] - nn[:, 0] * v[:, 1]], axis=1)
+    return MatchResult(pose, True, cnt / n_src, float(np.sqrt(np.mean(r * r))), cnt, weakest,
+                       J.T @ J, info)
 
 
 def _likelihood(tgt_pts: FloatArray, cell: float) -> tuple[FloatArray, np.ndarray[Any, Any]]:
