@@ -130,7 +130,7 @@ class _Submap:
         n = np.concatenate(N)
         keep = voxel_keep(p, self.voxel)
         self.pts, self.nrm = p[keep], n[keep]
-        self.tree = cKDTree(self.pts)
+        self.tree = cKDTree(self.pts, balanced_tree=False, compact_nodes=False)
 
 
 def _scan_arrays(log: LaserLog, pose_source: str, max_range: float
@@ -361,7 +361,7 @@ def _register(scans: list[LaserScan], odo: FloatArray, pts: list[FloatArray],
     est = odo.copy()
     graph = PoseGraph()
     sub = _Submap(voxel=40.0)
-    src = [p[::2] if len(p) > 200 else p for p in pts]
+    src = [p[::3] if len(p) > 240 else (p[::2] if len(p) > 120 else p) for p in pts]
     path = np.zeros(n)
     pairs = _loop_pairs(log, scans, issues) if loop_closure else []
     stats["tag_loops"] = len(pairs)
@@ -434,7 +434,7 @@ def _register(scans: list[LaserScan], odo: FloatArray, pts: list[FloatArray],
         window.append(i)
         while len(window) > 25 or (path[i] - path[window[0]] > 8000.0 and len(window) > 5):
             window.pop(0)
-        if i - last_sub >= 2 or last_sub < 0:
+        if i - last_sub >= 3 or last_sub < 0:
             sub.rebuild(window, pts, nrm, est)
             last_sub = i
         if progress and (i % report_every == 0 or i == n - 1):
@@ -524,14 +524,14 @@ def _close(i: int, j: int, est: FloatArray, src: list[FloatArray], pts: list[Flo
         claim = sigma_info(allow, allow, 10.0)
         win, thw = allow, math.radians(min(5.0 + 0.2 * gap / 1000.0, 20.0))
     sched = (400.0, 200.0, 100.0, 60.0)
-    r = icp(source, tree, tgt, tn, guess, schedule=sched, max_iter=25, prior=guess,
+    r = icp(source, tree, tgt, tn, guess, schedule=sched, max_iter=20, prior=guess,
             prior_info=claim)
     good = _good_closure(r, tagged)
     if not good:
         sub = source[:: max(1, len(source) // 150)]
         cp, score = correlative(sub, tgt, guess, xy_window=win, th_window=thw, cell=50.0)
         if score >= 0.25:
-            r = icp(source, tree, tgt, tn, cp, schedule=(200.0, 100.0, 60.0), max_iter=25,
+            r = icp(source, tree, tgt, tn, cp, schedule=(200.0, 100.0, 60.0), max_iter=20,
                     prior=guess, prior_info=claim)
             good = _good_closure(r, tagged)
     if not good:

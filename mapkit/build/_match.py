@@ -99,7 +99,7 @@ class MatchResult:
 
 def icp(
     src: FloatArray, tree: Any, tgt_pts: FloatArray, tgt_nrm: FloatArray, init: FloatArray, *,
-    schedule: tuple[float, ...] = (300.0, 150.0, 80.0, 50.0), max_iter: int = 15,
+    schedule: tuple[float, ...] = (250.0, 100.0, 50.0), max_iter: int = 12,
     huber: float = 20.0, min_points: int = 20, prior: FloatArray | None = None,
     prior_info: FloatArray | None = None, sigma: float = 15.0,
 ) -> MatchResult:
@@ -112,9 +112,13 @@ def icp(
         tgt_nrm: ``(m, 2)`` unit normals of the target points.
         init: Initial pose (x, y, theta radians).
         schedule: Correspondence distance per iteration (the last one repeats).
+        max_iter: Most iterations.
+        huber: Residual (mm) above which a point's weight falls (Huber).
+        min_points: Fewest matched points for a result.
         prior: A pose the result should stay near (e.g. the odometry prediction), with
             ``prior_info`` its 3x3 information (world frame): it fills the directions the
             scan does not constrain (a corridor's length).
+        prior_info: See ``prior``.
         sigma: Range noise assumed for the points (mm), weighting them against the prior.
 
     Returns:
@@ -122,54 +126,63 @@ def icp(
     """
     pose = np.array(init, dtype=np.float64)
     n_src = len(src)
-    last = MatchResult(pose, False, 0.0, math.inf, 0, 0.0)
     if n_src < min_points or len(tgt_pts) < min_points:
-        return last
+        return MatchResult(pose, False, 0.0, math.inf, 0, 0.0)
+    sx = np.ascontiguousarray(src[:, 0])
+    sy = np.ascontiguousarray(src[:, 1])
+    inv_s2 = 1.0 / (sigma * sigma)
+    use_prior = prior is not None and prior_info is not None
+    nn = r = vx = vy = None
+    cnt = 0
+    last = len(schedule) - 1
     for it in range(max_iter):
-        dmax = schedule[min(it, len(schedule) - 1)]
-        p = transform(src, pose)
-        d, idx = tree.query(p, k=1, distance_upper_bound=dmax)
-        ok = np.isfinite(d)
-        cnt = int(ok.sum())
+        dmax = schedule[min(it, last)]
+        c, s = math.cos(pose[2]), math.sin(pose[2])
+        vx = sx * c - sy * s  # point minus robot position
+        vy = sx * s + sy * c
+        p = np.empty((n_src, 2))
+        p[:, 0] = vx + pose[0]
+        p[:, 1] = vy + pose[1]
+        d, idx = tree.query(p, k=1, distance_upper_bound=dmax, eps=0.2)
+        ok = d < dmax
+        cnt = int(np.count_nonzero(ok))
         if cnt < min_points:
             return MatchResult(pose, False, cnt / n_src, math.inf, cnt, 0.0)
-        q = tgt_pts[idx[ok]]
-        nn = tgt_nrm[idx[ok]]
-        pp = p[ok]
-        r = ((pp - q) * nn).sum(axis=1)
-        v = pp - pose[:2]
-        jt = nn[:, 1] * v[:, 0] - nn[:, 0] * v[:, 1]
+        ti = idx[ok]
+        nn = tgt_nrm[ti]
+        q = tgt_pts[ti]
+        vx, vy = vx[ok], vy[ok]
+        nx, ny = nn[:, 0], nn[:, 1]
+        r = (p[ok, 0] - q[:, 0]) * nx + (p[ok, 1] - q[:, 1]) * ny
+        jt = ny * vx - nx * vy
         a = np.abs(r)
-        w = np.where(a <= huber, 1.0, huber / np.maximum(a, 1e-9))
-        J = np.stack([nn[:, 0], nn[:, 1], jt], axis=1)
+        w = np.minimum(1.0, huber / np.maximum(a, 1e-9)) * inv_s2
+        J = np.empty((cnt, 3))
+        J[:, 0] = nx
+        J[:, 1] = ny
+        J[:, 2] = jt
         Jw = J * w[:, None]
-        H = Jw.T @ J / (sigma * sigma)
-        g = Jw.T @ r / (sigma * sigma)
-        if prior is not None and prior_info is not None:
-            dp = pose - prior
+        H = Jw.T @ J
+        g = Jw.T @ r
+        if use_prior:
+            dp = pose - prior  # type: ignore[operator]
             dp[2] = (dp[2] + math.pi) % (2 * math.pi) - math.pi
             H = H + prior_info
-            g = g + prior_info @ dp
+            g = g + prior_info @ dp  # type: ignore[operator]
+        H[0, 0] += 1e-9
+        H[1, 1] += 1e-9
+        H[2, 2] += 1e-6
         try:
-            delta = -np.linalg.solve(H + np.diag([1e-9, 1e-9, 1e-6]), g)
+            delta = -np.linalg.solve(H, g)
         except np.linalg.LinAlgError:
             return MatchResult(pose, False, cnt / n_src, math.inf, cnt, 0.0)
-        pose = pose + delta
-        if it >= len(schedule) - 1 and abs(delta[0]) + abs(delta[1]) < 0.2 and abs(delta[2]) < 2e-5:
+        pose += delta
+        if it >= last and abs(delta[0]) + abs(delta[1]) < 0.5 and abs(delta[2]) < 5e-5:
             break
-    p = transform(src, pose)
-    dfin = schedule[-1]
-    d, idx = tree.query(p, k=1, distance_upper_bound=dfin)
-    ok = np.isfinite(d)
-    cnt = int(ok.sum())
-    if cnt < min_points:
-        return MatchResult(pose, False, cnt / n_src, math.inf, cnt, 0.0)
-    nn = tgt_nrm[idx[ok]]
-    r = ((p[ok] - tgt_pts[idx[ok]]) * nn).sum(axis=1)
+    assert nn is not None and r is not None and vx is not None and vy is not None
     info = nn.T @ nn / cnt
     weakest = float(np.linalg.eigvalsh(info)[0])
-    v = p[ok] - pose[:2]
-    J = np.stack([nn[:, 0], nn[:, 1], nn[:, 1] * v[:, 0] - nn[:, 0] * v[:, 1]], axis=1)
+    J = np.stack([nn[:, 0], nn[:, 1], nn[:, 1] * vx - nn[:, 0] * vy], axis=1)
     return MatchResult(pose, True, cnt / n_src, float(np.sqrt(np.mean(r * r))), cnt, weakest,
                        J.T @ J, info)
 
