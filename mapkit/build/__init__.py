@@ -557,3 +557,17 @@ def _good_closure(r: Any, tagged: bool) -> bool:
         return bool(r.ok and r.inliers > 0.35 and r.n > 60 and r.rms < 35.0)
     return bool(r.ok and r.inliers > 0.45 and r.n > 80 and r.rms < 35.0)
 
+
+
+def _read_2d_as_map(path: PathLike) -> MapData:
+    """``mapkit convert LOG.2d OUT``: the raw odometry map (no registration; see ``mapkit build``)."""
+    return build_map(path, register=False).map
+
+
+def _register_reader() -> None:
+    from mapkit.formats.registry import register_reader
+
+    register_reader(".2d", _read_2d_as_map)
+
+
+_register_reader()

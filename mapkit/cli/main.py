@@ -53,9 +53,13 @@ def cli(ctx: click.Context, verbose: int, quiet: bool, debug: bool) -> None:
 # Commands are registered explicitly, one module per command or command group.
 from mapkit.cli import convert as _convert  # noqa: E402
 from mapkit.cli import info as _info  # noqa: E402
+from mapkit.cli import logs as _logs  # noqa: E402
 
 cli.add_command(_info.info)
 cli.add_command(_convert.convert)
+cli.add_command(_logs.simulate)
+cli.add_command(_logs.build)
+cli.add_command(_logs.log_info)
 
 
 def main() -> None:

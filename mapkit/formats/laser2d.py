@@ -88,6 +88,7 @@ __all__ = [
     "goal_event",
     "goal_fields",
     "iter_log",
+    "log_summary",
     "loads_log",
     "loop_event",
     "read_log",
@@ -411,8 +412,8 @@ class LogReader:
                     self._note(IssueCode.LOG_UNKNOWN_TAG,
                                f"unknown header line {_decode(tag)!r} kept", lineno)
             except (ValueError, IndexError) as err:
-                self._fail(IssueCode.LOG_BAD_HEADER_LINE,
-                           f"{_decode(tag)} {err if str(err) else 'has a value that is not a number'}",
+                what = str(err) if str(err).startswith("expects") else "has a value that is not a number"
+                self._fail(IssueCode.LOG_BAD_HEADER_LINE, f"{_decode(tag)} {what}",
                            lineno, line, has_nl)
         if version is None:
             self._note(IssueCode.LOG_UNKNOWN_VERSION, "no 'version:' line; read as version 4"
@@ -522,6 +523,8 @@ class LogReader:
                 if p.empty():
                     p.start_line = lineno
                 p.has_time = True
+                if tag == b"logTime:":
+                    self._velocities = None  # a new cycle: its velocities: line follows
                 try:
                     self._time = _time(rest.split()[0])
                 except (ValueError, IndexError):
@@ -859,6 +862,78 @@ def recover_log(source: PathLike | IO[bytes] | bytes, *,
     reader = iter_log(source, strict=False, name=name)
     log = _collect(reader)
     return log, reader.issues
+
+
+def log_summary(source: PathLike | IO[bytes] | bytes, *, strict: bool = True,
+                name: str | None = None) -> dict[str, Any]:
+    """What a log holds, read in one streaming pass (bounded memory, any length).
+
+    Args:
+        source: A path, an open binary file, or the log's bytes.
+        strict: Raise at the first bad record; ``False`` counts and lists the problems.
+        name: File name for messages.
+
+    Returns:
+        JSON-ready figures: version, lasers, scans, readings, valid fraction, events by kind,
+        time span, odometry path length, whether the log ended cleanly, and issues.
+
+    Raises:
+        LogFormatError: When the log cannot be read (strict mode: any bad record).
+        OSError: When the file cannot be read.
+
+    Examples:
+        >>> s = log_summary(b"LaserOdometryLog\\nversion: 4\\nsick1conf: -90 90 2\\n"
+        ...                 b"scanId: 0\\nrobot: 0 0 0\\nscan1: 1000 0  0 0 \\n"
+        ...                 b"scanId: 1\\nrobot: 300 0 0\\nscan1: 700 0  0 0 \\n# End of log\\n")
+        >>> s["scans"], s["path_length_m"], s["valid_fraction"], s["complete"]
+        (2, 0.3, 0.5, True)
+    """
+    reader = iter_log(source, strict=strict, name=name)
+    scans = readings = valid = 0
+    events: dict[str, int] = {}
+    goals: list[str] = []
+    t_first = t_last = None
+    length = 0.0
+    last: Pose2D | None = None
+    per_laser: dict[int, int] = {}
+    with reader:
+        for rec in reader:
+            t = rec.time
+            if t is not None:
+                t_first = t if t_first is None else t_first
+                t_last = t
+            if isinstance(rec, LaserScan):
+                scans += 1
+                per_laser[rec.laser] = per_laser.get(rec.laser, 0) + 1
+                readings += rec.num_readings
+                valid += int(np.count_nonzero(rec.valid))
+                if last is not None and rec.laser == 1:
+                    length += math.hypot(rec.robot.x - last.x, rec.robot.y - last.y)
+                if rec.laser == 1:
+                    last = rec.robot
+            else:
+                events[rec.kind] = events.get(rec.kind, 0) + 1
+                if rec.kind == "goal":
+                    goals.append(rec.name)
+    h = reader.header
+    return {
+        "file": reader.source,
+        "version": h.version,
+        "lasers": [{"number": las.number, "name": las.name, "pose": list(las.pose),
+                    "first_angle": las.start, "last_angle": las.end, "readings": las.count}
+                   for las in h.lasers],
+        "location_types": list(h.location_types),
+        "scans": scans,
+        "scans_per_laser": {str(k): v for k, v in sorted(per_laser.items())},
+        "readings": readings,
+        "valid_fraction": round(valid / readings, 4) if readings else 0.0,
+        "events": events,
+        "goals": goals,
+        "time_span_s": round(t_last - t_first, 3) if t_first is not None and t_last is not None else None,
+        "path_length_m": round(length / 1000.0, 3),
+        "complete": reader.complete,
+        "issues": [i.to_dict() for i in reader.issues],
+    }
 
 
 def loads_log(text: str | bytes, *, name: str = "<string>") -> LaserLog:

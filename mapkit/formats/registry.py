@@ -38,7 +38,7 @@ _WRITERS: dict[str, Writer] = {".map": _write_map}
 #: suffix -> module that registers its writer (imported on first use).
 LAZY_WRITERS: dict[str, str] = {}
 #: suffix -> module that registers its reader (imported on first use).
-LAZY_READERS: dict[str, str] = {}
+LAZY_READERS: dict[str, str] = {".2d": "mapkit.build"}
 
 
 def register_reader(suffix: str, reader: Reader) -> None:
