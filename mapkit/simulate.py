@@ -347,6 +347,14 @@ class SimulatedLog:
     skipped: tuple[str, ...] = ()
     params: dict[str, Any] = field(default_factory=dict)
 
+    def truth_text(self, log_name: str = "the log") -> str:
+        """The truth sidecar's text: a comment, then ``scanId time x y th`` per scan."""
+        lines = [f"# true robot poses of {log_name} (mapkit simulate): scanId time x y th "
+                 "(mm, degrees)"]
+        lines += [f"{int(i)} {t:.3f} {p[0]:.1f} {p[1]:.1f} {p[2]:.3f}"
+                  for i, t, p in zip(self.truth_ids, self.truth_times, self.truth)]
+        return "\n".join(lines) + "\n"
+
     def save(self, path: PathLike, *, version: int | None = None, truth: bool | PathLike = True) -> str:
         """Write the log (atomically) and, unless ``truth`` is false, the truth sidecar.
 
@@ -369,11 +377,7 @@ class SimulatedLog:
                f"/ {self.odometry_error[1]:.1f} deg at the end")
         if truth:
             tpath = truth_path_for(path) if truth is True else truth
-            lines = [f"# true robot poses of {os.path.basename(os.fspath(path))} (mapkit simulate): "
-                     "scanId time x y th (mm, degrees)"]
-            lines += [f"{int(i)} {t:.3f} {p[0]:.1f} {p[1]:.1f} {p[2]:.3f}"
-                      for i, t, p in zip(self.truth_ids, self.truth_times, self.truth)]
-            atomic_write(tpath, ("\n".join(lines) + "\n").encode())  # type: ignore[arg-type]
+            atomic_write(tpath, self.truth_text(os.path.basename(os.fspath(path))).encode())  # type: ignore[arg-type]
             msg += f"; true poses in {os.fspath(tpath)}"  # type: ignore[arg-type]
         return msg
 

@@ -276,3 +276,21 @@ def test_log_summary_counts(tmp_path) -> None:
     assert s["path_length_m"] == pytest.approx(0.019)
     assert s["time_span_s"] == pytest.approx(1.9)
     assert s["complete"] and s["issues"] == []
+
+
+@pytest.mark.parametrize(("name", "version", "readings", "loops"),
+                         [("office-loop", 4, 361, 2), ("building-labs", 3, 181, 0)])
+def test_bundled_logs(name: str, version: int, readings: int, loops: int) -> None:
+    from mapkit.samples import sample_path
+    from mapkit.simulate import read_truth, truth_path_for
+
+    path = sample_path(name)
+    assert path.suffix == ".2d" and path.stat().st_size < 2_000_000
+    log, issues = recover_log(path)
+    assert issues == [] and log.complete
+    assert log.header.version == version and log.header.laser(1).count == readings
+    assert sum(e.kind == "loop" for e in log.events) == loops
+    ids, truth = read_truth(truth_path_for(path))
+    assert ids.tolist() == [s.scan_id for s in log.scans]
+    drift = np.hypot(*(log.poses()[:, :2] - truth[:, :2]).T)
+    assert drift[0] < 1.0 and drift.max() > 100.0  # odometry drifts away from the truth
