@@ -134,8 +134,8 @@ class _Submap:
 
 
 def _scan_arrays(log: LaserLog, pose_source: str, max_range: float
-                 ) -> tuple[list[LaserScan], FloatArray, list[FloatArray], list[FloatArray]]:
-    scans, odo, pts, nrm = [], [], [], []
+                 ) -> tuple[list[LaserScan], FloatArray, list[FloatArray]]:
+    scans, odo, pts = [], [], []
     for s in log.scans:
         las = log.header.laser(s.laser)
         p = s.robot_points(las, max_range=max_range)
@@ -145,15 +145,7 @@ def _scan_arrays(log: LaserLog, pose_source: str, max_range: float
         scans.append(s)
         odo.append(pose)
         pts.append(p)
-        # Normals in the laser's beam order, then into the robot frame (rotation by the mount).
-        lp = s.laser_points(las, max_range=max_range)
-        nr = scan_normals(lp)
-        th = math.radians(las.pose.th)
-        if th:
-            c, sn = math.cos(th), math.sin(th)
-            nr = nr @ np.array([[c, sn], [-sn, c]])
-        nrm.append(nr)
-    return scans, _rad(np.array(odo, dtype=np.float64).reshape(-1, 3)), pts, nrm
+    return scans, _rad(np.array(odo, dtype=np.float64).reshape(-1, 3)), pts
 
 
 def _loop_pairs(log: LaserLog, scan_records: list[LaserScan], issues: list[Issue]
@@ -262,7 +254,7 @@ def build_map(
         log, found = recover_log(source)
         issues.extend(found)
     t_read = time.perf_counter() - t0
-    scans, odo, pts, nrm = _scan_arrays(log, pose_source, max_range)
+    scans, odo, pts = _scan_arrays(log, pose_source, max_range)
     n = len(scans)
     if n == 0:
         raise LogFormatError("the log has no scan with enough valid readings to build a map",
@@ -273,7 +265,7 @@ def build_map(
                              "optimisations": 0, "corrections_mm": [], "corrections_deg": []}
     t1 = time.perf_counter()
     if register and n > 1:
-        est = _register(scans, odo, pts, nrm, log, issues, stats, loop_closure, progress)
+        est = _register(scans, odo, pts, log, issues, stats, loop_closure, progress)
     elif progress:
         progress(n, n)
     t_reg = time.perf_counter() - t1
@@ -353,15 +345,19 @@ def _goals(log: LaserLog, scans: list[LaserScan], odo: FloatArray, est: FloatArr
     return out
 
 
-def _register(scans: list[LaserScan], odo: FloatArray, pts: list[FloatArray],
-              nrm: list[FloatArray], log: LaserLog, issues: list[Issue], stats: dict[str, Any],
+def _register(scans: list[LaserScan], odo: FloatArray, all_pts: list[FloatArray],
+              log: LaserLog, issues: list[Issue], stats: dict[str, Any],
               loop_closure: bool, progress: Progress | None) -> FloatArray:
     """The front end (scan-to-local-map ICP) with loop closures and pose-graph optimisation."""
     n = len(scans)
     est = odo.copy()
     graph = PoseGraph()
     sub = _Submap(voxel=40.0)
-    src = [p[::3] if len(p) > 240 else (p[::2] if len(p) > 120 else p) for p in pts]
+    src = [p[::3] if len(p) > 240 else (p[::2] if len(p) > 120 else p) for p in all_pts]
+    # The map side: every other point (the local map is thinned to 40 mm anyway), with normals
+    # from the beam order (the points are still in the laser's reading order).
+    pts = [p[::2] if len(p) > 120 else p for p in all_pts]
+    nrm = [scan_normals(p) for p in pts]
     path = np.zeros(n)
     pairs = _loop_pairs(log, scans, issues) if loop_closure else []
     stats["tag_loops"] = len(pairs)
@@ -405,7 +401,7 @@ def _register(scans: list[LaserScan], odo: FloatArray, pts: list[FloatArray],
         for s0, _tag in tag_at.get(i, []):
             if _close(i, s0, est, src, pts, nrm, path, graph, stats, tagged=True):
                 stats["tag_loops_matched"] += 1
-                moved = moved or stats.pop("_moved", False)
+                moved = stats.pop("_moved", False) or moved
             else:
                 graph.add(s0, i, np.zeros(3), sigma_info(500.0, 500.0, math.radians(10.0)),
                           robust=True)
@@ -419,14 +415,14 @@ def _register(scans: list[LaserScan], odo: FloatArray, pts: list[FloatArray],
             if j is not None:
                 if _close(i, j, est, src, pts, nrm, path, graph, stats, tagged=False):
                     stats["revisits"] += 1
-                    moved = moved or stats.pop("_moved", False)
-                    next_check = i + 10
+                    moved = stats.pop("_moved", False) or moved
+                    next_check = i + 20
                 else:
                     next_check = i + 10
             else:
                 next_check = i + 3
         if moved:
-            est = graph.optimize(est)
+            est = graph.optimize(est, iterations=4)
             stats["optimisations"] += 1
             window = [k for k in window if k <= i]
             last_sub = -1
@@ -548,7 +544,7 @@ def _close(i: int, j: int, est: FloatArray, src: list[FloatArray], pts: list[Flo
     graph.add(j, i, between(est[j], r.pose), _edge_info(info, r.pose), robust=True)
     stats["corrections_mm"].append(corr)
     stats["corrections_deg"].append(math.degrees(dth))
-    stats["_moved"] = corr > 30.0 or dth > math.radians(0.5)
+    stats["_moved"] = corr > 80.0 or dth > math.radians(0.8)
     return True
 
 

@@ -32,27 +32,34 @@ def rotate(v: FloatArray, th: float) -> FloatArray:
 def scan_normals(pts: FloatArray, window: int = 3) -> FloatArray:
     """Unit normals of beam-ordered scan points by PCA over ``2*window+1`` neighbours.
 
-    NaN where the neighbourhood is not a straight, continuous piece of wall.
+    NaN where the neighbourhood is not a straight, continuous piece of wall. Window sums come from
+    cumulative sums, so the cost is a few passes over the points.
     """
     n = len(pts)
     out = np.full((n, 2), np.nan)
     w = 2 * window + 1
     if n < w:
         return out
-    win = np.lib.stride_tricks.sliding_window_view(pts, (w, 2))[:, 0]  # (n-w+1, w, 2)
-    mean = win.mean(axis=1)
-    d = win - mean[:, None, :]
-    cxx = (d[..., 0] ** 2).mean(axis=1)
-    cyy = (d[..., 1] ** 2).mean(axis=1)
-    cxy = (d[..., 0] * d[..., 1]).mean(axis=1)
+    x = pts[:, 0] - pts[:, 0].mean()
+    y = pts[:, 1] - pts[:, 1].mean()
+
+    def wsum(v: FloatArray) -> FloatArray:
+        c = np.concatenate(([0.0], np.cumsum(v)))
+        return c[w:] - c[:-w]
+
+    sx, sy = wsum(x), wsum(y)
+    mx, my = sx / w, sy / w
+    cxx = wsum(x * x) / w - mx * mx
+    cyy = wsum(y * y) / w - my * my
+    cxy = wsum(x * y) / w - mx * my
     ang = 0.5 * np.arctan2(2 * cxy, cxx - cyy)  # direction of the line
     tr = cxx + cyy
-    det = cxx * cyy - cxy ** 2
-    disc = np.sqrt(np.maximum(tr * tr / 4 - det, 0))
+    disc = np.sqrt(np.maximum((cxx - cyy) ** 2 / 4 + cxy * cxy, 0))
     l1, l2 = tr / 2 + disc, tr / 2 - disc
-    span = np.hypot(*(win[:, -1] - win[:, 0]).T)
-    gaps = np.hypot(*np.diff(win, axis=1).transpose(2, 0, 1)).max(axis=1)
-    rng = np.hypot(mean[:, 0], mean[:, 1])
+    step = np.hypot(np.diff(pts[:, 0]), np.diff(pts[:, 1]))
+    gaps = np.lib.stride_tricks.sliding_window_view(step, w - 1).max(axis=1)
+    span = np.hypot(pts[w - 1:, 0] - pts[: n - w + 1, 0], pts[w - 1:, 1] - pts[: n - w + 1, 1])
+    rng = np.hypot(mx + pts[:, 0].mean(), my + pts[:, 1].mean())
     good = (l2 < 0.05 * np.maximum(l1, 1e-9)) & (gaps < 0.08 * rng + 60.0) & (span > 20.0)
     nrm = np.stack([-np.sin(ang), np.cos(ang)], axis=1)
     nrm[~good] = np.nan
@@ -95,6 +102,26 @@ class MatchResult:
             P[:2, :2] -= np.outer(weak, weak)
             info = P.T @ info @ P
         return info  # type: ignore[no-any-return]
+
+
+def _solve3(H: FloatArray, g: FloatArray) -> FloatArray | None:
+    """``-H^-1 g`` for a symmetric 3x3 H (Cramer's rule; None when singular)."""
+    (a, b, c), (_, d, e), (_, _, f) = H.tolist()
+    a += 1e-9
+    d += 1e-9
+    f += 1e-6
+    g0, g1, g2 = g.tolist()
+    A = d * f - e * e
+    B = c * e - b * f
+    C = b * e - c * d
+    det = a * A + b * B + c * C
+    if not det or not math.isfinite(det):
+        return None
+    D = a * f - c * c
+    E = b * c - a * e
+    F = a * d - b * b
+    return np.array([-(A * g0 + B * g1 + C * g2) / det, -(B * g0 + D * g1 + E * g2) / det,
+                     -(C * g0 + E * g1 + F * g2) / det])
 
 
 def icp(
@@ -169,12 +196,8 @@ def icp(
             dp[2] = (dp[2] + math.pi) % (2 * math.pi) - math.pi
             H = H + prior_info
             g = g + prior_info @ dp  # type: ignore[operator]
-        H[0, 0] += 1e-9
-        H[1, 1] += 1e-9
-        H[2, 2] += 1e-6
-        try:
-            delta = -np.linalg.solve(H, g)
-        except np.linalg.LinAlgError:
+        delta = _solve3(H, g)
+        if delta is None:
             return MatchResult(pose, False, cnt / n_src, math.inf, cnt, 0.0)
         pose += delta
         if it >= last and abs(delta[0]) + abs(delta[1]) < 0.5 and abs(delta[2]) < 5e-5:
