@@ -107,30 +107,34 @@ class _Submap:
                 poses: FloatArray) -> None:
         from scipy.spatial import cKDTree
 
-        P, N = [], []
         cache: dict[int, tuple[tuple[float, ...], FloatArray, FloatArray]] = {}
         for k in idx:
             key = tuple(poses[k])
             hit = self._cache.get(k)
             if hit is None or hit[0] != key:
-                good = np.isfinite(nrm[k][:, 0])
-                c, s = math.cos(poses[k][2]), math.sin(poses[k][2])
-                hit = (key, transform(pts[k][good], poses[k]),
-                       nrm[k][good] @ np.array([[c, s], [-s, c]]))
+                hit = (key, *_world(pts[k], nrm[k], poses[k]))
             cache[k] = hit
-            if len(hit[1]):
-                P.append(hit[1])
-                N.append(hit[2])
         self._cache = cache
-        if not P:
-            self.tree = None
-            self.pts = np.zeros((0, 2))
-            return
-        p = np.concatenate(P)
-        n = np.concatenate(N)
-        keep = voxel_keep(p, self.voxel)
-        self.pts, self.nrm = p[keep], n[keep]
-        self.tree = cKDTree(self.pts, balanced_tree=False, compact_nodes=False)
+        self.pts, self.nrm = _thinned([h[1] for h in cache.values()],
+                                      [h[2] for h in cache.values()], self.voxel)
+        self.tree = (cKDTree(self.pts, balanced_tree=False, compact_nodes=False)
+                     if len(self.pts) else None)
+
+
+def _world(pts: FloatArray, nrm: FloatArray, pose: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """A scan's points that have a normal, and the normals, in the world through ``pose``."""
+    good = np.isfinite(nrm[:, 0])
+    c, s = math.cos(pose[2]), math.sin(pose[2])
+    return transform(pts[good], pose), nrm[good] @ np.array([[c, s], [-s, c]])
+
+
+def _thinned(P: list[FloatArray], N: list[FloatArray], voxel: float) -> tuple[FloatArray, FloatArray]:
+    """Points (and normals) of several scans together, one per ``voxel`` cell."""
+    if not P:
+        return np.zeros((0, 2)), np.zeros((0, 2))
+    p, n = np.concatenate(P), np.concatenate(N)
+    keep = voxel_keep(p, voxel)
+    return p[keep], n[keep]
 
 
 def _scan_arrays(log: LaserLog, pose_source: str, max_range: float
@@ -458,19 +462,8 @@ def _revisit_candidate(i: int, est: FloatArray, path: FloatArray) -> int | None:
 
 def _local(idx: range, est: FloatArray, pts: list[FloatArray], nrm: list[FloatArray]
            ) -> tuple[FloatArray, FloatArray]:
-    P, N = [], []
-    for k in idx:
-        good = np.isfinite(nrm[k][:, 0])
-        if not good.any():
-            continue
-        P.append(transform(pts[k][good], est[k]))
-        c, s = math.cos(est[k][2]), math.sin(est[k][2])
-        N.append(nrm[k][good] @ np.array([[c, s], [-s, c]]))
-    if not P:
-        return np.zeros((0, 2)), np.zeros((0, 2))
-    p, nn = np.concatenate(P), np.concatenate(N)
-    keep = voxel_keep(p, 40.0)
-    return p[keep], nn[keep]
+    parts = [_world(pts[k], nrm[k], est[k]) for k in idx]
+    return _thinned([a for a, _ in parts], [b for _, b in parts], 40.0)
 
 
 def _edge_info(world_info: FloatArray, pose_j: FloatArray) -> FloatArray:

@@ -300,6 +300,16 @@ class LogReader:
         line = raw.rstrip(b"\r\n")
         return self._lineno, line, has_nl
 
+    def _content_lines(self) -> Iterator[tuple[tuple[int, bytes, bool], bytes]]:
+        """Each line that is not blank: ``((number, line, ends with LF), stripped line)``."""
+        while True:
+            item = self._next_line()
+            if item is None:
+                return
+            s = item[1].strip()
+            if s:
+                yield item, s
+
     def _fail(self, code: IssueCode, message: str, lineno: int, text: bytes | str = b"",
               has_nl: bool = True) -> None:
         """Strict: raise. Tolerant: note the issue (and the record is dropped by the caller)."""
@@ -341,14 +351,8 @@ class LogReader:
         use_encoder: bool | None = None
         comments: list[str] = []
         extra: list[str] = []
-        while True:
-            item = self._next_line()
-            if item is None:
-                break
+        for item, s in self._content_lines():
             lineno, line, has_nl = item
-            s = line.strip()
-            if not s:
-                continue
             if s.startswith(b"#"):
                 if s.startswith(b"#scan") or s.startswith(b"#rawRobot:"):
                     self._pushback = item
@@ -465,14 +469,8 @@ class LogReader:
 
     def _records(self) -> Iterator[LogRecord]:
         version = self._version
-        while True:
-            item = self._next_line()
-            if item is None:
-                break
+        for item, s in self._content_lines():
             lineno, line, has_nl = item
-            s = line.strip()
-            if not s:
-                continue
             p = self._pending
             if s[:1] == b"#":
                 if s == b"# End of log":
