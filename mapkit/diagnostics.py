@@ -58,6 +58,61 @@ class IssueCode(enum.IntEnum):
     BOX_RECOMPUTED = 113
     LOSSY_QUOTE = 114
 
+    # 2xx: header consistency (validator)
+    NUM_POINTS_MISMATCH = 201
+    NUM_LINES_MISMATCH = 202
+    BOX_EXCLUDES_DATA = 203
+    BOX_LARGER_THAN_DATA = 204
+    BOX_MISSING = 205
+    RESOLUTION_MISSING = 206
+    RESOLUTION_IMPLAUSIBLE = 207
+    NOT_MARKED_SORTED = 208
+    SORTED_FLAG_WRONG = 209
+    CATEGORY_OLDER_THAN_CONTENT = 210
+    TEMPLATES_NEED_EX4 = 211
+    CATEGORY_NEWER_THAN_ARIA_291 = 212
+    COUNT_NOT_POSITIVE = 213
+    MISSPELT_KEYWORD = 214
+
+    # 3xx: geometry (validator)
+    EMPTY_MAP = 301
+    ZERO_LENGTH_LINES = 302
+    POINTS_OFF_GRID = 303
+    COORDINATE_OVERFLOW = 304
+
+    # 4xx: objects (validator)
+    DUPLICATE_NAME = 401
+    EMPTY_NAME = 402
+    UNDECLARED_TYPE = 403
+    TYPE_NOT_LISTED = 404
+    NON_FINITE_OBJECT = 405
+    HEADING_NOT_NORMALISED = 406
+    DEGENERATE_FORBIDDEN = 407
+    OBJECT_OUTSIDE_MAP = 408
+    GOAL_IN_WALL = 409
+    GOAL_NEAR_WALL = 410
+    GOAL_IN_FORBIDDEN_AREA = 411
+    NO_ROBOT_HOME = 412
+    SEVERAL_ROBOT_HOMES = 413
+    UNWRITABLE_TEXT = 414
+    WRONG_SHAPE_FOR_TYPE = 415
+
+    # 5xx: navigation (validator)
+    UNREACHABLE = 501
+    NARROW_PASSAGE = 502
+    NAVIGATION_SKIPPED = 503
+
+    # 6xx: info sections (validator)
+    TYPE_WITHOUT_NAME = 601
+    TYPE_DECLARED_TWICE = 602
+    ARGDESC_PARENT_MISMATCH = 603
+    ARGDESC_BAD_TYPE = 604
+    ARGDESC_BAD_VALUE = 605
+    PARAMS_UNKNOWN_OBJECT = 606
+    PARAMS_COUNT_MISMATCH = 607
+    PARAMS_BAD_VALUE = 608
+    GROUP_MEMBER_MISMATCH = 609
+
     # 7xx: .2d laser logs
     LOG_BAD_HEADER_LINE = 701
     LOG_BAD_VALUE = 702
@@ -99,6 +154,131 @@ CODE_SUMMARY: dict[IssueCode, tuple[Severity, str]] = {
         "bounding box wider than 2 km: ARIA 2.9.4 recomputes it and sorts the data",
     ),
     IssueCode.LOSSY_QUOTE: (Severity.WARNING, "a quote inside a quoted token: ARIA splits it there"),
+    # 2xx
+    IssueCode.NUM_POINTS_MISMATCH: (
+        Severity.WARNING,
+        "NumPoints: differs from the DATA rows (ARIA's ArMap recounts; ArMapSimple trusts it)",
+    ),
+    IssueCode.NUM_LINES_MISMATCH: (Severity.WARNING, "NumLines: differs from the LINES rows"),
+    IssueCode.BOX_EXCLUDES_DATA: (
+        Severity.WARNING,
+        "MinPos/MaxPos or LineMinPos/LineMaxPos do not enclose the data",
+    ),
+    IssueCode.BOX_LARGER_THAN_DATA: (Severity.INFO, "bounding box larger than the data it describes"),
+    IssueCode.BOX_MISSING: (
+        Severity.INFO,
+        "data without its bounding-box keywords: ARIA's box then includes (0, 0)",
+    ),
+    IssueCode.RESOLUTION_MISSING: (Severity.WARNING, "points but no Resolution: (ARIA assumes 0)"),
+    IssueCode.RESOLUTION_IMPLAUSIBLE: (
+        Severity.WARNING,
+        "Resolution: not a plausible grid size for the points (1 to 1000 mm)",
+    ),
+    IssueCode.NOT_MARKED_SORTED: (Severity.INFO, "PointsAreSorted:/LinesAreSorted: false or absent"),
+    IssueCode.SORTED_FLAG_WRONG: (Severity.WARNING, "sorted flag true but the rows are not sorted"),
+    IssueCode.CATEGORY_OLDER_THAN_CONTENT: (
+        Severity.INFO,
+        "2D-Map-Ex2/Ex3 content under an older intro: read by ARIA, intro changed by ARIA 2.9.1 on save",
+    ),
+    IssueCode.TEMPLATES_NEED_EX4: (
+        Severity.WARNING,
+        "template content (2D-Map-Ex4) under an older intro: ARIA 2.9.1 and older ignore it",
+    ),
+    IssueCode.CATEGORY_NEWER_THAN_ARIA_291: (
+        Severity.WARNING,
+        "intro newer than ARIA 2.9.1 reads (2D-Map-Ex4): older robots refuse the file",
+    ),
+    IssueCode.COUNT_NOT_POSITIVE: (
+        Severity.WARNING,
+        "NumPoints:/NumLines: 0 or negative: AriaCoda refuses the file",
+    ),
+    IssueCode.MISSPELT_KEYWORD: (
+        Severity.WARNING,
+        "unknown header keyword that looks like a misspelt ARIA keyword",
+    ),
+    # 3xx
+    IssueCode.EMPTY_MAP: (Severity.WARNING, "no points and no lines"),
+    IssueCode.ZERO_LENGTH_LINES: (Severity.INFO, "LINES rows whose two ends are the same point"),
+    IssueCode.POINTS_OFF_GRID: (Severity.INFO, "points not on the Resolution: lattice"),
+    IssueCode.COORDINATE_OVERFLOW: (
+        Severity.ERROR,
+        "data coordinates outside the 32-bit range ARIA reads rows with",
+    ),
+    # 4xx
+    IssueCode.DUPLICATE_NAME: (
+        Severity.ERROR,
+        "goals/docks with the same name (ARIA compares names case-insensitively)",
+    ),
+    IssueCode.EMPTY_NAME: (Severity.WARNING, "goal, dock or NameRequired object without a name"),
+    IssueCode.UNDECLARED_TYPE: (
+        Severity.WARNING,
+        "object type neither built in nor declared in MapInfo:",
+    ),
+    IssueCode.TYPE_NOT_LISTED: (
+        Severity.WARNING,
+        "built-in goal/dock type used but not listed while the map declares its goal/dock types",
+    ),
+    IssueCode.NON_FINITE_OBJECT: (Severity.ERROR, "object with a NaN or infinite coordinate or heading"),
+    IssueCode.HEADING_NOT_NORMALISED: (
+        Severity.INFO,
+        "heading outside (-180, 180] in the file (ARIA normalises it)",
+    ),
+    IssueCode.DEGENERATE_FORBIDDEN: (
+        Severity.WARNING,
+        "forbidden area without area or forbidden line without length",
+    ),
+    IssueCode.OBJECT_OUTSIDE_MAP: (Severity.WARNING, "object outside the map's data"),
+    IssueCode.GOAL_IN_WALL: (Severity.ERROR, "goal, dock or home on an obstacle"),
+    IssueCode.GOAL_NEAR_WALL: (
+        Severity.WARNING,
+        "goal, dock or home closer to an obstacle than the robot radius",
+    ),
+    IssueCode.GOAL_IN_FORBIDDEN_AREA: (Severity.ERROR, "goal, dock or home inside a forbidden area"),
+    IssueCode.NO_ROBOT_HOME: (Severity.INFO, "no RobotHome"),
+    IssueCode.SEVERAL_ROBOT_HOMES: (Severity.INFO, "more than one RobotHome"),
+    IssueCode.UNWRITABLE_TEXT: (
+        Severity.ERROR,
+        "type, name or description the .map format cannot hold (newline, quote, blank in a type)",
+    ),
+    IssueCode.WRONG_SHAPE_FOR_TYPE: (
+        Severity.WARNING,
+        "object drawn as point/line/rectangle against its type's declaration",
+    ),
+    # 5xx
+    IssueCode.UNREACHABLE: (
+        Severity.ERROR,
+        "goal or dock the robot cannot reach from RobotHome (or from the other goals)",
+    ),
+    IssueCode.NARROW_PASSAGE: (
+        Severity.WARNING,
+        "the way to a goal passes a gap barely wider than the robot",
+    ),
+    IssueCode.NAVIGATION_SKIPPED: (Severity.INFO, "reachability not checked, and why"),
+    # 6xx
+    IssueCode.TYPE_WITHOUT_NAME: (Severity.WARNING, "MapInfo: type line without Name="),
+    IssueCode.TYPE_DECLARED_TWICE: (Severity.WARNING, "MapInfo: type declared on two lines"),
+    IssueCode.ARGDESC_PARENT_MISMATCH: (
+        Severity.WARNING,
+        "ArgDesc whose Parent= is not the type or task declared above it",
+    ),
+    IssueCode.ARGDESC_BAD_TYPE: (Severity.WARNING, "ArgDesc without Name= or with a Type= ARIA does not know"),
+    IssueCode.ARGDESC_BAD_VALUE: (
+        Severity.WARNING,
+        "ArgDesc Value/Min/Max that does not fit its Type=, or Value outside Min..Max",
+    ),
+    IssueCode.PARAMS_UNKNOWN_OBJECT: (Severity.WARNING, "CairnInfo: Params for an object the map lacks"),
+    IssueCode.PARAMS_COUNT_MISMATCH: (
+        Severity.WARNING,
+        "CairnInfo: Params with another number of values than the type has ArgDesc lines",
+    ),
+    IssueCode.PARAMS_BAD_VALUE: (
+        Severity.WARNING,
+        "CairnInfo: Params value that does not fit its ArgDesc Type=",
+    ),
+    IssueCode.GROUP_MEMBER_MISMATCH: (
+        Severity.WARNING,
+        "CairnInfo: GroupMember naming an unknown object, type, group type or argument",
+    ),
     IssueCode.LOG_BAD_HEADER_LINE: (Severity.ERROR, "log header line with values that cannot be read (ignored)"),
     IssueCode.LOG_BAD_VALUE: (Severity.ERROR, "log record with a value that is not a number (record skipped)"),
     IssueCode.LOG_NON_FINITE: (Severity.ERROR, "NaN or infinite number in a log record (record skipped)"),

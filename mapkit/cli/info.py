@@ -12,6 +12,9 @@ from mapkit.formats.map import load, written_category
 from mapkit.model import MapData
 from mapkit.samples import sample_path
 
+#: Width in pixels of ``--thumbnail`` pictures.
+THUMBNAIL_WIDTH = 320
+
 
 def summary(m: MapData) -> dict[str, Any]:
     """The facts ``mapkit info`` prints, as JSON-ready data."""
@@ -49,14 +52,17 @@ def summary(m: MapData) -> dict[str, Any]:
 @click.command()
 @click.argument("map_file", required=False, type=click.Path(dir_okay=False))
 @click.option("--sample", help="Use a bundled sample map by name (e.g. office).")
+@click.option("--thumbnail", type=click.Path(dir_okay=False),
+              help="Also write a small picture of the map (PNG; .svg/.pdf by suffix).")
 @json_option
-def info(map_file: str | None, sample: str | None, as_json: bool) -> None:
+def info(map_file: str | None, sample: str | None, thumbnail: str | None, as_json: bool) -> None:
     """Show what MAP_FILE holds: category, counts, bounds, objects, info sections, MD5.
 
     \b
     Example:
       mapkit info office.map
       mapkit info --sample office --json
+      mapkit info office.map --thumbnail office-small.png
     """
     if (map_file is None) == (sample is None):
         raise click.UsageError("give a MAP_FILE or --sample NAME")
@@ -64,6 +70,11 @@ def info(map_file: str | None, sample: str | None, as_json: bool) -> None:
     assert path is not None
     m = load(path)
     data = summary(m)
+    if thumbnail:
+        from mapkit.render import render
+
+        pic = render(m, thumbnail, width=THUMBNAIL_WIDTH, thumbnail=True)
+        data["thumbnail"] = {"path": pic.path, "width": pic.width, "height": pic.height}
     if as_json:
         echo_json(data)
         return
@@ -92,3 +103,6 @@ def info(map_file: str | None, sample: str | None, as_json: bool) -> None:
         extra.append("origin lat/long/alt {:.6f} {:.6f} {:.1f}".format(*data["origin_lla"]))
     if extra:
         click.echo("  " + "; ".join(extra))
+    if thumbnail:
+        t = data["thumbnail"]
+        click.echo(f"  thumbnail: {t['path']} ({t['width']}x{t['height']} px)")

@@ -36,7 +36,15 @@ def _write_map(m: MapData, path: PathLike) -> str:
 _WRITERS: dict[str, Writer] = {".map": _write_map}
 
 #: suffix -> module that registers its writer (imported on first use).
-LAZY_WRITERS: dict[str, str] = {}
+LAZY_WRITERS: dict[str, str] = {
+    ".png": "mapkit.render",  # the picture; ROS map images are written by mapkit rasterize
+    ".svg": "mapkit.render",
+    ".pdf": "mapkit.render",
+    ".stl": "mapkit.mesh",
+    ".obj": "mapkit.mesh",
+    ".glb": "mapkit.mesh",
+    ".dae": "mapkit.mesh",
+}
 #: suffix -> module that registers its reader (imported on first use).
 LAZY_READERS: dict[str, str] = {".2d": "mapkit.build"}
 
@@ -84,3 +92,9 @@ def convert_file(src: PathLike, dst: PathLike) -> str:
     """
     writer: Writer = _lookup(_WRITERS, LAZY_WRITERS, dst, "write")
     return writer(read_any(src), dst)
+
+
+# raster: ROS map_server maps (NAME.yaml + NAME.pgm) both ways.
+LAZY_WRITERS.update({".yaml": "mapkit.raster.export", ".yml": "mapkit.raster.export",
+                     ".pgm": "mapkit.raster.export"})
+LAZY_READERS.update({".yaml": "mapkit.raster.export", ".yml": "mapkit.raster.export"})

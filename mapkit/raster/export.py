@@ -1,0 +1,169 @@
+"""One call from an ARIA map to a ROS map bundle, and the ``.yaml``/``.pgm`` formats for convert.
+
+:func:`export_ros` rasterises a map and writes the map_server files (and optionally the Nav2
+keepout/speed masks and their parameters file); it is what ``mapkit rasterize`` runs. Importing
+this module registers the ``.yaml``/``.pgm`` writers and the ``.yaml`` reader in
+:mod:`mapkit.formats.registry`, so ``mapkit convert office.map office.yaml`` and
+``mapkit convert office.yaml office.map`` work.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from mapkit._typing import PathLike
+from mapkit.formats.registry import register_reader, register_writer
+from mapkit.model import MapData
+from mapkit.raster.grid import OccupancyGrid
+from mapkit.raster.import_ros import import_ros
+from mapkit.raster.masks import FilterFiles, write_filters
+from mapkit.raster.rasterize import FreeMode, rasterize
+from mapkit.raster.ros import Mode, RosMapFiles, write_ros_map
+
+__all__ = ["EXPORT_STEPS", "RosExport", "export_ros", "planned_outputs"]
+
+#: The stages :func:`export_ros` reports to its ``progress`` callback.
+EXPORT_STEPS = ("rasterise", "write map", "write masks")
+
+
+@dataclass(frozen=True, slots=True)
+class RosExport:
+    """What :func:`export_ros` made."""
+
+    grid: OccupancyGrid
+    map_files: RosMapFiles
+    filters: FilterFiles | None = None
+    mode: str = "trinary"
+
+    def files(self) -> list[Path]:
+        """Every file written, in order."""
+        out = [self.map_files.image, self.map_files.yaml]
+        f = self.filters
+        if f is not None:
+            out += [p for p in (f.keepout_image, f.keepout_yaml, f.speed_image, f.speed_yaml,
+                                f.params) if p is not None]
+        return out
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready summary."""
+        out: dict[str, Any] = {"yaml": str(self.map_files.yaml), "image": str(self.map_files.image),
+                               "mode": self.mode, "grid": self.grid.to_dict()}
+        f = self.filters
+        if f is not None:
+            out["filters"] = {
+                "params": str(f.params),
+                "keepout_yaml": None if f.keepout_yaml is None else str(f.keepout_yaml),
+                "keepout_zones": f.keepout_zones,
+                "speed_yaml": None if f.speed_yaml is None else str(f.speed_yaml),
+                "speed_zones": f.speed_zones,
+                "speed_multiplier": f.speed_multiplier if f.speed_yaml is not None else None,
+            }
+        return out
+
+
+def _stem(yaml_path: Path) -> Path:
+    return yaml_path.with_suffix("") if yaml_path.suffix.lower() in (".yaml", ".yml") else yaml_path
+
+
+def planned_outputs(
+    yaml_path: PathLike,
+    *,
+    image_format: str = "pgm",
+    keepout: bool = False,
+    speed: bool = False,
+) -> list[Path]:
+    """The files :func:`export_ros` will write for these options (to check before writing)."""
+    y = Path(os.fspath(yaml_path))
+    stem = _stem(y)
+    out = [y.with_suffix("." + image_format), y]
+    if keepout:
+        out += [Path(f"{stem}_keepout.{image_format}"), Path(f"{stem}_keepout.yaml")]
+    if speed:
+        out += [Path(f"{stem}_speed.{image_format}"), Path(f"{stem}_speed.yaml")]
+    if keepout or speed:
+        out.append(Path(f"{stem}_filters.yaml"))
+    return out
+
+
+def export_ros(
+    m: MapData,
+    yaml_path: PathLike,
+    *,
+    resolution: float = 0.05,
+    margin_m: float = 0.5,
+    free: FreeMode = "flood",
+    inflate_mm: float = 0.0,
+    forbidden_as_walls: bool = False,
+    mode: Mode = "trinary",
+    image_format: str | None = None,
+    keepout: bool = False,
+    speed: bool = False,
+    speed_param: str | None = None,
+    progress: Callable[[str], None] | None = None,
+) -> RosExport:
+    """Rasterise a map and write it as a map_server map (plus Nav2 masks on request).
+
+    Args:
+        m: The map.
+        yaml_path: ``NAME.yaml``; the image is ``NAME.pgm`` (or ``.png``) beside it.
+        resolution: Metres per cell.
+        margin_m: Unknown border around the map, metres.
+        free: Free-space mode (see :func:`~mapkit.raster.rasterize.rasterize`).
+        inflate_mm: Grow walls by this radius.
+        forbidden_as_walls: Draw forbidden areas and lines as walls in the map itself.
+        mode: ``trinary``, ``scale`` or ``raw`` (see :func:`~mapkit.raster.ros.write_ros_map`).
+        image_format: ``pgm`` (default) or ``png``.
+        keepout: Also write ``NAME_keepout`` and ``NAME_filters.yaml``.
+        speed: Also write ``NAME_speed`` and ``NAME_filters.yaml``.
+        speed_param: Sector parameter holding the speed (default ``TransVelMax`` and friends).
+        progress: Called with each finished stage's name (see :data:`EXPORT_STEPS`).
+
+    Returns:
+        The grid and the files written.
+
+    Raises:
+        RasterError: For bad options.
+    """
+    def done(step: str) -> None:
+        if progress is not None:
+            progress(step)
+
+    grid = rasterize(m, resolution, margin_m=margin_m, free=free, inflate_mm=inflate_mm,
+                     forbidden_as_walls=forbidden_as_walls)
+    done(EXPORT_STEPS[0])
+    files = write_ros_map(grid, yaml_path, mode=mode, image_format=image_format)
+    done(EXPORT_STEPS[1])
+    filters = None
+    if keepout or speed:
+        fmt = files.image.suffix.lstrip(".").lower()
+        filters = write_filters(m, grid, files.yaml, keepout=keepout, speed=speed,
+                                image_format=fmt, speed_param=speed_param)
+    done(EXPORT_STEPS[2])
+    return RosExport(grid, files, filters, mode)
+
+
+def _write_yaml(m: MapData, path: PathLike) -> str:
+    res = export_ros(m, path)
+    g = res.grid
+    return (f"wrote {res.map_files.yaml} and {res.map_files.image} ({g.width}x{g.height} cells at "
+            f"{g.resolution:g} m)")
+
+
+def _write_pgm(m: MapData, path: PathLike) -> str:
+    p = Path(os.fspath(path))
+    y = p.with_suffix(".yaml")
+    grid = rasterize(m)
+    files = write_ros_map(grid, y, image_path=p)
+    return (f"wrote {files.image} and {files.yaml} ({grid.width}x{grid.height} cells at "
+            f"{grid.resolution:g} m)")
+
+
+register_writer(".yaml", _write_yaml)
+register_writer(".yml", _write_yaml)
+register_writer(".pgm", _write_pgm)
+register_reader(".yaml", import_ros)
+register_reader(".yml", import_ros)

@@ -1,0 +1,352 @@
+"""ROS maps back to ARIA maps: occupied cells become points, wall faces become lines.
+
+:func:`import_ros` reads a map_server YAML and its image (any mode, negate, thresholds; see
+:mod:`mapkit.raster.ros`) and builds a :class:`~mapkit.model.MapData`:
+
+* every occupied cell (value >= ``occupied_value``, 65 by default: ``100`` in a trinary map) is
+  a point at its cell's centre, in integer millimetres, in the map's own frame: x to the east,
+  y to the north, origin kept (ARIA's own bitmap converter swaps x and y; mapkit does not);
+* wall lines are extracted from the occupied cells' faces (cells with a non-occupied
+  4-neighbour): maximal runs along rows, columns and both diagonals at least ``min_line_m`` long
+  become segments from the first cell's centre to the last one's, so a line never leaves the
+  cells it came from;
+* a keepout mask (another map_server YAML, e.g. a Nav2 keepout filter mask) becomes forbidden
+  areas: each connected keepout region is one rectangle (axis-aligned or rotated) when one
+  rectangle covers it well, a ``ForbiddenLine`` when it is one cell thin, and otherwise a set of
+  axis-aligned rectangles that cover exactly its cells.
+
+A non-zero yaw in the YAML's ``origin`` rotates everything about the origin, as the
+``nav_msgs/MapMetaData`` definition says (most ROS tools ignore the yaw; a warning is logged).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import os
+
+import numpy as np
+from numpy.typing import NDArray
+
+from mapkit._typing import PathLike
+from mapkit.model import MapData, MapObject, Scan
+from mapkit.raster.errors import RasterError
+from mapkit.raster.grid import OccupancyGrid
+from mapkit.raster.ros import Flavor, image_to_grid, read_image, read_ros_yaml
+
+__all__ = [
+    "cell_runs",
+    "grid_to_map",
+    "import_ros",
+    "keepout_objects",
+    "occupied_points",
+    "wall_lines",
+]
+
+log_ = logging.getLogger(__name__)
+
+
+def _to_world(grid: OccupancyGrid, uv: NDArray[np.float64], yaw: float) -> NDArray[np.float64]:
+    """Cell coordinates (u along columns, v along rows, in cells) to world millimetres."""
+    r = grid.resolution_mm
+    (ox, oy) = grid.origin_mm
+    x, y = uv[..., 0] * r, uv[..., 1] * r
+    if yaw:
+        c, s = math.cos(yaw), math.sin(yaw)
+        x, y = c * x - s * y, s * x + c * y
+    return np.stack([ox + x, oy + y], axis=-1)
+
+
+def occupied_points(
+    grid: OccupancyGrid, *, occupied_value: int = 65, yaw: float = 0.0
+) -> NDArray[np.int64]:
+    """Centres (integer mm) of the cells whose value is at least ``occupied_value``.
+
+    Examples:
+        >>> g = OccupancyGrid(np.array([[100, 0], [-1, 100]], dtype=np.int8), 0.1, (1.0, 0.0))
+        >>> occupied_points(g).tolist()
+        [[1050, 50], [1150, 150]]
+    """
+    rc = np.argwhere(grid.data >= occupied_value)
+    uv = rc[:, ::-1].astype(np.float64) + 0.5
+    return np.rint(_to_world(grid, uv, yaw)).astype(np.int64)
+
+
+def _runs(major: NDArray[np.int64], pos: NDArray[np.int64]) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+    """Maximal runs of consecutive ``pos`` values sharing a ``major`` value (vectorised).
+
+    Returns:
+        Indices (into the inputs) of each run's first and last element.
+    """
+    order = np.lexsort((pos, major))
+    mj, ps = major[order], pos[order]
+    brk = np.ones(len(order), dtype=bool)
+    brk[1:] = (mj[1:] != mj[:-1]) | (ps[1:] != ps[:-1] + 1)
+    first = np.flatnonzero(brk)
+    last = np.append(first[1:] - 1, len(order) - 1)
+    return order[first], order[last]
+
+
+def cell_runs(mask: NDArray[np.bool_], min_cells: int = 2) -> NDArray[np.int64]:
+    """Maximal straight runs of marked cells along rows, columns and both diagonals.
+
+    Works on the marked cells only (sorting them by row, column and diagonal), so the cost
+    follows the number of marked cells, not the grid's size.
+
+    Args:
+        mask: Bool ``(height, width)``.
+        min_cells: Shortest run kept (cells).
+
+    Returns:
+        ``(K, 4)`` int64 ``row0, col0, row1, col1`` of each run's first and last cell
+        (rows, then columns, then the two diagonals).
+
+    Examples:
+        >>> m = np.zeros((4, 5), dtype=bool); m[1, 0:4] = True; m[0, 4] = m[1, 3] = True
+        >>> cell_runs(m, 3).tolist()
+        [[1, 0, 1, 3]]
+        >>> cell_runs(np.eye(3, dtype=bool), 3).tolist()
+        [[0, 0, 2, 2]]
+    """
+    rc = np.argwhere(mask).astype(np.int64)
+    r, c = rc[:, 0], rc[:, 1]
+    out = [np.zeros((0, 4), dtype=np.int64)]
+    if len(rc):
+        for major, pos in ((r, c), (c, r), (c - r, r), (c + r, r)):
+            a, b = _runs(major, pos)
+            keep = pos[b] - pos[a] + 1 >= min_cells
+            a, b = a[keep], b[keep]
+            out.append(np.stack([r[a], c[a], r[b], c[b]], axis=1))
+    return np.concatenate(out)
+
+
+def _run_cells(runs: NDArray[np.int64]) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64]]:
+    """Every cell of straight or diagonal runs: (run index, row, col)."""
+    cnt = np.maximum(np.abs(runs[:, 2] - runs[:, 0]), np.abs(runs[:, 3] - runs[:, 1])) + 1
+    rid = np.repeat(np.arange(len(runs)), cnt)
+    step = np.arange(len(rid)) - np.repeat(np.cumsum(cnt) - cnt, cnt)
+    dr = np.sign(runs[:, 2] - runs[:, 0])[rid]
+    dc = np.sign(runs[:, 3] - runs[:, 1])[rid]
+    return rid, runs[rid, 0] + dr * step, runs[rid, 1] + dc * step
+
+
+def wall_lines(
+    grid: OccupancyGrid, *, occupied_value: int = 65, min_line_m: float = 0.3, yaw: float = 0.0
+) -> NDArray[np.int64]:
+    """Wall segments (integer mm) along the faces of the occupied cells.
+
+    Faces are occupied cells with a non-occupied 4-neighbour. Runs along rows and columns of at
+    least ``min_line_m`` become lines; diagonal runs too, where most of their cells are not
+    already on a row or column line. Each line joins its first and last cell centres.
+    """
+    occ = grid.data >= occupied_value
+    if not occ.any():
+        return np.zeros((0, 4), dtype=np.int64)
+    p = np.pad(occ, 1)
+    inner = p[:-2, 1:-1] & p[2:, 1:-1] & p[1:-1, :-2] & p[1:-1, 2:]
+    faces = occ & ~inner
+    n = max(2, int(math.ceil(min_line_m / grid.resolution - 1e-9)))
+    runs = cell_runs(faces, 2)
+    axis = (runs[:, 0] == runs[:, 2]) | (runs[:, 1] == runs[:, 3])
+    length = np.maximum(np.abs(runs[:, 2] - runs[:, 0]), np.abs(runs[:, 3] - runs[:, 1])) + 1
+    straight = runs[axis & (length >= n)]
+    diag = runs[~axis & (length * math.sqrt(2) >= n)]
+    if len(diag):
+        w = faces.shape[1]
+        covered = np.zeros(faces.size, dtype=bool)
+        _, rr, cc = _run_cells(straight)
+        covered[rr * w + cc] = True
+        rid, rr, cc = _run_cells(diag)
+        hits = np.bincount(rid, weights=covered[rr * w + cc], minlength=len(diag))
+        diag = diag[hits / np.bincount(rid, minlength=len(diag)) < 0.5]
+    keep = np.concatenate([straight, diag])
+    uv = np.stack([keep[:, [1, 0]], keep[:, [3, 2]]], axis=1).astype(np.float64) + 0.5
+    xy = _to_world(grid, uv, yaw)
+    return np.rint(xy.reshape(-1, 4)).astype(np.int64)
+
+
+def _rect_object(corners_xy: NDArray[np.float64], theta_deg: float) -> MapObject:
+    """A ForbiddenArea whose world corners are ``corners_xy``, in ARIA's rotated frame."""
+    t = math.radians(theta_deg)
+    c, s = math.cos(t), math.sin(t)
+    # Undo the rotation about the map origin: frame coordinates of the corners.
+    fx = c * corners_xy[:, 0] + s * corners_xy[:, 1]
+    fy = -s * corners_xy[:, 0] + c * corners_xy[:, 1]
+    ft = (round(float(fx.min())), round(float(fy.min())), round(float(fx.max())), round(float(fy.max())))
+    return MapObject("ForbiddenArea", 0, 0, theta_deg, from_to=ft)
+
+
+def _axis_rects(cells: NDArray[np.int64]) -> NDArray[np.int64]:
+    """Axis-aligned rectangles (row0, col0, row1, col1) covering exactly a set of cells.
+
+    Row runs with the same column span in consecutive rows merge into one rectangle.
+    """
+    r, c = cells[:, 0], cells[:, 1]
+    a, b = _runs(r, c)
+    runs = np.stack([r[a], c[a], c[b]], axis=1)  # row, first col, last col
+    a2, b2 = _runs(runs[:, 1] * (int(c.max()) + 2) + runs[:, 2], runs[:, 0])
+    return np.stack([runs[a2, 0], runs[a2, 1], runs[b2, 0], runs[b2, 2]], axis=1)
+
+
+def keepout_objects(
+    mask: OccupancyGrid, *, keepout_value: int = 100, yaw: float = 0.0, fill: float = 0.85
+) -> list[MapObject]:
+    """Forbidden areas (and lines) for the keepout regions of a mask grid.
+
+    Args:
+        mask: A keepout mask as map_server reads it (keepout cells 100).
+        keepout_value: Cells with at least this value are keepout.
+        yaw: The mask's origin yaw (radians).
+        fill: A region is one rectangle when its cells fill at least this share of the smallest
+            (rotated) rectangle around them; otherwise it is split into axis-aligned rectangles.
+
+    Returns:
+        ``ForbiddenArea`` rectangles and ``ForbiddenLine`` segments in world millimetres.
+    """
+    from scipy import ndimage
+    from shapely import MultiPoint
+
+    keep = mask.data >= keepout_value
+    labels, n = ndimage.label(keep, structure=np.ones((3, 3), dtype=int))
+    if not n:
+        return []
+    out: list[MapObject] = []
+    yaw_deg = math.degrees(yaw)
+    for idx, sl in enumerate(ndimage.find_objects(labels), start=1):  # one step per region
+        if sl is None:
+            continue
+        cells = np.argwhere(labels[sl] == idx) + np.array([sl[0].start, sl[1].start])
+        count = len(cells)
+        rows = int(sl[0].stop - sl[0].start)
+        cols = int(sl[1].stop - sl[1].start)
+        if count == rows * cols and (min(rows, cols) > 1 or count == 1):
+            uv = np.array([[cells[:, 1].min(), cells[:, 0].min()],
+                           [cells[:, 1].max() + 1, cells[:, 0].max() + 1]], dtype=np.float64)
+            out.append(_rect_object(_box_corners(mask, uv, yaw), yaw_deg))
+            continue
+        centres = cells[:, ::-1].astype(np.float64) + 0.5
+        rect = MultiPoint(centres).minimum_rotated_rectangle
+        if rect.geom_type == "Polygon":
+            pts = np.array(rect.exterior.coords)[:4]
+        else:  # collinear centres: a thin line of cells
+            pts = np.array(rect.coords)
+        e0 = pts[1] - pts[0]
+        e1 = pts[2] - pts[1] if len(pts) > 2 else np.array([-e0[1], e0[0]]) * 0
+        len0, len1 = float(np.hypot(*e0)), float(np.hypot(*e1))
+        thin = len(pts) == 2 or min(len0, len1) <= 1.5
+        if thin and max(len0, len1) >= 2.0:
+            axis = e0 if len0 >= len1 else e1
+            centre = pts.mean(axis=0)
+            half = axis / 2.0
+            ends = np.array([centre - half, centre + half])
+            xy = _to_world(mask, ends, yaw)
+            x1, y1, x2, y2 = (round(float(v)) for v in xy.reshape(-1))
+            out.append(MapObject("ForbiddenLine", x1, y1, 0, from_to=(x1, y1, x2, y2)))
+            continue
+        # The rectangle around the centres, grown by half a cell, covers the cells' squares.
+        angle = math.atan2(e0[1], e0[0])
+        u = np.array([math.cos(angle), math.sin(angle)])
+        v = np.array([-u[1], u[0]])
+        pu, pv = centres @ u, centres @ v
+        area = (pu.max() - pu.min() + 1.0) * (pv.max() - pv.min() + 1.0)
+        if count >= fill * area:
+            lo_u, hi_u = pu.min() - 0.5, pu.max() + 0.5
+            lo_v, hi_v = pv.min() - 0.5, pv.max() + 0.5
+            quad = np.array([lo_u * u + lo_v * v, hi_u * u + lo_v * v,
+                             hi_u * u + hi_v * v, lo_u * u + hi_v * v])
+            theta = _norm_deg(math.degrees(angle) + yaw_deg)
+            out.append(_rect_object(_to_world(mask, quad, yaw), theta))
+            continue
+        for r0, c0, r1, c1 in _axis_rects(cells):
+            uv = np.array([[c0, r0], [c1 + 1, r1 + 1]], dtype=np.float64)
+            out.append(_rect_object(_box_corners(mask, uv, yaw), yaw_deg))
+    return out
+
+
+def _box_corners(grid: OccupancyGrid, uv: NDArray[np.float64], yaw: float) -> NDArray[np.float64]:
+    (u0, v0), (u1, v1) = uv
+    quad = np.array([[u0, v0], [u1, v0], [u1, v1], [u0, v1]], dtype=np.float64)
+    return _to_world(grid, quad, yaw)
+
+
+def _norm_deg(a: float) -> float:
+    """Fold an angle to (-90, 90]: a rectangle is the same turned by 180 degrees."""
+    a = math.fmod(a, 180.0)
+    if a > 90.0:
+        a -= 180.0
+    elif a <= -90.0:
+        a += 180.0
+    return a + 0.0
+
+
+def grid_to_map(
+    grid: OccupancyGrid,
+    *,
+    occupied_value: int = 65,
+    lines: bool = True,
+    min_line_m: float = 0.3,
+    yaw: float = 0.0,
+    keepout: OccupancyGrid | None = None,
+    keepout_yaw: float = 0.0,
+) -> MapData:
+    """An ARIA map from an occupancy grid (points, wall lines, optional keepout areas).
+
+    Examples:
+        >>> g = OccupancyGrid(np.array([[100, 100, 100, 100, 100, 100, 100]], dtype=np.int8),
+        ...                   0.05, (0.0, 0.0))
+        >>> m = grid_to_map(g)
+        >>> m.scan.num_points, m.lines.tolist(), m.scan.resolution
+        (7, [[25, 25, 325, 25]], 50)
+    """
+    if not (math.isfinite(min_line_m) and min_line_m >= 0):
+        raise RasterError(f"min_line_m must be zero or more metres, got {min_line_m!r}")
+    pts = occupied_points(grid, occupied_value=occupied_value, yaw=yaw)
+    segs = (wall_lines(grid, occupied_value=occupied_value, min_line_m=min_line_m, yaw=yaw)
+            if lines else np.zeros((0, 4), dtype=np.int64))
+    objects: list[MapObject] = []
+    if keepout is not None:
+        objects = keepout_objects(keepout, yaw=keepout_yaw)
+    scan = Scan.from_arrays(pts, segs, resolution=max(1, round(grid.resolution_mm)))
+    return MapData(scans=(scan,), objects=tuple(objects))
+
+
+def import_ros(
+    yaml_path: PathLike,
+    *,
+    keepout: PathLike | None = None,
+    flavor: Flavor = "ros1",
+    occupied_value: int = 65,
+    lines: bool = True,
+    min_line_m: float = 0.3,
+) -> MapData:
+    """Read a map_server map (and optionally a keepout mask) as an ARIA map.
+
+    Args:
+        yaml_path: The map's YAML.
+        keepout: A keepout mask's YAML (Nav2 keepout filter mask); its keepout cells become
+            forbidden areas.
+        flavor: Read the images as ``ros1`` map_server or ``nav2`` does.
+        occupied_value: Cells with at least this value are walls.
+        lines: Extract wall lines (else points only).
+        min_line_m: Shortest wall line, in metres.
+
+    Returns:
+        The map (category ``2D-Map``).
+
+    Raises:
+        RosMapError: For a YAML or image map_server would refuse.
+    """
+    info = read_ros_yaml(yaml_path, flavor=flavor)
+    grid = image_to_grid(read_image(info.image_path), info, flavor=flavor)
+    if info.origin[2]:
+        log_.warning("%s: origin yaw %.6g rad: rotating the map by it (most ROS tools ignore "
+                     "yaw)", os.fspath(yaml_path), info.origin[2])
+    mask = None
+    mask_yaw = 0.0
+    if keepout is not None:
+        minfo = read_ros_yaml(keepout, flavor=flavor)
+        mask = image_to_grid(read_image(minfo.image_path), minfo, flavor=flavor)
+        mask_yaw = minfo.origin[2]
+    return grid_to_map(grid, occupied_value=occupied_value, lines=lines, min_line_m=min_line_m,
+                       yaw=info.origin[2], keepout=mask, keepout_yaw=mask_yaw)
+
