@@ -126,7 +126,6 @@ class IssueCode(enum.IntEnum):
     LOG_UNKNOWN_LASER = 710
     LOG_UNKNOWN_VERSION = 711
     LOG_UNPAIRED_LOOP = 712
-    LOG_NO_SCANS = 713
 
 
 #: One line per code: (default severity, summary). Extended by the validator's ranges.
@@ -303,7 +302,6 @@ CODE_SUMMARY: dict[IssueCode, tuple[Severity, str]] = {
     ),
     IssueCode.LOG_UNKNOWN_VERSION: (Severity.WARNING, "log version mapkit does not know (read as version 4)"),
     IssueCode.LOG_UNPAIRED_LOOP: (Severity.WARNING, "loop: start without stop (or stop without start)"),
-    IssueCode.LOG_NO_SCANS: (Severity.ERROR, "log without a usable scan"),
 }
 
 
