@@ -360,7 +360,7 @@ def _register(scans: list[LaserScan], odo: FloatArray, all_pts: list[FloatArray]
     src = [p[::3] if len(p) > 240 else (p[::2] if len(p) > 120 else p) for p in all_pts]
     # The map side: every other point (the local map is thinned to 40 mm anyway), with normals
     # from the beam order (the points are still in the laser's reading order).
-    pts = [p[::2] if len(p) > 120 else p for p in all_pts]
+    pts = [p[::2] if len(p) > 240 else p for p in all_pts]
     nrm = [scan_normals(p) for p in pts]
     path = np.zeros(n)
     pairs = _loop_pairs(log, scans, issues) if loop_closure else []
