@@ -52,14 +52,18 @@ def cli(ctx: click.Context, verbose: int, quiet: bool, debug: bool) -> None:
 
 # Commands are registered explicitly, one module per command or command group.
 from mapkit.cli import convert as _convert  # noqa: E402
+from mapkit.cli import demo as _demo  # noqa: E402
+from mapkit.cli import edit as _edit  # noqa: E402
 from mapkit.cli import info as _info  # noqa: E402
 from mapkit.cli import logs as _logs  # noqa: E402
 from mapkit.cli import mesh as _mesh  # noqa: E402
 from mapkit.cli import rasterize as _rasterize  # noqa: E402
 from mapkit.cli import render as _render  # noqa: E402
+from mapkit.cli import ros as _ros  # noqa: E402
 from mapkit.cli import transfer as _transfer  # noqa: E402
 from mapkit.cli import validate as _validate  # noqa: E402
 
+cli.add_command(_demo.demo)
 cli.add_command(_info.info)
 cli.add_command(_convert.convert)
 cli.add_command(_rasterize.rasterize)
@@ -68,8 +72,9 @@ cli.add_command(_validate.validate)
 cli.add_command(_validate.codes)
 cli.add_command(_render.render)
 cli.add_command(_mesh.export_mesh)
-for _command in _transfer.COMMANDS:
+for _command in (*_transfer.COMMANDS, *_edit.COMMANDS):
     cli.add_command(_command)
+cli.add_command(_ros.ros)
 cli.add_command(_logs.simulate)
 cli.add_command(_logs.build)
 cli.add_command(_logs.log_info)

@@ -306,9 +306,14 @@ def maps(address: str, secret_file: str | None, insecure: bool, use_tls: bool, t
     if as_json:
         echo_json(listing)
         return
+    print_listing(listing, address)
+
+
+def print_listing(listing: dict[str, Any], where: str) -> None:
+    """Print a robot's listing (LISTING payload): one line per map, then the active one."""
     rows = listing.get("maps", [])
     if not rows:
-        click.echo(f"no maps on {address}")
+        click.echo(f"no maps on {where}")
         return
     width = max(len(m["name"]) for m in rows)
     for m in rows:

@@ -16,8 +16,10 @@ import hashlib
 import math
 import os
 import re
+import threading
 import types
 from collections.abc import Iterator
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -27,7 +29,14 @@ from mapkit._atomic import atomic_open
 from mapkit._typing import PathLike
 from mapkit.diagnostics import Issue, IssueCode
 from mapkit.errors import MapFormatError
-from mapkit.formats._rows import format_rows, parse_rows
+from mapkit.formats._rows import (
+    RowReader,
+    RowSink,
+    column_extremes,
+    iter_format_rows,
+    ordered_map,
+    worker_pool,
+)
 from mapkit.model import (
     CATEGORIES,
     INFO_KEYWORDS,
@@ -136,6 +145,9 @@ class _Parser:
         self.category = ""
         self.intro_line = 0
         self.first_data_line = 0
+        self.md5: _BackgroundMD5 | None = None
+        self.sinks: dict[tuple[int, str], RowSink] = {}
+        self.data_end = 0
 
     # -- reporting ----------------------------------------------------------------------------
 
@@ -420,21 +432,65 @@ class _Parser:
     def data_phase(self, pos: int, lineno: int, current: tuple[int, str]) -> None:
         data = self.data
         n = len(data)
+        if n >= _BACKGROUND_MD5_BYTES:
+            self.md5 = _BackgroundMD5(data)  # hashes on the other core while the rows are read
+        end = n
+        late_note = None
         if n > pos and not data.endswith(b"\n"):
-            last_start = data.rfind(b"\n", pos, n) + 1
-            last = data[last_start:]
-            if last[:1].isdigit() or last[:1] == b"-":
-                self.note(IssueCode.LAST_ROW_WITHOUT_NEWLINE, lineno + data.count(b"\n", pos, n) + 1,
-                          "the last data row has no newline: ARIA drops it, mapkit keeps it")
-            data = data + b"\n"
-            n += 1
+            end = max(pos, data.rfind(b"\n", pos, n) + 1)
+            if data[end:end + 1].isdigit() or data[end:end + 1] == b"-":
+                late_note = len(self.issues)
+        # The section is read in chunks cut at LF. A chunk of canonical rows (what ARIA writes) is
+        # parsed in one vectorised step; any other chunk (a tag, a blank line, a row ARIA skips)
+        # goes line by line through data_lines(). Rows go straight into one array per section.
+        # Big sections are parsed by worker threads (numpy releases the GIL) and taken in order.
+        reader = RowReader(data)
+        self.data_end = end
+        line = lineno + 1  # number of the line starting at s
+        spans = _spans(data, pos, end, _DATA_CHUNK)
+        with worker_pool(len(spans) >= _PARALLEL_SPANS) as pool:
+            if pool is not None:
+                parsed = ordered_map(pool, lambda span: _parse_span(reader, span), spans)
+                for (s, e), got in zip(spans, parsed, strict=True):
+                    k = 2 if current[1] == "points" else 4
+                    if got is not None and got[0].shape[1] == k:
+                        self.sink(current, end - s).append(*got)
+                        line += len(got[0])
+                    else:
+                        current, line = self.data_lines(reader, s, e, current, line)
+            else:
+                for s, e in spans:
+                    k = 2 if current[1] == "points" else 4
+                    nrows = reader.fast_into(self.sink(current, end - s), s, e, k)
+                    if nrows is not None:
+                        line += nrows
+                    else:
+                        current, line = self.data_lines(reader, s, e, current, line)
+        if end < n:  # the last line has no newline: read it with one added (ARIA drops it)
+            if late_note is not None:
+                issue = Issue.make(
+                    IssueCode.LAST_ROW_WITHOUT_NEWLINE,
+                    "the last data row has no newline: ARIA drops it, mapkit keeps it",
+                    source=self.source, line=line,
+                )
+                self.issues.insert(late_note, issue)
+            tail = b"\n" * 8 + data[end:] + b"\n"
+            self.data_lines(RowReader(tail), 8, len(tail), current, line)
+
+    def data_lines(
+        self, reader: RowReader, start: int, end: int, current: tuple[int, str], line: int
+    ) -> tuple[tuple[int, str], int]:
+        """Rows, tags and skipped lines of ``data[start:end]``; the section and the next line."""
+        data = reader.data
         # Lines that do not start with a digit or '-': tags, blank lines and rows ARIA skips.
-        seg_start = pos
-        seg_line = lineno + 1
-        for m in _NONNUMERIC_LINE.finditer(data, pos):
+        seg_start = start
+        seg_line = line
+        for m in _NONNUMERIC_LINE.finditer(data, start, end):
             s = m.start()
+            if s >= end:  # the empty "line" after the chunk's last LF
+                break
             if s > seg_start:
-                self.rows(data[seg_start:s], current, seg_line)
+                self.rows(reader, seg_start, s, current, seg_line)
             line_no = seg_line + data.count(b"\n", seg_start, s)
             raw = m.group()
             tag = self.match_tag(raw)
@@ -451,29 +507,46 @@ class _Parser:
                               f"data row {_decode(raw[:40])!r} is skipped (ARIA skips it silently)")
             seg_start = m.end() + 1
             seg_line = line_no + 1
-        if seg_start < n:
-            self.rows(data[seg_start:n], current, seg_line)
+        if seg_start < end:
+            seg_line += self.rows(reader, seg_start, end, current, seg_line)
+        return current, seg_line
 
-    def rows(self, seg: bytes, current: tuple[int, str], first_line: int) -> None:
-        idx, kind = current
-        scan = self.scans[idx]
-        values, bad = parse_rows(seg, 2 if kind == "points" else 4)
-        (scan.point_chunks if kind == "points" else scan.line_chunks).append(values)
+    def sink(self, current: tuple[int, str], left: int = 0) -> RowSink:
+        """The growing array of the current section's rows (sized by the header's count)."""
+        got = self.sinks.get(current)
+        if got is None:
+            idx, kind = current
+            ncols = 2 if kind == "points" else 4
+            count = self.scans[idx].header.get("numpoints:" if kind == "points" else "numlines:")
+            expected = count if isinstance(count, int) and 0 < count <= left // (2 * ncols) else 0
+            got = self.sinks[current] = RowSink(ncols, expected)
+        return got
+
+    def rows(
+        self, reader: RowReader, start: int, end: int, current: tuple[int, str], first_line: int
+    ) -> int:
+        """Parse the rows of ``data[start:end]`` into the current section; returns the row count."""
+        kind = current[1]
+        sink = self.sink(current, max(end, self.data_end) - start)
+        bad, nrows = reader.parse(start, end, 2 if kind == "points" else 4, sink)
         for b in bad:
             self.note(IssueCode.BAD_DATA_ROW, first_line + b,
-                      f"{'DATA' if kind == 'points' else 'LINES'} row skipped (ARIA skips it silently)")
+                      f"{'DATA' if kind == 'points' else 'LINES'} row skipped "
+                      "(ARIA skips it silently)")
+        return nrows
 
     # -- build the model ----------------------------------------------------------------------
 
     def build(self) -> MapData:
         scans = []
         too_wide = False
-        built: list[tuple[_ScanState, np.ndarray[Any, Any], np.ndarray[Any, Any]]] = []
-        for st in self.scans:
-            pts = np.concatenate(st.point_chunks) if st.point_chunks else np.zeros((0, 2), np.int64)
-            lns = np.concatenate(st.line_chunks) if st.line_chunks else np.zeros((0, 4), np.int64)
-            built.append((st, pts, lns))
-        for st, pts, lns in built:
+        built: list[tuple[int, _ScanState, np.ndarray[Any, Any], np.ndarray[Any, Any]]] = []
+        for i, st in enumerate(self.scans):
+            pts = self.sink((i, "points")).result()
+            lns = self.sink((i, "lines")).result()
+            pts.flags.writeable = lns.flags.writeable = False  # private arrays: Scan need not copy
+            built.append((i, st, pts, lns))
+        for i, st, pts, lns in built:
             h = st.header
             header = ScanHeader(
                 min_pos=h.get("minpos:"), max_pos=h.get("maxpos:"), num_points=h.get("numpoints:"),
@@ -482,9 +555,10 @@ class _Parser:
                 num_lines=h.get("numlines:"), lines_sorted=h.get("linesaresorted:"),
                 display=h.get("display:"),
             )
-            pmin, pmax = _aria_box(pts.reshape(-1, 2), header.min_pos, header.max_pos, header.num_points)
+            pmin, pmax = _aria_box(pts.reshape(-1, 2), header.min_pos, header.max_pos,
+                                   header.num_points, self.sink((i, "points")).box())
             lmin, lmax = _aria_box(lns.reshape(-1, 2), header.line_min_pos, header.line_max_pos,
-                                   header.num_lines)
+                                   header.num_lines, self.sink((i, "lines")).box())
             scan = Scan(
                 name=st.name,
                 display=header.display if header.display is not None else st.name,
@@ -500,9 +574,10 @@ class _Parser:
             scans.append(scan)
         if too_wide:
             scans = self.recompute_wide(scans)
+        md5 = self.md5.hexdigest() if self.md5 is not None else hashlib.md5(self.data).hexdigest()
         prov = Provenance(
             source=self.source,
-            md5=hashlib.md5(self.data).hexdigest(),
+            md5=md5,
             size=len(self.data),
             object_lines=tuple(self.object_lines["objects"]),
             inactive_object_lines=tuple(self.object_lines["inactive_objects"]),
@@ -556,6 +631,50 @@ _SCAN_KEYS = {
 }
 
 _NONNUMERIC_LINE = re.compile(rb"^(?![0-9-]).*$", re.M)
+_BACKGROUND_MD5_BYTES = 1 << 20
+
+
+class _BackgroundMD5:
+    """MD5 of a buffer computed by a thread (hashlib releases the GIL on large buffers)."""
+
+    def __init__(self, data: bytes) -> None:
+        self._hash = hashlib.md5()
+        self._thread = threading.Thread(target=self._hash.update, args=(data,), daemon=True)
+        self._thread.start()
+
+    def hexdigest(self) -> str:
+        self._thread.join()
+        return self._hash.hexdigest()
+
+
+_DATA_CHUNK = 1 << 17  # bytes of the data section per vectorised step
+_PARALLEL_SPANS = 16  # chunks from which worker threads parse the data section
+_PARALLEL_ROWS = 100_000  # rows from which worker threads format a map
+
+
+def _parse_span(
+    reader: RowReader, span: tuple[int, int]
+) -> tuple[np.ndarray[Any, Any], tuple[np.ndarray[Any, Any], np.ndarray[Any, Any]]] | None:
+    """A worker thread's job: the rows of a canonical chunk and their extremes (or ``None``)."""
+    values = reader.fast(*span)
+    if values is None or len(values) == 0:
+        return None
+    return values, column_extremes(values)
+
+
+def _spans(data: bytes, start: int, end: int, size: int) -> list[tuple[int, int]]:
+    """``data[start:end]`` cut into pieces of about ``size`` bytes that end with LF."""
+    out = []
+    s = start
+    while s < end:
+        e = end
+        if end - s > size:
+            cut = data.rfind(b"\n", s, s + size)
+            e = data.find(b"\n", s + size, end) + 1 if cut < 0 else cut + 1
+            e = e or end
+        out.append((s, e))
+        s = e
+    return out
 
 
 def _aria_box(
@@ -563,22 +682,26 @@ def _aria_box(
     hmin: tuple[int, int] | None,
     hmax: tuple[int, int] | None,
     count: int | None,
+    data_box: tuple[tuple[int, int], tuple[int, int]] | None = None,
 ) -> tuple[tuple[int, int] | None, tuple[int, int] | None]:
-    """ARIA's box: the header box (or the origin) widened by the data; empty if ``NumX: 0``."""
-    if count is not None and count <= 0:
-        if len(xy) == 0:
-            return None, None
-        lo, hi = xy.min(axis=0), xy.max(axis=0)
-        return (int(lo[0]), int(lo[1])), (int(hi[0]), int(hi[1]))
+    """ARIA's box: the header box (or the origin) widened by the data; empty if ``NumX: 0``.
+
+    ``data_box`` is the data's own box when already known (``None``: computed here).
+    """
     if len(xy) == 0:
         return None, None  # nothing to bound; the writer writes no box then
+    lo, hi = data_box or _column_bounds(xy)
+    if count is not None and count <= 0:
+        return lo, hi
     lo0 = hmin if hmin is not None else (0, 0)
     hi0 = hmax if hmax is not None else (0, 0)
-    lo, hi = xy.min(axis=0), xy.max(axis=0)
-    return (
-        (min(lo0[0], int(lo[0])), min(lo0[1], int(lo[1]))),
-        (max(hi0[0], int(hi[0])), max(hi0[1], int(hi[1]))),
-    )
+    return (min(lo0[0], lo[0]), min(lo0[1], lo[1])), (max(hi0[0], hi[0]), max(hi0[1], hi[1]))
+
+
+def _column_bounds(xy: np.ndarray[Any, Any]) -> tuple[tuple[int, int], tuple[int, int]]:
+    # Column by column: numpy's min(axis=0) over an (N, 2) array is ten times slower.
+    x, y = xy[:, 0], xy[:, 1]
+    return (int(x.min()), int(y.min())), (int(x.max()), int(y.max()))
 
 
 # -- public reading API ----------------------------------------------------------------------
@@ -769,15 +892,24 @@ def iter_header_lines(m: MapData) -> Iterator[str]:
 
 
 def iter_map_chunks(m: MapData) -> Iterator[bytes]:
-    """The canonical file as byte chunks (header, then each data section)."""
+    """The canonical file as byte chunks (header, then each data section).
+
+    For a big map, worker threads format the rows ahead of the consumer (numpy releases the GIL),
+    so that writing and hashing the chunks overlap with formatting the next ones.
+    """
+    with worker_pool(sum(s.num_points + s.num_lines for s in m.scans) >= _PARALLEL_ROWS) as pool:
+        yield from _map_chunks(m, pool)
+
+
+def _map_chunks(m: MapData, pool: ThreadPoolExecutor | None) -> Iterator[bytes]:
     yield _encode("".join(line + "\n" for line in iter_header_lines(m)))
     for s in m.scans:
         if s.num_lines:
             yield (_scan_prefix(s) + "_LINES\n" if _scan_prefix(s) else "LINES\n").encode()
-            yield format_rows(s.lines)
+            yield from iter_format_rows(s.lines, pool)
     for s in m.scans:
         yield (_scan_prefix(s) + "_DATA\n" if _scan_prefix(s) else "DATA\n").encode()
-        yield format_rows(s.points)
+        yield from iter_format_rows(s.points, pool)
 
 
 def dumpb(m: MapData) -> bytes:
