@@ -106,7 +106,7 @@ def run_demo(
     Raises:
         MapkitError: When a step fails (the message names the step).
     """
-    from mapkit import edit
+    import mapkit.edit as edit
     from mapkit.build import build_map
     from mapkit.mesh import export_mesh
     from mapkit.raster.export import export_ros

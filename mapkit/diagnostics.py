@@ -8,7 +8,8 @@ The parser's tolerant mode (:func:`mapkit.recover`) and the validator both repor
 * 3xx geometry,
 * 4xx objects,
 * 5xx navigation,
-* 6xx info sections.
+* 6xx info sections,
+* 7xx ``.2d`` laser logs (reader and map builder).
 
 The table of every code is generated from :class:`IssueCode` (``docs/codes.md``).
 """
@@ -111,6 +112,20 @@ class IssueCode(enum.IntEnum):
     PARAMS_COUNT_MISMATCH = 607
     PARAMS_BAD_VALUE = 608
     GROUP_MEMBER_MISMATCH = 609
+
+    # 7xx: .2d laser logs
+    LOG_BAD_HEADER_LINE = 701
+    LOG_BAD_VALUE = 702
+    LOG_NON_FINITE = 703
+    LOG_WRONG_READING_COUNT = 704
+    LOG_INCOMPLETE_RECORD = 705
+    LOG_TRUNCATED = 706
+    LOG_UNKNOWN_TAG = 707
+    LOG_GARBAGE_LINE = 708
+    LOG_NO_END_MARK = 709
+    LOG_UNKNOWN_LASER = 710
+    LOG_UNKNOWN_VERSION = 711
+    LOG_UNPAIRED_LOOP = 712
 
 
 #: One line per code: (default severity, summary). Extended by the validator's ranges.
@@ -263,6 +278,30 @@ CODE_SUMMARY: dict[IssueCode, tuple[Severity, str]] = {
         Severity.WARNING,
         "CairnInfo: GroupMember naming an unknown object, type, group type or argument",
     ),
+    IssueCode.LOG_BAD_HEADER_LINE: (Severity.ERROR, "log header line with values that cannot be read (ignored)"),
+    IssueCode.LOG_BAD_VALUE: (Severity.ERROR, "log record with a value that is not a number (record skipped)"),
+    IssueCode.LOG_NON_FINITE: (Severity.ERROR, "NaN or infinite number in a log record (record skipped)"),
+    IssueCode.LOG_WRONG_READING_COUNT: (
+        Severity.ERROR,
+        "scan with another number of readings than its laser's sickKconf: (record skipped)",
+    ),
+    IssueCode.LOG_INCOMPLETE_RECORD: (
+        Severity.ERROR,
+        "log record without its closing scanK: line (record skipped)",
+    ),
+    IssueCode.LOG_TRUNCATED: (Severity.ERROR, "log ends in the middle of a record or line"),
+    IssueCode.LOG_UNKNOWN_TAG: (Severity.INFO, "unknown tag in a log, kept and written back"),
+    IssueCode.LOG_GARBAGE_LINE: (Severity.WARNING, "log line that is neither a tag nor a comment (skipped)"),
+    IssueCode.LOG_NO_END_MARK: (
+        Severity.INFO,
+        "log without '# End of log': the logger did not shut down cleanly",
+    ),
+    IssueCode.LOG_UNKNOWN_LASER: (
+        Severity.WARNING,
+        "scan from a laser the header does not describe (mount taken as 0 0 0)",
+    ),
+    IssueCode.LOG_UNKNOWN_VERSION: (Severity.WARNING, "log version mapkit does not know (read as version 4)"),
+    IssueCode.LOG_UNPAIRED_LOOP: (Severity.WARNING, "loop: start without stop (or stop without start)"),
 }
 
 

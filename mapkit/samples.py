@@ -25,7 +25,7 @@ def list_samples() -> list[str]:
 
 
 def sample_path(name: str) -> Path:
-    """Path of a bundled sample; ``office`` finds ``office.map``.
+    """Path of a bundled sample; ``office`` finds ``office.map``, ``office-loop`` ``office-loop.2d``.
 
     Args:
         name: File name, or a map's name without ``.map``.
@@ -37,7 +37,7 @@ def sample_path(name: str) -> Path:
         MapkitError: When there is no such sample (the message lists them).
     """
     folder = _folder()
-    for candidate in (name, name + ".map"):
+    for candidate in (name, name + ".map", name + ".2d"):
         p = folder / candidate
         if p.is_file():
             return p

@@ -10,7 +10,14 @@
 * ``building.map`` — a larger multi-room floor (60 x 40 m, ``2D-Map-Ex2``): corridors and rooms,
   many goals, docks, forbidden areas and lines, and a speed-limit sector type with a parameter.
 
-They are written by mapkit's canonical writer, i.e. exactly as ARIA's ``ArMap::writeFile`` would
+* ``office-loop.2d`` — a laser log (version 4, 361 readings) simulated by driving the office from
+  home past every goal and back home, with drifting odometry and ``loop: start 1`` / ``loop: stop 1``
+  tags: input for ``mapkit build`` with a loop to close. ``office-loop.truth.tsv`` beside it holds
+  the true pose of every scan.
+* ``building-labs.2d`` — a version 3 log (181 readings) of the building from home through the
+  corridors and six labs (no loop), with ``building-labs.truth.tsv``.
+
+The maps are written by mapkit's canonical writer, i.e. exactly as ARIA's ``ArMap::writeFile`` would
 write them, so they load in ARIA as they load in mapkit.
 """
 
@@ -211,14 +218,55 @@ def building() -> MapData:
 SAMPLES: dict[str, Callable[[], MapData]] = {"office.map": office, "building.map": building}
 
 
+def office_loop() -> tuple[bytes, bytes]:
+    """The office log with a loop: (.2d bytes, truth sidecar bytes)."""
+    from mapkit.formats.laser2d import dumps_log
+    from mapkit.simulate import simulate_log
+
+    sim = simulate_log(office(), loop=True, seed=1, version=4)
+    return dumps_log(sim.log).encode(), sim.truth_text("office-loop.2d").encode()
+
+
+def building_labs() -> tuple[bytes, bytes]:
+    """The building log through six labs, version 3."""
+    from mapkit.formats.laser2d import dumps_log
+    from mapkit.simulate import simulate_log
+
+    b = building()
+    goals = [o for o in b.objects if o.is_point and o.base_type == "Goal"][:6]
+    home = [o for o in b.objects if o.type == "RobotHome"]
+    sim = simulate_log(b.replace(objects=tuple(home + goals)), seed=2, version=3, readings=181)
+    return dumps_log(sim.log).encode(), sim.truth_text("building-labs.2d").encode()
+
+
+#: Laser logs simulated from the sample maps: name -> (.2d bytes, truth bytes).
+LOG_SAMPLES: dict[str, Callable[[], tuple[bytes, bytes]]] = {
+    "office-loop.2d": office_loop,
+    "building-labs.2d": building_labs,
+}
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--check", action="store_true", help="only compare, write nothing")
     args = parser.parse_args()
     OUT.mkdir(parents=True, exist_ok=True)
     stale = []
-    for name, make in SAMPLES.items():
-        data = dumpb(make())
+    outputs: list[tuple[str, Callable[[], bytes]]] = [
+        (name, lambda make=make: dumpb(make())) for name, make in SAMPLES.items()]
+    for name, make_log in LOG_SAMPLES.items():
+        made: dict[str, bytes] = {}
+
+        def part(k: int, make_log: Callable[[], tuple[bytes, bytes]] = make_log,
+                 made: dict[str, bytes] = made) -> bytes:
+            if not made:
+                made["log"], made["truth"] = make_log()
+            return made["log" if k == 0 else "truth"]
+
+        outputs.append((name, lambda part=part: part(0)))
+        outputs.append((name[:-3] + ".truth.tsv", lambda part=part: part(1)))
+    for name, produce in outputs:
+        data = produce()
         path = OUT / name
         if args.check:
             if not path.exists() or path.read_bytes() != data:

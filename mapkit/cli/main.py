@@ -55,6 +55,7 @@ from mapkit.cli import convert as _convert  # noqa: E402
 from mapkit.cli import demo as _demo  # noqa: E402
 from mapkit.cli import edit as _edit  # noqa: E402
 from mapkit.cli import info as _info  # noqa: E402
+from mapkit.cli import logs as _logs  # noqa: E402
 from mapkit.cli import mesh as _mesh  # noqa: E402
 from mapkit.cli import rasterize as _rasterize  # noqa: E402
 from mapkit.cli import render as _render  # noqa: E402
@@ -74,6 +75,9 @@ cli.add_command(_mesh.export_mesh)
 for _command in (*_transfer.COMMANDS, *_edit.COMMANDS):
     cli.add_command(_command)
 cli.add_command(_ros.ros)
+cli.add_command(_logs.simulate)
+cli.add_command(_logs.build)
+cli.add_command(_logs.log_info)
 
 
 def main() -> None:

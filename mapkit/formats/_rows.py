@@ -70,6 +70,9 @@ _ROW = {
 }
 
 
+_INT64_MAX = 2**63 - 1
+
+
 def _int(tok: bytes) -> int:
     return 0 if tok == b"-" else int(tok)
 
@@ -90,10 +93,11 @@ def _parse_rows_reference(seg: bytes, ncols: int) -> tuple[IntArray, list[int]]:
     bad: list[int] = []
     for i, line in enumerate(lines):
         m = pattern.match(line + b"\n")
-        if m is None:
-            bad.append(i)
+        row = None if m is None else [_int(g) for g in m.groups()]
+        if row is None or any(not -_INT64_MAX - 1 <= v <= _INT64_MAX for v in row):
+            bad.append(i)  # not a row, or a number no integer type holds
         else:
-            out.append([_int(g) for g in m.groups()])
+            out.append(row)
     values = np.array(out, dtype=np.int64).reshape(-1, ncols)
     return values, bad
 

@@ -46,7 +46,7 @@ LAZY_WRITERS: dict[str, str] = {
     ".dae": "mapkit.mesh",
 }
 #: suffix -> module that registers its reader (imported on first use).
-LAZY_READERS: dict[str, str] = {}
+LAZY_READERS: dict[str, str] = {".2d": "mapkit.build"}
 
 
 def register_reader(suffix: str, reader: Reader) -> None:

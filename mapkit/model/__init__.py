@@ -9,6 +9,15 @@ from mapkit.model.map import (
     Scan,
     ScanHeader,
 )
+from mapkit.model.scan import (
+    LaserConfig,
+    LaserLog,
+    LaserScan,
+    LogEvent,
+    LogHeader,
+    LogRecord,
+    Pose2D,
+)
 from mapkit.model.objects import (
     BUILTIN_LINE_TYPES,
     BUILTIN_POINT_TYPES,
@@ -24,8 +33,15 @@ __all__ = [
     "CATEGORIES",
     "INFO_KEYWORDS",
     "InfoLine",
+    "LaserConfig",
+    "LaserLog",
+    "LaserScan",
+    "LogEvent",
+    "LogHeader",
+    "LogRecord",
     "MapData",
     "MapObject",
+    "Pose2D",
     "Provenance",
     "Scan",
     "ScanHeader",

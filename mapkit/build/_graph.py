@@ -1,0 +1,129 @@
+"""A 2D pose graph and its Gauss-Newton optimisation (sparse, scipy).
+
+Nodes are poses ``(x mm, y mm, theta radians)``; an edge says "pose j seen from pose i is z" with
+a 3x3 information matrix (in the frame of the expected pose j, as the error is). Node 0 is held fixed. Loop edges get a robust
+(Huber) weight so that one bad closure cannot bend the whole map.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+FloatArray = np.ndarray[Any, np.dtype[np.float64]]
+
+
+def wrap(a: Any) -> Any:
+    """Angles (radians) to [-pi, pi)."""
+    return (np.asarray(a) + math.pi) % (2 * math.pi) - math.pi
+
+
+def sigma_info(sx: float, sy: float, sth: float) -> FloatArray:
+    """A diagonal information matrix from standard deviations (mm, mm, radians)."""
+    return np.diag([1.0 / sx ** 2, 1.0 / sy ** 2, 1.0 / sth ** 2])
+
+
+def between(a: FloatArray, b: FloatArray) -> FloatArray:
+    """Pose b in a's frame (vectorised, radians)."""
+    c, s = np.cos(a[..., 2]), np.sin(a[..., 2])
+    dx, dy = b[..., 0] - a[..., 0], b[..., 1] - a[..., 1]
+    return np.stack([c * dx + s * dy, -s * dx + c * dy, wrap(b[..., 2] - a[..., 2])], axis=-1)
+
+
+class PoseGraph:
+    """Edges collected while mapping; :meth:`optimize` moves the nodes."""
+
+    def __init__(self) -> None:
+        self.i: list[int] = []
+        self.j: list[int] = []
+        self.z: list[FloatArray] = []
+        self.info: list[FloatArray] = []
+        self.robust: list[bool] = []
+
+    def add(self, i: int, j: int, z: FloatArray, info: FloatArray, *, robust: bool = False) -> None:
+        """Add an edge with a 3x3 information matrix (see :func:`sigma_info`)."""
+        self.i.append(i)
+        self.j.append(j)
+        self.z.append(np.asarray(z, dtype=np.float64))
+        self.info.append(np.asarray(info, dtype=np.float64).reshape(3, 3))
+        self.robust.append(robust)
+
+    def __len__(self) -> int:
+        return len(self.i)
+
+    def optimize(self, x: FloatArray, *, iterations: int = 10, huber: float = 3.0) -> FloatArray:
+        """Gauss-Newton on all nodes but node 0; returns the new ``(N, 3)`` poses."""
+        from scipy.sparse import coo_matrix
+        from scipy.sparse.linalg import spsolve
+
+        x = np.array(x, dtype=np.float64)
+        n = len(x)
+        if n < 2 or not self.i:
+            return x
+        I = np.array(self.i)
+        J = np.array(self.j)
+        Z = np.array(self.z)
+        OM = np.array(self.info)
+        RB = np.array(self.robust)
+        cz, sz = np.cos(Z[:, 2]), np.sin(Z[:, 2])
+        for _ in range(iterations):
+            xi, xj = x[I], x[J]
+            ci, si = np.cos(xi[:, 2]), np.sin(xi[:, 2])
+            dx, dy = xj[:, 0] - xi[:, 0], xj[:, 1] - xi[:, 1]
+            # e = Rz^T (Ri^T (tj - ti) - tz), theta_j - theta_i - theta_z
+            ux = ci * dx + si * dy - Z[:, 0]
+            uy = -si * dx + ci * dy - Z[:, 1]
+            e = np.stack([cz * ux + sz * uy, -sz * ux + cz * uy,
+                          wrap(xj[:, 2] - xi[:, 2] - Z[:, 2])], axis=1)
+            # Jacobians (E, 3, 3)
+            A = np.zeros((len(I), 3, 3))
+            B = np.zeros((len(I), 3, 3))
+            # d(Ri^T (tj - ti))/d ti = -Ri^T; d/dthi = dRi^T/dth (tj - ti)
+            RiT = np.stack([np.stack([ci, si], 1), np.stack([-si, ci], 1)], 1)  # (E,2,2)
+            RzT = np.stack([np.stack([cz, sz], 1), np.stack([-sz, cz], 1)], 1)
+            M = np.einsum("eab,ebc->eac", RzT, RiT)
+            dRiT = np.stack([np.stack([-si, ci], 1), np.stack([-ci, -si], 1)], 1)
+            dth = np.einsum("eab,eb->ea", RzT, np.einsum("eab,eb->ea", dRiT, np.stack([dx, dy], 1)))
+            A[:, :2, :2] = -M
+            A[:, :2, 2] = dth
+            A[:, 2, 2] = -1.0
+            B[:, :2, :2] = M
+            B[:, 2, 2] = 1.0
+            chi = np.sqrt(np.maximum(np.einsum("ea,eab,eb->e", e, OM, e), 0.0))
+            scale = np.where(RB & (chi > huber), huber / np.maximum(chi, 1e-12), 1.0)
+            om = OM * scale[:, None, None]
+            Ao = np.einsum("ekl,elb->ekb", om, A)  # Omega A
+            Bo = np.einsum("ekl,elb->ekb", om, B)
+            Hii = np.einsum("eka,ekb->eab", A, Ao)
+            Hij = np.einsum("eka,ekb->eab", A, Bo)
+            Hjj = np.einsum("eka,ekb->eab", B, Bo)
+            bi = np.einsum("eka,ek->ea", Ao, e)
+            bj = np.einsum("eka,ek->ea", Bo, e)
+            r3 = np.arange(3)
+            rows, cols, vals = [], [], []
+            for blk, ra, cb in ((Hii, I, I), (Hij, I, J), (Hij.transpose(0, 2, 1), J, I), (Hjj, J, J)):
+                rr = (3 * ra[:, None, None] + r3[None, :, None]).repeat(3, axis=2)
+                cc = (3 * cb[:, None, None] + r3[None, None, :]).repeat(3, axis=1)
+                rows.append(rr.ravel())
+                cols.append(cc.ravel())
+                vals.append(blk.ravel())
+            H = coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                           shape=(3 * n, 3 * n)).tocsr()
+            b = np.zeros(3 * n)
+            np.add.at(b, (3 * I[:, None] + r3).ravel(), bi.ravel())
+            np.add.at(b, (3 * J[:, None] + r3).ravel(), bj.ravel())
+            H = H[3:, 3:]
+            # A tiny damping keeps disconnected pieces solvable.
+            from scipy.sparse import identity
+
+            H = H + identity(H.shape[0], format="csr") * 1e-9
+            delta = spsolve(H.tocsc(), -b[3:])
+            if not np.all(np.isfinite(delta)):
+                break
+            x[1:] += delta.reshape(-1, 3)
+            x[:, 2] = wrap(x[:, 2])
+            if np.max(np.abs(delta[0::3])) < 0.1 and np.max(np.abs(delta[2::3])) < 1e-5:
+                break
+        return x

@@ -1,0 +1,278 @@
+"""Scan matching: point-to-line ICP against a KD-tree, and a correlative search for loop closures.
+
+Poses here are ``(x mm, y mm, theta radians)`` numpy arrays.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+FloatArray = np.ndarray[Any, np.dtype[np.float64]]
+
+
+def transform(pts: FloatArray, pose: FloatArray) -> FloatArray:
+    """Points through a pose (theta in radians)."""
+    c, s = math.cos(pose[2]), math.sin(pose[2])
+    out = pts @ np.array([[c, s], [-s, c]])
+    out[:, 0] += pose[0]
+    out[:, 1] += pose[1]
+    return out
+
+
+def rotate(v: FloatArray, th: float) -> FloatArray:
+    """Vectors rotated by ``th`` radians."""
+    c, s = math.cos(th), math.sin(th)
+    return v @ np.array([[c, s], [-s, c]])  # type: ignore[no-any-return]
+
+
+def scan_normals(pts: FloatArray, window: int = 3) -> FloatArray:
+    """Unit normals of beam-ordered scan points by PCA over ``2*window+1`` neighbours.
+
+    NaN where the neighbourhood is not a straight, continuous piece of wall. Window sums come from
+    cumulative sums, so the cost is a few passes over the points.
+    """
+    n = len(pts)
+    out = np.full((n, 2), np.nan)
+    w = 2 * window + 1
+    if n < w:
+        return out
+    x = pts[:, 0] - pts[:, 0].mean()
+    y = pts[:, 1] - pts[:, 1].mean()
+
+    def wsum(v: FloatArray) -> FloatArray:
+        c = np.concatenate(([0.0], np.cumsum(v)))
+        return c[w:] - c[:-w]
+
+    sx, sy = wsum(x), wsum(y)
+    mx, my = sx / w, sy / w
+    cxx = wsum(x * x) / w - mx * mx
+    cyy = wsum(y * y) / w - my * my
+    cxy = wsum(x * y) / w - mx * my
+    ang = 0.5 * np.arctan2(2 * cxy, cxx - cyy)  # direction of the line
+    tr = cxx + cyy
+    disc = np.sqrt(np.maximum((cxx - cyy) ** 2 / 4 + cxy * cxy, 0))
+    l1, l2 = tr / 2 + disc, tr / 2 - disc
+    step = np.hypot(np.diff(pts[:, 0]), np.diff(pts[:, 1]))
+    gaps = np.lib.stride_tricks.sliding_window_view(step, w - 1).max(axis=1)
+    span = np.hypot(pts[w - 1:, 0] - pts[: n - w + 1, 0], pts[w - 1:, 1] - pts[: n - w + 1, 1])
+    rng = np.hypot(mx + pts[:, 0].mean(), my + pts[:, 1].mean())
+    good = (l2 < 0.05 * np.maximum(l1, 1e-9)) & (gaps < 0.08 * rng + 60.0) & (span > 20.0)
+    nrm = np.stack([-np.sin(ang), np.cos(ang)], axis=1)
+    nrm[~good] = np.nan
+    out[window:n - window] = nrm
+    return out
+
+
+@dataclass
+class MatchResult:
+    """What a registration found."""
+
+    pose: FloatArray
+    ok: bool
+    inliers: float  # fraction of source points within the final distance
+    rms: float  # RMS point-to-line residual of the inliers (mm)
+    n: int
+    weakest: float  # smallest eigenvalue of the normalised translation information
+    hessian: FloatArray | None = None  # sum of J^T J of the final fit (world frame)
+    normals: FloatArray | None = None  # mean n n^T of the matched target normals (2x2)
+
+    def weak_direction(self, floor: float = 0.12) -> FloatArray | None:
+        """Unit vector along which the match tells nothing (a corridor's axis), or None."""
+        if self.normals is None:
+            return None
+        w, v = np.linalg.eigh(self.normals)
+        return v[:, 0] if w[0] < floor else None
+
+    def info(self, sigma: float = 15.0, points: float = 10.0) -> FloatArray:
+        """Information of the match in the world frame, as if from ``points`` points of ``sigma``.
+
+        A direction the matched walls do not constrain (a corridor's axis) gets none, however
+        many points happen to face it, so a closure in a corridor cannot pull along it.
+        """
+        if self.hessian is None or self.n == 0:
+            return np.zeros((3, 3))
+        info = self.hessian * (points / (self.n * sigma * sigma))
+        weak = self.weak_direction()
+        if weak is not None:
+            P = np.eye(3)
+            P[:2, :2] -= np.outer(weak, weak)
+            info = P.T @ info @ P
+        return info  # type: ignore[no-any-return]
+
+
+def _solve3(H: FloatArray, g: FloatArray) -> FloatArray | None:
+    """``-H^-1 g`` for a symmetric 3x3 H (Cramer's rule; None when singular)."""
+    (a, b, c), (_, d, e), (_, _, f) = H.tolist()
+    a += 1e-9
+    d += 1e-9
+    f += 1e-6
+    g0, g1, g2 = g.tolist()
+    A = d * f - e * e
+    B = c * e - b * f
+    C = b * e - c * d
+    det = a * A + b * B + c * C
+    if not det or not math.isfinite(det):
+        return None
+    D = a * f - c * c
+    E = b * c - a * e
+    F = a * d - b * b
+    return np.array([-(A * g0 + B * g1 + C * g2) / det, -(B * g0 + D * g1 + E * g2) / det,
+                     -(C * g0 + E * g1 + F * g2) / det])
+
+
+def icp(
+    src: FloatArray, tree: Any, tgt_pts: FloatArray, tgt_nrm: FloatArray, init: FloatArray, *,
+    schedule: tuple[float, ...] = (250.0, 100.0, 50.0), max_iter: int = 12,
+    huber: float = 20.0, min_points: int = 20, prior: FloatArray | None = None,
+    prior_info: FloatArray | None = None, sigma: float = 15.0,
+) -> MatchResult:
+    """Point-to-line ICP of ``src`` (robot frame) against a target with normals.
+
+    Args:
+        src: ``(n, 2)`` source points in the robot frame.
+        tree: ``scipy.spatial.cKDTree`` of ``tgt_pts``.
+        tgt_pts: ``(m, 2)`` target points (world).
+        tgt_nrm: ``(m, 2)`` unit normals of the target points.
+        init: Initial pose (x, y, theta radians).
+        schedule: Correspondence distance per iteration (the last one repeats).
+        max_iter: Most iterations.
+        huber: Residual (mm) above which a point's weight falls (Huber).
+        min_points: Fewest matched points for a result.
+        prior: A pose the result should stay near (e.g. the odometry prediction), with
+            ``prior_info`` its 3x3 information (world frame): it fills the directions the
+            scan does not constrain (a corridor's length).
+        prior_info: See ``prior``.
+        sigma: Range noise assumed for the points (mm), weighting them against the prior.
+
+    Returns:
+        The refined pose and fit statistics.
+    """
+    pose = np.array(init, dtype=np.float64)
+    n_src = len(src)
+    if n_src < min_points or len(tgt_pts) < min_points:
+        return MatchResult(pose, False, 0.0, math.inf, 0, 0.0)
+    sx = np.ascontiguousarray(src[:, 0])
+    sy = np.ascontiguousarray(src[:, 1])
+    inv_s2 = 1.0 / (sigma * sigma)
+    use_prior = prior is not None and prior_info is not None
+    nn = r = vx = vy = None
+    cnt = 0
+    last = len(schedule) - 1
+    for it in range(max_iter):
+        dmax = schedule[min(it, last)]
+        c, s = math.cos(pose[2]), math.sin(pose[2])
+        vx = sx * c - sy * s  # point minus robot position
+        vy = sx * s + sy * c
+        p = np.empty((n_src, 2))
+        p[:, 0] = vx + pose[0]
+        p[:, 1] = vy + pose[1]
+        d, idx = tree.query(p, k=1, distance_upper_bound=dmax, eps=0.2)
+        ok = d < dmax
+        cnt = int(np.count_nonzero(ok))
+        if cnt < min_points:
+            return MatchResult(pose, False, cnt / n_src, math.inf, cnt, 0.0)
+        ti = idx[ok]
+        nn = tgt_nrm[ti]
+        q = tgt_pts[ti]
+        vx, vy = vx[ok], vy[ok]
+        nx, ny = nn[:, 0], nn[:, 1]
+        r = (p[ok, 0] - q[:, 0]) * nx + (p[ok, 1] - q[:, 1]) * ny
+        jt = ny * vx - nx * vy
+        a = np.abs(r)
+        w = np.minimum(1.0, huber / np.maximum(a, 1e-9)) * inv_s2
+        J = np.empty((cnt, 3))
+        J[:, 0] = nx
+        J[:, 1] = ny
+        J[:, 2] = jt
+        Jw = J * w[:, None]
+        H = Jw.T @ J
+        g = Jw.T @ r
+        if use_prior:
+            dp = pose - prior  # type: ignore[operator]
+            dp[2] = (dp[2] + math.pi) % (2 * math.pi) - math.pi
+            H = H + prior_info
+            g = g + prior_info @ dp  # type: ignore[operator]
+        delta = _solve3(H, g)
+        if delta is None:
+            return MatchResult(pose, False, cnt / n_src, math.inf, cnt, 0.0)
+        pose += delta
+        if it >= last and abs(delta[0]) + abs(delta[1]) < 0.5 and abs(delta[2]) < 5e-5:
+            break
+    assert nn is not None and r is not None and vx is not None and vy is not None
+    info = nn.T @ nn / cnt
+    weakest = float(np.linalg.eigvalsh(info)[0])
+    J = np.stack([nn[:, 0], nn[:, 1], nn[:, 1] * vx - nn[:, 0] * vy], axis=1)
+    return MatchResult(pose, True, cnt / n_src, float(np.sqrt(np.mean(r * r))), cnt, weakest,
+                       J.T @ J, info)
+
+
+def _likelihood(tgt_pts: FloatArray, cell: float) -> tuple[FloatArray, np.ndarray[Any, Any]]:
+    from scipy import ndimage
+
+    lo = tgt_pts.min(axis=0) - cell * 4
+    hi = tgt_pts.max(axis=0) + cell * 4
+    shape = (int((hi[0] - lo[0]) / cell) + 1, int((hi[1] - lo[1]) / cell) + 1)
+    occ = np.zeros(shape, dtype=bool)
+    ij = ((tgt_pts - lo) / cell).astype(np.int64)
+    occ[ij[:, 0], ij[:, 1]] = True
+    dist = ndimage.distance_transform_edt(~occ) * cell
+    return lo, np.exp(-0.5 * (dist / cell) ** 2).astype(np.float32)
+
+
+def _search(src: FloatArray, lo: FloatArray, like: np.ndarray[Any, Any], cell: float,
+            center: FloatArray, k: int, ths: FloatArray) -> tuple[FloatArray, float]:
+    shape = like.shape
+    offs = np.arange(-k, k + 1)
+    best_sc, best = -1.0, center.copy()
+    for th in ths:
+        p = transform(src, np.array([center[0], center[1], th]))
+        base = np.floor((p - lo) / cell).astype(np.int64)
+        ix = np.clip(base[:, 0][None, :] + offs[:, None], 0, shape[0] - 1)  # (K, n)
+        iy = np.clip(base[:, 1][None, :] + offs[:, None], 0, shape[1] - 1)
+        score = like[ix[:, None, :], iy[None, :, :]].sum(axis=2)  # (K, K)
+        a, b = np.unravel_index(int(np.argmax(score)), score.shape)
+        sc = float(score[a, b])
+        if sc > best_sc:
+            best_sc = sc
+            best = np.array([center[0] + offs[a] * cell, center[1] + offs[b] * cell, th])
+    return best, best_sc / max(len(src), 1)
+
+
+def correlative(
+    src: FloatArray, tgt_pts: FloatArray, center: FloatArray, *, xy_window: float,
+    th_window: float, cell: float = 50.0,
+) -> tuple[FloatArray, float]:
+    """Brute-force search of the pose that best lays ``src`` on ``tgt_pts``, coarse to fine.
+
+    Scores poses on a grid within the windows around ``center`` by the likelihood of each source
+    point under a blurred occupancy grid of the target: first with cells 4 x ``cell`` and 2 degree
+    steps, then with ``cell`` and 0.5 degrees around the best coarse pose.
+
+    Returns:
+        ``(best pose, score)``; the score is the mean per-point likelihood in [0, 1].
+    """
+    if len(src) == 0 or len(tgt_pts) == 0:
+        return center.copy(), 0.0
+    coarse = 4 * cell
+    lo, like = _likelihood(tgt_pts, coarse)
+    k = max(1, int(round(xy_window / coarse)))
+    step = math.radians(2.0)
+    ths = center[2] + np.arange(-th_window, th_window + 1e-12, step)
+    best, _ = _search(src, lo, like, coarse, center, k, ths)
+    lo, like = _likelihood(tgt_pts, cell)
+    ths = best[2] + np.radians(np.arange(-2.0, 2.01, 0.5))
+    return _search(src, lo, like, cell, best, 5, ths)
+
+
+def voxel_keep(pts: FloatArray, size: float) -> np.ndarray[Any, Any]:
+    """Indices of one point per ``size`` mm cell (the first one met)."""
+    if len(pts) == 0:
+        return np.zeros(0, dtype=np.int64)
+    k = np.floor(pts / size).astype(np.int64)
+    key = (k[:, 0] << 32) + (k[:, 1] & 0xFFFFFFFF)
+    _, idx = np.unique(key, return_index=True)
+    return np.sort(idx)

@@ -1,0 +1,205 @@
+"""mapkit build: the pipeline's parts and its quality on simulated logs of the sample maps."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+import mapkit
+from mapkit.build import build_map, extract_lines
+from mapkit.build._graph import PoseGraph, between, sigma_info, wrap
+from mapkit.build._match import icp, scan_normals, transform
+from mapkit.build.quality import distance_to_segments, trajectory_rms
+from mapkit.errors import LogFormatError
+from mapkit.formats.laser2d import write_log
+from mapkit.formats.registry import convert_file
+from mapkit.model.scan import LaserLog, LaserScan, LogHeader, Pose2D
+from mapkit.samples import sample_path
+from mapkit.simulate import simulate_log
+
+
+@pytest.fixture(scope="module")
+def office() -> mapkit.MapData:
+    return mapkit.load(sample_path("office"))
+
+
+@pytest.fixture(scope="module")
+def office_sim(office):
+    # Strong drift so that the raw odometry map is visibly wrong.
+    return simulate_log(office, loop=True, seed=11, drift=0.15, rotation_error=0.03)
+
+
+@pytest.fixture(scope="module")
+def office_built(office_sim):
+    return build_map(office_sim.log)
+
+
+def test_quality_on_the_office_sample(office, office_sim, office_built) -> None:
+    raw = build_map(office_sim.log, register=False)
+    truth_lines = office.lines
+    d_reg = np.median(distance_to_segments(office_built.map.points, truth_lines))
+    d_raw = np.median(distance_to_segments(raw.map.points, truth_lines))
+    assert d_reg <= office_built.map.scan.resolution
+    assert d_raw > 60 and d_raw >= 5 * d_reg, (d_raw, d_reg)
+    truth = office_sim.truth[np.searchsorted(office_sim.truth_ids, office_built.scan_ids)]
+    rms_reg, _ = trajectory_rms(office_built.poses, truth)
+    rms_raw, _ = trajectory_rms(raw.poses, truth)
+    assert rms_reg < 60.0 and rms_raw > 3 * rms_reg, (rms_reg, rms_raw)
+    loops = office_built.summary["loops"]
+    assert loops["tags"] == 1 and loops["tags_matched"] == 1 and loops["revisits"] > 0
+
+
+def test_built_map_is_an_aria_map(office, office_built) -> None:
+    m = office_built.map
+    assert m.scan.resolution == 20 and m.scan.points_sorted and m.scan.lines_sorted
+    assert np.all(m.points % 20 == 0)
+    pts = m.points
+    assert np.all(np.diff(pts[:, 0]) >= 0)
+    home = m.objects[0]
+    assert home.type == "RobotHome" and math.hypot(home.x - 1500, home.y - 6000) < 1.0
+    # Goals from cairn: events, at their corrected place: near the map's goals of the same name.
+    built = {o.name: o for o in m.objects if o.type == "GoalWithHeading"}
+    want = {o.name: o for o in office.objects if o.base_type == "Goal"}
+    assert set(built) == set(want)
+    for name, g in built.items():
+        assert math.hypot(g.x - want[name].x, g.y - want[name].y) < 150.0, name
+    # Lines lie on the true walls.
+    ends = m.lines.reshape(-1, 2)
+    assert len(m.lines) >= 10
+    assert np.median(distance_to_segments(ends, office.lines)) < 40.0
+    text = mapkit.dumps(m)
+    assert mapkit.loads(text) == m
+
+
+def test_summary_and_no_register(office_sim, office_built) -> None:
+    s = office_built.summary
+    assert s["scans_used"] == s["scans_in_log"] == len(office_sim.log.scans)
+    assert s["registration"]["registered"] > 0.9 * s["scans_used"]
+    assert 2.0 < s["registration"]["median_residual_mm"] < 20.0
+    raw = build_map(office_sim.log, register=False, lines=False)
+    assert np.allclose(raw.poses, raw.odometry)
+    assert raw.summary["registration"]["registered"] == 0 and len(raw.map.lines) == 0
+
+
+@pytest.mark.slow
+def test_quality_on_the_building_sample() -> None:
+    m = mapkit.load(sample_path("building"))
+    sim = simulate_log(m, loop=True, seed=1)
+    reg = build_map(sim.log, lines=False)
+    raw = build_map(sim.log, register=False, lines=False)
+    d_reg = np.median(distance_to_segments(reg.map.points, m.lines))
+    d_raw = np.median(distance_to_segments(raw.map.points, m.lines))
+    assert d_reg <= 20 and d_raw >= 5 * d_reg, (d_reg, d_raw)
+
+
+def test_icp_recovers_a_known_motion() -> None:
+    # An L-shaped corner seen from the origin, moved by a known pose.
+    t = np.linspace(0, 3000, 151)
+    corner = np.concatenate([np.stack([t, np.full_like(t, 2000.0)], 1),
+                             np.stack([np.full_like(t, 3000.0), t - 1000], 1)])
+    nrm = np.concatenate([np.tile([0.0, 1.0], (151, 1)), np.tile([1.0, 0.0], (151, 1))])
+    from scipy.spatial import cKDTree
+
+    true = np.array([120.0, -80.0, math.radians(3.0)])
+    src = transform(corner, np.array([0.0, 0.0, 0.0]))
+    # Source in the robot frame: world = true * src  =>  src = inverse(true) * world
+    c, s = math.cos(true[2]), math.sin(true[2])
+    local = (corner - true[:2]) @ np.array([[c, -s], [s, c]])
+    r = icp(local, cKDTree(corner), corner, nrm, np.zeros(3))
+    assert r.ok and np.allclose(r.pose[:2], true[:2], atol=1.0)
+    assert abs(wrap(r.pose[2] - true[2])) < math.radians(0.05)
+    assert r.weak_direction() is None
+    assert src.shape == corner.shape
+
+
+def test_scan_normals_of_a_wall() -> None:
+    x = np.linspace(-2000, 2000, 81)
+    n = scan_normals(np.stack([x, np.full_like(x, 1500.0)], 1))
+    good = np.isfinite(n[:, 0])
+    assert good.sum() >= 70 and np.allclose(np.abs(n[good, 1]), 1.0)
+
+
+def test_pose_graph_closes_a_square() -> None:
+    rng = np.random.default_rng(0)
+    true = [np.zeros(3)]
+    for k in range(1, 40):
+        step = np.array([0.0, 0.0, math.pi / 2]) if k % 10 == 0 else np.array([500.0, 0.0, 0.0])
+        p = true[-1]
+        c, s = math.cos(p[2]), math.sin(p[2])
+        true.append(np.array([p[0] + c * step[0] - s * step[1], p[1] + s * step[0] + c * step[1],
+                              wrap(p[2] + step[2])]))
+    T = np.array(true)
+    g = PoseGraph()
+    est = [T[0]]
+    for k in range(1, len(T)):
+        z = between(T[k - 1], T[k]) + [rng.normal(0, 10), rng.normal(0, 10), rng.normal(0, 0.02)]
+        g.add(k - 1, k, z, sigma_info(10, 10, 0.02))
+        p = est[-1]
+        c, s = math.cos(p[2]), math.sin(p[2])
+        est.append(np.array([p[0] + c * z[0] - s * z[1], p[1] + s * z[0] + c * z[1], wrap(p[2] + z[2])]))
+    E = np.array(est)
+    g.add(0, len(T) - 1, between(T[0], T[-1]), sigma_info(5, 5, 0.005), robust=True)
+    before = np.sqrt(np.mean(np.sum((E[:, :2] - T[:, :2]) ** 2, 1)))
+    after_x = g.optimize(E)
+    after = np.sqrt(np.mean(np.sum((after_x[:, :2] - T[:, :2]) ** 2, 1)))
+    assert after < before / 3, (before, after)
+    assert np.allclose(after_x[0], E[0])
+
+
+def test_extract_lines_of_a_room() -> None:
+    walls = np.array([[0, 0, 4000, 0], [4000, 0, 4000, 3000], [4000, 3000, 0, 3000],
+                      [0, 3000, 0, 0]], dtype=float)
+    rng = np.random.default_rng(1)
+    pts = []
+    for x1, y1, x2, y2 in walls:
+        t = np.linspace(0, 1, 200)
+        pts.append(np.stack([x1 + t * (x2 - x1), y1 + t * (y2 - y1)], 1) + rng.normal(0, 4, (200, 2)))
+    p = np.rint(np.concatenate(pts) / 20) * 20
+    segs = extract_lines(p)
+    assert 4 <= len(segs) <= 8
+    assert distance_to_segments(segs.reshape(-1, 2), walls).max() < 40
+    covered = sum(np.hypot(s[2] - s[0], s[3] - s[1]) for s in segs)
+    assert covered > 0.85 * 14000
+
+
+def test_no_usable_scan_and_convert(tmp_path, office_sim) -> None:
+    empty = LaserLog(header=LogHeader(), records=[LaserScan(scan_id=0, xy=np.zeros((5, 2)))])
+    with pytest.raises(LogFormatError, match="no scan with enough valid readings"):
+        build_map(empty)
+    with pytest.raises(ValueError, match="resolution"):
+        build_map(empty, resolution=0)
+    log_path = tmp_path / "o.2d"
+    write_log(office_sim.log, log_path)
+    out = tmp_path / "o.map"
+    assert "wrote" in convert_file(log_path, out)
+    assert mapkit.load(out).scan.num_points > 1000
+
+
+def test_tolerant_build_skips_bad_records(tmp_path, office_sim) -> None:
+    path = tmp_path / "bad.2d"
+    write_log(office_sim.log, path)
+    lines = path.read_bytes().split(b"\n")
+    k = next(i for i, ln in enumerate(lines) if ln.startswith(b"scan1:") and i > 100)
+    lines[k] = lines[k][:40] + b" nan"
+    path.write_bytes(b"\n".join(lines))
+    with pytest.raises(LogFormatError, match=rf"bad\.2d:{k + 1}: "):
+        build_map(path)
+    res = build_map(path, strict=False, lines=False)
+    assert res.summary["scans_used"] == len(office_sim.log.scans) - 1
+    assert any(i.location.line == k + 1 for i in res.issues)
+
+
+def test_goal_pose_follows_the_corrected_scan() -> None:
+    # Two scans of a wall; a goal logged between them with an odometry pose.
+    x = np.linspace(-2000, 2000, 181)
+    xy = np.stack([np.full_like(x, 2000.0), x], 1)
+    from mapkit.formats.laser2d import goal_event
+
+    laser_log = LaserLog(header=LogHeader(lasers=(mapkit.model.LaserConfig(count=181, start=-45, end=45),)),
+                         records=[LaserScan(scan_id=0, robot=Pose2D(0, 0, 0), xy=xy),
+                                  goal_event("g", Pose2D(100, 0, 0))])
+    res = build_map(laser_log, register=False, lines=False)
+    g = [o for o in res.map.objects if o.name == "g"][0]
+    assert (g.type, g.x, g.y) == ("GoalWithHeading", 100.0, 0.0)
