@@ -13,7 +13,7 @@ from typing import Any
 import click
 
 from mapkit.cli.options import echo_json, err, json_option
-from mapkit.cli.transfer import _progress, _quiet, _secret_options, _size, print_listing
+from mapkit.cli.transfer import _auth_text, _progress, _quiet, _secret_options, _size, print_listing
 
 
 @click.group()
@@ -131,7 +131,7 @@ def _run_robot(folder: str, channel: str, robot: str, secret: bytes | None, inse
                      map_server=map_server, on_received=on_received)
     kind = "serving" if "pull" in features else "receiving into"
     err(f"mapkit ros: robot {robot!r} {kind} {node.folder.root} on channel {channel!r} "
-        f"(node {node.link.node}, auth {'hmac-sha256' if secret else 'none'}). Ctrl-C stops.")
+        f"(node {node.link.node}, auth {_auth_text(secret)}). Ctrl-C stops.")
     stop_on_signals()
     try:
         node.run(until=(lambda: node.received_count >= count) if count else None)

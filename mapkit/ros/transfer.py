@@ -169,7 +169,7 @@ class _RobotSession:
                 self.closed = True
             elif self.hs.finished:
                 log.info("%s: session %016x (auth %s)", self.client, self.conn.channel.session,
-                         self.hs.client.get("auth"))
+                         self.hs.auth)
             return out
         if self.hs.error is not None or self.closed:
             return []
