@@ -44,7 +44,7 @@ from mapkit.transfer.protocol import (
     kind_of,
 )
 from mapkit.transfer.server import validate_map_file
-from mapkit.transfer.store import PartialFile, check_name, file_digests
+from mapkit.transfer.store import PartialFile, check_name, chunk_reader, file_digests
 from mapkit.transfer.tcp import FrameLink, connect, run
 
 __all__ = ["Client", "Progress", "fetch_file", "list_maps", "load_map", "offer_for_file",
@@ -209,10 +209,8 @@ class Client:
             fd, offer = offer_for_file(path, name=name, chunk_size=self.chunk_size,
                                        cached=attempt == 1)
             try:
-                def read(i: int, fd: int = fd, offer: Offer = offer) -> bytes:
-                    return os.pread(fd, offer.chunk_len(i), i * offer.chunk_size)
-
-                tx = Sender(offer, read, ref=self._next_ref(), window=self.window, rto=self.rto,
+                tx = Sender(offer, chunk_reader(fd, offer), ref=self._next_ref(), window=self.window,
+                            rto=self.rto,
                             idle_timeout=max(self.timeout, 60.0))
                 tick = _Ticker(progress, offer.size, _attr(tx, "bytes_acked"), self.progress_interval)
                 try:

@@ -84,6 +84,7 @@ import hmac
 import json
 import os
 import struct
+import sys
 import zlib
 from collections import deque
 from collections.abc import Callable, Iterable, Mapping, Sequence
@@ -102,6 +103,7 @@ __all__ = [
     "TAG_SIZE",
     "VERSION",
     "AuthenticationError",
+    "BufferPool",
     "Channel",
     "ChunkReceived",
     "ClientHandshake",
@@ -444,6 +446,42 @@ def encode_frame(
     return head, payload, tag
 
 
+class BufferPool:
+    """Reusable large buffers, so that a stream of 1 MiB chunks does not map fresh memory (and
+    take a page fault per 4 KiB) for every chunk.
+
+    :meth:`get` hands out a pooled ``bytearray`` only when nothing else refers to it any more
+    (CPython reference counts): a buffer still held by a frame, a queue or a memoryview is never
+    reused, so callers need not give buffers back.
+
+    Args:
+        limit: Buffers kept at most.
+
+    Examples:
+        >>> pool = BufferPool()
+        >>> a = pool.get(4)
+        >>> pool.get(4) is a  # still referenced by `a`: a new one
+        False
+        >>> del a
+        >>> len(pool.get(4))
+        4
+    """
+
+    def __init__(self, limit: int = 16) -> None:
+        self.limit = limit
+        self._bufs: list[bytearray] = []
+
+    def get(self, size: int) -> bytearray:
+        """A buffer of exactly ``size`` bytes (contents undefined)."""
+        for buf in self._bufs:
+            if len(buf) == size and sys.getrefcount(buf) <= 3:  # the list, `buf`, the call
+                return buf
+        buf = bytearray(size)
+        if len(self._bufs) < self.limit:
+            self._bufs.append(buf)
+        return buf
+
+
 class Channel:
     """Framing, tagging and replay protection for one session, in one endpoint.
 
@@ -494,6 +532,7 @@ class Channel:
         self._body: bytearray | None = None
         self._body_fill = 0
         self._body_head: tuple[bytes, int, int, int, int, int, int, bool] | None = None
+        self._pool = BufferPool()
         self._highest = 0
         self._seen = 0  # bit k set: seq (highest - k) was seen
         self.stats = {"frames_in": 0, "frames_out": 0, "damaged": 0, "garbage": 0,
@@ -658,7 +697,7 @@ class Channel:
             if length < self.direct_threshold or self._messages:
                 return None
             # a large payload: give it a buffer of its own and receive the rest straight into it
-            body = bytearray(length)
+            body = self._pool.get(length)
             k = min(len(buf) - start, length)
             with memoryview(buf) as view:
                 body[:k] = view[start:start + k]

@@ -49,7 +49,7 @@ from mapkit.transfer.protocol import (
     kind_of,
     reject_out,
 )
-from mapkit.transfer.store import PartialFile, StoreError, check_name, file_digests
+from mapkit.transfer.store import PartialFile, StoreError, check_name, chunk_reader, file_digests
 from mapkit.transfer.tcp import FrameLink, listen, run
 
 __all__ = ["ACTIVE_NAME", "PREVIOUS_NAME", "MapFolder", "MapServer", "validate_map_file"]
@@ -599,10 +599,7 @@ class MapServer:
                 link.send([Out(FrameType.NOT_MODIFIED, dump_json(offer.json()), ref=f.ref)])
                 return None
 
-            def read(i: int) -> bytes:
-                return os.pread(fd, offer.chunk_len(i), i * offer.chunk_size)
-
-            tx = Sender(offer, read, ref=f.ref, window=self.window, rto=self.rto,
+            tx = Sender(offer, chunk_reader(fd, offer), ref=f.ref, window=self.window, rto=self.rto,
                         idle_timeout=self.idle_timeout)
             try:
                 run(link, tx)

@@ -35,6 +35,7 @@ from typing import Any
 from mapkit._atomic import atomic_write, fsync_dir
 from mapkit.errors import ChecksumError, LocalTransferError, TransferError
 from mapkit.transfer.protocol import (
+    BufferPool,
     ChunkReceived,
     Offer,
     Out,
@@ -45,7 +46,8 @@ from mapkit.transfer.protocol import (
     encode_bitmap,
 )
 
-__all__ = ["PartialFile", "StoreChecksumError", "StoreError", "check_name", "file_digests", "partial_paths"]
+__all__ = ["PartialFile", "StoreChecksumError", "StoreError", "check_name", "chunk_reader",
+           "file_digests", "partial_paths"]
 
 log = logging.getLogger(__name__)
 
@@ -99,16 +101,44 @@ def file_digests(fd: int, size: int, *, md5: bool = True) -> tuple[str, str | No
     """SHA-256 (and MD5) of the first ``size`` bytes of an open file, read in 1 MiB blocks."""
     sha = hashlib.sha256()
     m = hashlib.md5() if md5 else None
+    buf = bytearray(min(READ_BLOCK, size))
+    view = memoryview(buf)
     off = 0
     while off < size:
-        block = os.pread(fd, min(READ_BLOCK, size - off), off)
-        if not block:
+        n = _preadv(fd, view[:min(READ_BLOCK, size - off)], off)
+        if not n:
             raise LocalTransferError(f"file shrank while reading it (at byte {off} of {size})")
-        sha.update(block)
+        sha.update(view[:n])
         if m is not None:
-            m.update(block)
-        off += len(block)
+            m.update(view[:n])
+        off += n
     return sha.hexdigest(), m.hexdigest() if m is not None else None
+
+
+def _preadv(fd: int, buf: memoryview | bytearray, offset: int) -> int:
+    """Read into ``buf`` at ``offset`` (one ``preadv``); returns the byte count."""
+    if hasattr(os, "preadv"):
+        return os.preadv(fd, [buf], offset)
+    data = os.pread(fd, len(buf), offset)  # pragma: no cover - platforms without preadv
+    buf[:len(data)] = data
+    return len(data)
+
+
+def chunk_reader(fd: int, offer: Offer) -> Callable[[int], bytes | bytearray]:
+    """The ``read_chunk`` of a :class:`~mapkit.transfer.protocol.Sender` for an open file:
+    chunk ``i`` read into a pooled buffer (see :class:`~mapkit.transfer.protocol.BufferPool`).
+
+    A short read (the file shrank) returns fewer bytes, which the sender reports.
+    """
+    pool = BufferPool()
+
+    def read(i: int) -> bytes | bytearray:
+        n = offer.chunk_len(i)
+        buf = pool.get(n)
+        got = _preadv(fd, buf, i * offer.chunk_size)
+        return buf if got == n else bytes(buf[:got])
+
+    return read
 
 
 def _os_error(err: OSError, what: str) -> StoreError:
