@@ -44,7 +44,13 @@ from mapkit.transfer.protocol import (
     kind_of,
 )
 from mapkit.transfer.server import validate_map_file
-from mapkit.transfer.store import PartialFile, check_name, chunk_reader, file_digests
+from mapkit.transfer.store import (
+    PartialFile,
+    PreparedReader,
+    check_name,
+    chunk_reader,
+    file_digests,
+)
 from mapkit.transfer.tcp import FrameLink, connect, run
 
 __all__ = ["Client", "Progress", "fetch_file", "list_maps", "load_map", "offer_for_file",
@@ -66,7 +72,8 @@ _DIGESTS_LOCK = threading.Lock()
 
 
 def offer_for_file(path: str | os.PathLike[str], *, name: str | None = None,
-                   chunk_size: int = DEFAULT_CHUNK_SIZE, cached: bool = True) -> tuple[int, Offer]:
+                   chunk_size: int = DEFAULT_CHUNK_SIZE, cached: bool = True,
+                   on_open: Callable[[int, os.stat_result], None] | None = None) -> tuple[int, Offer]:
     """Open a local file and describe it: ``(fd, offer)`` (SHA-256 always, MD5 for maps).
 
     Args:
@@ -75,6 +82,8 @@ def offer_for_file(path: str | os.PathLike[str], *, name: str | None = None,
         chunk_size: Bytes per chunk.
         cached: Reuse the digests computed for this very file (same device, inode, size, mtime
             and ctime) earlier in this process; False hashes it again.
+        on_open: Called with the open file and its status before it is hashed (to start work
+            that can run meanwhile).
 
     Raises:
         LocalTransferError: When the file cannot be read or the name is not a plain file name.
@@ -87,6 +96,8 @@ def offer_for_file(path: str | os.PathLike[str], *, name: str | None = None,
         raise LocalTransferError(f"{os.fspath(path)}: {err.strerror}") from err
     try:
         st = os.fstat(fd)
+        if on_open is not None:
+            on_open(fd, st)
         kind = kind_of(name)
         key = (st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns, st.st_ctime_ns)
         with _DIGESTS_LOCK:
@@ -206,12 +217,28 @@ class Client:
         """
         for attempt in (1, 2):
             t0 = time.monotonic()
-            fd, offer = offer_for_file(path, name=name, chunk_size=self.chunk_size,
-                                       cached=attempt == 1)
+            readers: list[PreparedReader] = []
+
+            def prepare_ahead(fd: int, st: os.stat_result) -> None:
+                # CRC and tag work of every chunk in a second thread, meanwhile (see PreparedReader)
+                reader = PreparedReader.for_file(fd, st.st_size, self.chunk_size,
+                                                 self.link.channel.preparer())
+                if reader is not None:
+                    readers.append(reader.start())
+
             try:
-                tx = Sender(offer, chunk_reader(fd, offer), ref=self._next_ref(), window=self.window,
-                            rto=self.rto,
+                fd, offer = offer_for_file(path, name=name, chunk_size=self.chunk_size,
+                                           cached=attempt == 1, on_open=prepare_ahead)
+            except BaseException:
+                for r in readers:
+                    r.close()
+                raise
+            try:
+                read = readers[0] if readers else chunk_reader(fd, offer)
+                tx = Sender(offer, read, ref=self._next_ref(), window=self.window, rto=self.rto,
                             idle_timeout=max(self.timeout, 60.0))
+                if readers:
+                    readers[0].skip = lambda i: tx.acked[i]  # a resume needs only the rest
                 tick = _Ticker(progress, offer.size, _attr(tx, "bytes_acked"), self.progress_interval)
                 try:
                     run(self.link, tx, tick=tick)
@@ -221,6 +248,8 @@ class Client:
                     raise
                 tick(force=True)
             finally:
+                for r in readers:
+                    r.close()
                 os.close(fd)
             dt = time.monotonic() - t0
             return {**offer.json(), "host": self.host, "auth": self.auth,

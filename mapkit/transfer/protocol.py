@@ -113,6 +113,7 @@ __all__ = [
     "FrameType",
     "Offer",
     "Out",
+    "Prepared",
     "ProtocolError",
     "Receiver",
     "Rejected",
@@ -128,6 +129,7 @@ __all__ = [
     "encode_bitmap",
     "encode_frame",
     "load_secret",
+    "prepare_payload",
     "ranges_from_bitmap",
 ]
 
@@ -336,7 +338,8 @@ class Out:
 
     Attributes:
         type: Frame type.
-        payload: Payload bytes (JSON for control frames, chunk bytes for DATA).
+        payload: Payload bytes (JSON for control frames, chunk bytes for DATA, which may come
+            as a :class:`Prepared` payload).
         ref: Chunk index or request number.
         flags: Extra flags (e.g. :attr:`Flag.RETX`).
         plain: Send without a tag even when keys are installed (REJECTs during the handshake,
@@ -344,7 +347,7 @@ class Out:
     """
 
     type: FrameType
-    payload: bytes | bytearray | memoryview = b""
+    payload: bytes | bytearray | memoryview | Prepared = b""
     ref: int = 0
     flags: int = 0
     plain: bool = False
@@ -390,9 +393,67 @@ def _tag_hmac_sha256(key: bytes, head: bytes | memoryview, payload: _Bytes) -> b
 
 
 def _tag_blake2b(key: bytes, head: bytes | memoryview, payload: _Bytes) -> bytes:
-    mac = hashlib.blake2b(head, digest_size=TAG_SIZE, key=key)
+    # payload first: its part can be computed before the header (sequence number) is known
+    mac = hashlib.blake2b(digest_size=TAG_SIZE, key=key)
     mac.update(payload)  # hashlib releases the GIL on large buffers
+    mac.update(head)
     return mac.digest()
+
+
+class Prepared:
+    """A DATA payload whose per-byte work was done ahead, e.g. in another thread while the file
+    was being hashed: its CRC-32 and, for ``blake2b`` tags, the keyed BLAKE2b state after the
+    payload. :func:`encode_frame` then only adds the header (microseconds per frame).
+
+    Make them with :meth:`Channel.preparer`; pass one as an :class:`Out`'s payload (a
+    :class:`Sender`'s ``read_chunk`` may return it). A frame encoded with another key or tag
+    algorithm ignores the state and computes the tag afresh.
+
+    Attributes:
+        data: The payload bytes.
+        crc: CRC-32 of ``data``.
+    """
+
+    __slots__ = ("_key", "_state", "crc", "data")
+
+    def __init__(self, data: _Bytes, crc: int, state: Any = None, key: bytes | None = None) -> None:
+        self.data = data
+        self.crc = crc
+        self._state = state
+        self._key = key
+
+    def __len__(self) -> int:
+        return len(self.data)
+
+    def with_data(self, data: _Bytes, crc: int) -> Prepared | None:
+        """The same preparation for ``data``, read again later, if its CRC-32 ``crc`` is still
+        this one's (None: the bytes changed since, so the preparation does not apply)."""
+        return Prepared(data, crc, self._state, self._key) if crc == self.crc else None
+
+    def tag(self, key: bytes, auth: str, head: bytes) -> bytes:
+        """The frame's tag with ``key`` and ``auth`` for header bytes ``head`` (0..27)."""
+        if auth == "blake2b" and self._state is not None and hmac.compare_digest(key, self._key or b""):
+            mac = self._state.copy()
+            mac.update(head)
+            return bytes(mac.digest())
+        return _TAGGERS[auth](key, head, self.data)
+
+
+def prepare_payload(data: _Bytes, key: bytes | None = None, auth: str = "none") -> Prepared:
+    """Do a payload's CRC-32 (and with ``auth`` ``"blake2b"`` and a ``key``, its share of the
+    tag) now; see :class:`Prepared`.
+
+    Examples:
+        >>> p = prepare_payload(b"chunk", b"k" * 32, "blake2b")
+        >>> h = encode_frame(FrameType.DATA, p, session=1, seq=5, key=b"k" * 32, auth="blake2b")
+        >>> h == encode_frame(FrameType.DATA, b"chunk", session=1, seq=5, key=b"k" * 32, auth="blake2b")
+        True
+    """
+    state = None
+    if auth == "blake2b" and key is not None:
+        state = hashlib.blake2b(digest_size=TAG_SIZE, key=key)
+        state.update(data)
+    return Prepared(data, zlib.crc32(data), state, key)
 
 
 _TAGGERS: dict[str, Callable[[bytes, bytes | memoryview, _Bytes], bytes]] = {
@@ -404,7 +465,7 @@ _tag = _tag_hmac_sha256  # the MKT/1 default, kept for callers of the old name
 
 def encode_frame(
     type: int,
-    payload: bytes | bytearray | memoryview = b"",
+    payload: bytes | bytearray | memoryview | Prepared = b"",
     *,
     session: int,
     seq: int,
@@ -417,7 +478,7 @@ def encode_frame(
 
     Args:
         type: Frame type.
-        payload: Payload bytes.
+        payload: Payload bytes, or a :class:`Prepared` payload (its data is sent).
         session: 64-bit session id.
         seq: Sequence number (32-bit).
         ref: Chunk index or request number (32-bit).
@@ -439,8 +500,13 @@ def encode_frame(
     else:
         flags &= ~Flag.AUTH
     head = struct.pack(">4sBBHQIII", MAGIC, VERSION, type, flags, session, seq, ref, n)
-    tag = _TAGGERS[auth](key, head, payload) if key is not None else b""
-    body_crc = zlib.crc32(tag, zlib.crc32(payload))
+    if isinstance(payload, Prepared):
+        tag = payload.tag(key, auth, head) if key is not None else b""
+        crc, payload = payload.crc, payload.data
+    else:
+        tag = _TAGGERS[auth](key, head, payload) if key is not None else b""
+        crc = zlib.crc32(payload)
+    body_crc = zlib.crc32(tag, crc)
     head += struct.pack(">I", body_crc)
     head += struct.pack(">I", zlib.crc32(head))
     return head, payload, tag
@@ -574,6 +640,16 @@ class Channel:
         self.stats["frames_out"] += 1
         return encode_frame(out.type, out.payload, session=self.session, seq=self._seq,
                             ref=out.ref, flags=out.flags, key=key, auth=self.auth)
+
+    def preparer(self) -> Callable[[_Bytes], Prepared]:
+        """A function that does a payload's per-byte work for this channel's sending key and tag
+        algorithm ahead of time (:class:`Prepared`); call it from any thread."""
+        key, auth = self._send_key, self.auth
+
+        def prepare(data: _Bytes) -> Prepared:
+            return prepare_payload(data, key, auth if key is not None else "none")
+
+        return prepare
 
     def encode(self, out: Out) -> bytes:
         """Number (and tag) ``out``; return its wire bytes."""
@@ -1395,8 +1471,9 @@ class ServerHandshake(_Machine):
             self._hello = bytes(f.payload)
             ack = {"version": VERSION, "nonce": self.nonce.hex(), "auth": auth, "peer": self.peer,
                    "software": SOFTWARE, **self.info}
-            self._ack = Out(FrameType.HELLO_ACK, dump_json(ack), ref=f.ref)
-            self._th = hashlib.sha256(self._hello + self._ack.payload).digest()
+            ack_payload = dump_json(ack)
+            self._ack = Out(FrameType.HELLO_ACK, ack_payload, ref=f.ref)
+            self._th = hashlib.sha256(self._hello + ack_payload).digest()
             proof = ""
             self.auth = auth
             if auth != "none":
@@ -1533,7 +1610,8 @@ class Sender(_Machine):
 
     Args:
         offer: The offer (identity and chunking).
-        read_chunk: Returns the bytes of chunk ``index`` (exactly ``offer.chunk_len(index)``).
+        read_chunk: Returns the bytes of chunk ``index`` (exactly ``offer.chunk_len(index)``),
+            or a :class:`Prepared` payload of them.
         ref: The request number (the push's own, or the GET it answers).
         window: Chunks in flight at most.
         rto: First resend timeout in seconds (doubles while nothing is acknowledged).
@@ -1550,7 +1628,8 @@ class Sender(_Machine):
         result: The VERIFIED payload, or ``{"skipped": True, ...}``.
     """
 
-    def __init__(self, offer: Offer, read_chunk: Callable[[int], bytes | bytearray | memoryview], *,
+    def __init__(self, offer: Offer,
+                 read_chunk: Callable[[int], bytes | bytearray | memoryview | Prepared], *,
                  ref: int = 0, window: int = 16, rto: float = 1.0, max_tries: int = 8,
                  idle_timeout: float = 30.0) -> None:
         super().__init__(rto=rto, max_tries=max_tries, idle_timeout=idle_timeout)

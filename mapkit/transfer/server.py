@@ -49,7 +49,14 @@ from mapkit.transfer.protocol import (
     kind_of,
     reject_out,
 )
-from mapkit.transfer.store import PartialFile, StoreError, check_name, chunk_reader, file_digests
+from mapkit.transfer.store import (
+    PartialFile,
+    PreparedReader,
+    StoreError,
+    check_name,
+    chunk_reader,
+    file_digests,
+)
 from mapkit.transfer.tcp import FrameLink, listen, run
 
 __all__ = ["ACTIVE_NAME", "PREVIOUS_NAME", "MapFolder", "MapServer", "validate_map_file"]
@@ -599,13 +606,20 @@ class MapServer:
                 link.send([Out(FrameType.NOT_MODIFIED, dump_json(offer.json()), ref=f.ref)])
                 return None
 
-            tx = Sender(offer, chunk_reader(fd, offer), ref=f.ref, window=self.window, rto=self.rto,
-                        idle_timeout=self.idle_timeout)
+            ahead = PreparedReader.for_file(fd, offer.size, offer.chunk_size, link.channel.preparer())
             try:
+                tx = Sender(offer, ahead or chunk_reader(fd, offer), ref=f.ref, window=self.window,
+                            rto=self.rto, idle_timeout=self.idle_timeout)
+                if ahead is not None:
+                    ahead.skip = lambda i: tx.acked[i]  # a resumed pull needs only the rest
+                    ahead.start()
                 run(link, tx)
             except TransferError as err:
                 log.warning("%s: pull of %s failed: %s", peer, offer.name, err)
                 raise _Ended(str(err), tx) from err
+            finally:
+                if ahead is not None:
+                    ahead.close()
             log.info("%s: sent %s (%d bytes, %d chunks sent, %d skipped)", peer, offer.name,
                      offer.size, tx.chunks_sent, tx.chunks_skipped)
             return tx

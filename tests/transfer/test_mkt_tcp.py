@@ -95,8 +95,10 @@ def test_one_session_many_requests(tmp_path, robot_dir, make_server) -> None:
 @pytest.mark.parametrize("threads", [False, True], ids=["inline", "threads"])
 def test_push_cut_at_many_points_resumes_and_resends_only_missing(
         tmp_path, robot_dir, make_server, proxy, monkeypatch, threads) -> None:
-    if threads:  # the robot writes, hashes and checkpoints in background threads even for this file
+    if threads:  # the robot writes, hashes and checkpoints in background threads even for this
+        # file, and the terminal prepares each chunk's CRC and tag in a background pass
         monkeypatch.setattr(store_mod, "THREADS_FROM", 0)
+        monkeypatch.setattr(store_mod, "PREPARE_FROM", 0)
     chunk, n = 16 * 1024, 40
     data = os.urandom(chunk * n - 123)
     src = tmp_path / "big.2d"
@@ -130,7 +132,10 @@ def test_push_cut_at_many_points_resumes_and_resends_only_missing(
     assert listing(robot_dir) == ["big.2d"]
 
 
-def test_pull_cut_then_resumed(tmp_path, robot_dir, make_server, proxy) -> None:
+@pytest.mark.parametrize("ahead", [False, True], ids=["plain", "prepared"])
+def test_pull_cut_then_resumed(tmp_path, robot_dir, make_server, proxy, monkeypatch, ahead) -> None:
+    if ahead:  # the robot prepares CRCs and tags in a background pass (PreparedReader)
+        monkeypatch.setattr(store_mod, "PREPARE_FROM", 0)
     chunk, n = 8 * 1024, 30
     data = make_map(20_000)[: chunk * n]
     data = data[: data.rfind(b"\n") + 1]
@@ -178,12 +183,12 @@ def test_bit_flips_are_detected_and_repaired(tmp_path, robot_dir, make_server, p
 
 
 def test_tag_algorithm_is_negotiated_over_tcp(tmp_path, robot_dir, make_server) -> None:
-    data = os.urandom(3 * (1 << 20) + 5)  # four frames of the default 1 MiB chunk
+    data = os.urandom(5 * (1 << 20) + 5)  # six frames of the default 1 MiB chunk, prepared ahead
     src = tmp_path / "a.2d"
     src.write_bytes(data)
     srv = make_server()
     r = send_file(src, *srv.address, **client_options())
-    assert r["auth"] == "blake2b" and r["chunks"] == 4 and (robot_dir / "a.2d").read_bytes() == data
+    assert r["auth"] == "blake2b" and r["chunks"] == 6 and (robot_dir / "a.2d").read_bytes() == data
     old = make_server(auth_methods=("hmac-sha256",))
     r = send_file(src, *old.address, name="b.2d", **client_options())
     assert r["auth"] == "hmac-sha256" and (robot_dir / "b.2d").read_bytes() == data
