@@ -73,7 +73,8 @@ _DIGESTS_LOCK = threading.Lock()
 
 def offer_for_file(path: str | os.PathLike[str], *, name: str | None = None,
                    chunk_size: int = DEFAULT_CHUNK_SIZE, cached: bool = True,
-                   on_open: Callable[[int, os.stat_result], None] | None = None) -> tuple[int, Offer]:
+                   on_open: Callable[[int, os.stat_result], None] | None = None,
+                   ) -> tuple[int, Offer]:
     """Open a local file and describe it: ``(fd, offer)`` (SHA-256 always, MD5 for maps).
 
     Args:
@@ -219,7 +220,8 @@ class Client:
             t0 = time.monotonic()
             readers: list[PreparedReader] = []
 
-            def prepare_ahead(fd: int, st: os.stat_result) -> None:
+            def prepare_ahead(fd: int, st: os.stat_result,
+                              readers: list[PreparedReader] = readers) -> None:
                 # CRC and tag work of every chunk in a second thread, meanwhile (see PreparedReader)
                 reader = PreparedReader.for_file(fd, st.st_size, self.chunk_size,
                                                  self.link.channel.preparer())
@@ -238,7 +240,7 @@ class Client:
                 tx = Sender(offer, read, ref=self._next_ref(), window=self.window, rto=self.rto,
                             idle_timeout=max(self.timeout, 60.0))
                 if readers:
-                    readers[0].skip = lambda i: tx.acked[i]  # a resume needs only the rest
+                    readers[0].skip = lambda i, tx=tx: tx.acked[i]  # a resume needs only the rest
                 tick = _Ticker(progress, offer.size, _attr(tx, "bytes_acked"), self.progress_interval)
                 try:
                     run(self.link, tx, tick=tick)

@@ -432,7 +432,8 @@ class Prepared:
 
     def tag(self, key: bytes, auth: str, head: bytes) -> bytes:
         """The frame's tag with ``key`` and ``auth`` for header bytes ``head`` (0..27)."""
-        if auth == "blake2b" and self._state is not None and hmac.compare_digest(key, self._key or b""):
+        mine = self._key or b""
+        if auth == "blake2b" and self._state is not None and hmac.compare_digest(key, mine):
             mac = self._state.copy()
             mac.update(head)
             return bytes(mac.digest())
@@ -445,8 +446,9 @@ def prepare_payload(data: _Bytes, key: bytes | None = None, auth: str = "none") 
 
     Examples:
         >>> p = prepare_payload(b"chunk", b"k" * 32, "blake2b")
-        >>> h = encode_frame(FrameType.DATA, p, session=1, seq=5, key=b"k" * 32, auth="blake2b")
-        >>> h == encode_frame(FrameType.DATA, b"chunk", session=1, seq=5, key=b"k" * 32, auth="blake2b")
+        >>> k = b"k" * 32
+        >>> h = encode_frame(FrameType.DATA, p, session=1, seq=5, key=k, auth="blake2b")
+        >>> h == encode_frame(FrameType.DATA, b"chunk", session=1, seq=5, key=k, auth="blake2b")
         True
     """
     state = None

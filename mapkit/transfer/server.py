@@ -606,7 +606,8 @@ class MapServer:
                 link.send([Out(FrameType.NOT_MODIFIED, dump_json(offer.json()), ref=f.ref)])
                 return None
 
-            ahead = PreparedReader.for_file(fd, offer.size, offer.chunk_size, link.channel.preparer())
+            ahead = PreparedReader.for_file(fd, offer.size, offer.chunk_size,
+                                            link.channel.preparer())
             try:
                 tx = Sender(offer, ahead or chunk_reader(fd, offer), ref=f.ref, window=self.window,
                             rto=self.rto, idle_timeout=self.idle_timeout)

@@ -178,7 +178,8 @@ class PreparedReader:
 
     @classmethod
     def for_file(cls, fd: int, size: int, chunk_size: int,
-                 prepare: Callable[[bytes | bytearray | memoryview], Prepared]) -> PreparedReader | None:
+                 prepare: Callable[[bytes | bytearray | memoryview], Prepared],
+                 ) -> PreparedReader | None:
         """A reader for a file worth it: from ``PREPARE_FROM`` bytes (4 MiB) and at most 4096
         chunks (the pass keeps a small state per chunk); else None."""
         if size < PREPARE_FROM or -(-size // chunk_size) > 4096:

@@ -55,7 +55,8 @@ def test_journal_never_claims_a_chunk_written_after_its_fsync(tmp_path, monkeypa
     written: set[int] = set()
     synced: dict[int, set[int]] = {}  # thread -> chunks written when its last fsync began
     claims: list[tuple[set[int], set[int]]] = []
-    real_pwrite, real_fsync, real_atomic = store_mod._pwrite, store_mod._fsync, store_mod.atomic_write
+    real_pwrite, real_fsync = store_mod._pwrite, store_mod._fsync
+    real_atomic = store_mod.atomic_write
     _, journal = partial_paths(str(tmp_path), "j.2d")
 
     def pwrite(fd, buf, off):
