@@ -22,6 +22,7 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
 from bigmap import make_big_map  # noqa: E402
+from _timing import best  # noqa: E402
 
 from mapkit import edit  # noqa: E402
 from mapkit.edit.selection import points_inside  # noqa: E402
@@ -29,14 +30,6 @@ from mapkit.formats.map import dumpb, loads  # noqa: E402
 from mapkit.model import MapData  # noqa: E402
 
 
-def best(fn: Callable[[], object], runs: int) -> float:
-    """Best wall time of ``runs`` calls, in seconds."""
-    times = []
-    for _ in range(runs):
-        t = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t)
-    return min(times)
 
 
 def main() -> None:

@@ -20,19 +20,13 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
 from bigmap import write_big_map  # noqa: E402
+from _timing import best  # noqa: E402
 
 import mapkit  # noqa: E402
 from mapkit.mesh import export_mesh, wall_mesh  # noqa: E402
 from mapkit.render import render  # noqa: E402
 
 
-def best(fn: Callable[[], object], repeat: int) -> float:
-    times = []
-    for _ in range(repeat):
-        t = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t)
-    return min(times)
 
 
 def main() -> None:

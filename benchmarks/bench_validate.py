@@ -19,6 +19,7 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
 from bigmap import write_big_map  # noqa: E402
+from _timing import best  # noqa: E402
 
 import mapkit  # noqa: E402
 from mapkit.validate import validate  # noqa: E402
@@ -26,14 +27,6 @@ from mapkit.validate import validate  # noqa: E402
 RADIUS = 300.0
 
 
-def best(fn, repeat: int) -> float:
-    """The fastest of ``repeat`` runs, in seconds."""
-    times = []
-    for _ in range(repeat):
-        t = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t)
-    return min(times)
 
 
 def main() -> None:

@@ -45,6 +45,17 @@ from mapkit.model import MapData, MapObject, Provenance, Scan, ScanHeader
 logging.getLogger(__name__).addHandler(logging.NullHandler())
 
 __all__ = [
+    "BuildResult",
+    "MapDiff",
+    "Region",
+    "build_map",
+    "diff",
+    "iter_log",
+    "read_log",
+    "recover_log",
+    "simulate_log",
+    "validate",
+    "write_log",
     "ChecksumError",
     "EditError",
     "FormatError",

@@ -114,7 +114,7 @@ def run_demo(
     from mapkit.transfer import MapServer, fetch_file, send_file
     from mapkit.validate import validate
 
-    out = Path(folder)
+    out = Path(folder).resolve()
     out.mkdir(parents=True, exist_ok=True)
     result = DemoResult(out.resolve())
 
@@ -146,14 +146,14 @@ def run_demo(
                                if isinstance(v, (int, float, str))}
     finish()
 
-    # 2. edit: a goal in the middle of the free space near home, a forbidden area beside it
+    # 2. edit: a goal a metre ahead of home, a forbidden area a few metres from it
     finish = timed("edit")
     m = built.map
     home = next((o for o in m.objects if o.type == "RobotHome"), None)
     hx, hy = (home.x, home.y) if home is not None else (0.0, 0.0)
     m = edit.add_goal(m, "Demo goal", hx + 1000, hy, heading=0.0,
                       description="added by mapkit demo")
-    m = edit.forbid_area(m, hx + 2500, hy - 1500, hx + 3500, hy - 700, name="Demo keep-out",
+    m = edit.forbid_area(m, hx + 3000, hy - 5000, hx + 4200, hy - 4200, name="Demo keep-out",
                          angle=15.0, rotate_about_centre=True)
     edited_path = out / "office.map"
     md5 = save(m, edited_path)

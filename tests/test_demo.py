@@ -53,9 +53,10 @@ def test_pgm_matches_yaml(demo_run: tuple[Path, dict]) -> None:
     meta = yaml.safe_load((out / "office.yaml").read_text())
     assert meta["image"] == "office.pgm" and meta["negate"] == 0 and meta["mode"] == "trinary"
     raw = (out / "office.pgm").read_bytes()
-    parts = raw.split(maxsplit=4)
-    assert parts[0] == b"P5"
-    width, height, maxval = int(parts[1]), int(parts[2]), int(parts[3])
+    header = [t for line in raw[:200].split(b"\n")[:4] if not line.startswith(b"#")
+              for t in line.split()]  # P5, comments, width height, maxval
+    assert header[0] == b"P5"
+    width, height, maxval = int(header[1]), int(header[2]), int(header[3])
     assert (width, height, maxval) == (data["summary"]["ros"]["width"],
                                        data["summary"]["ros"]["height"], 255)
     pixels = np.frombuffer(raw[-width * height:], np.uint8)

@@ -60,11 +60,13 @@ from mapkit.cli import mesh as _mesh  # noqa: E402
 from mapkit.cli import rasterize as _rasterize  # noqa: E402
 from mapkit.cli import render as _render  # noqa: E402
 from mapkit.cli import ros as _ros  # noqa: E402
+from mapkit.cli import samples as _samples  # noqa: E402
 from mapkit.cli import transfer as _transfer  # noqa: E402
 from mapkit.cli import validate as _validate  # noqa: E402
 
 cli.add_command(_demo.demo)
 cli.add_command(_info.info)
+cli.add_command(_samples.samples)
 cli.add_command(_convert.convert)
 cli.add_command(_rasterize.rasterize)
 cli.add_command(_rasterize.import_ros)

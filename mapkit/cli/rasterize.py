@@ -39,11 +39,14 @@ def _refuse_existing(paths: list[Path], force: bool) -> None:
 @click.option("--inflate", type=float, default=0.0, metavar="MM", help="Grow walls by MM.")
 @click.option("--forbidden-as-walls", is_flag=True,
               help="Draw forbidden areas and lines into the map as walls.")
+@click.option("--log", "log_path", type=click.Path(exists=True, dir_okay=False), metavar="LOG.2d",
+              help="Free space = the cells this laser log's beams pass through (the log must be in "
+                   "the map's frame: its robotGlobal: poses, else its odometry).")
 @force_option
 @json_option
 def rasterize(map_file: str, output: str | None, resolution: float, mode: str, free: str,
               png: bool, keepout: bool, speed_mask: bool, margin: float, inflate: float,
-              forbidden_as_walls: bool, force: bool, as_json: bool) -> None:
+              forbidden_as_walls: bool, log_path: str | None, force: bool, as_json: bool) -> None:
     """Rasterise MAP_FILE into a ROS map_server / Nav2 map (YAML + image).
 
     The image is north up, free 254 / occupied 0 / unknown 205 as map_saver writes it; the
@@ -70,7 +73,7 @@ def rasterize(map_file: str, output: str | None, resolution: float, mode: str, f
             m, yaml_path, resolution=resolution, margin_m=margin, free=free,  # type: ignore[arg-type]
             inflate_mm=inflate, forbidden_as_walls=forbidden_as_walls, mode=mode,  # type: ignore[arg-type]
             image_format="png" if png else None, keepout=keepout, speed=speed_mask,
-            progress=lambda _step: bar.update(1),
+            progress=lambda _step: bar.update(1), log=log_path,
         )
     if as_json:
         echo_json(result.to_dict())

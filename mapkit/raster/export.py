@@ -104,6 +104,7 @@ def export_ros(
     speed: bool = False,
     speed_param: str | None = None,
     progress: Callable[[str], None] | None = None,
+    log: Any = None,
 ) -> RosExport:
     """Rasterise a map and write it as a map_server map (plus Nav2 masks on request).
 
@@ -132,7 +133,7 @@ def export_ros(
         if progress is not None:
             progress(step)
 
-    grid = rasterize(m, resolution, margin_m=margin_m, free=free, inflate_mm=inflate_mm,
+    grid = rasterize(m, resolution, margin_m=margin_m, free=free, inflate_mm=inflate_mm, log=log,
                      forbidden_as_walls=forbidden_as_walls)
     done(EXPORT_STEPS[0])
     files = write_ros_map(grid, yaml_path, mode=mode, image_format=image_format)

@@ -627,6 +627,45 @@ def wall_mask(
     return walls
 
 
+def rays_from_log(log: Any, *, max_range: float = 16000.0) -> NDArray[np.float64]:
+    """The beams of a ``.2d`` log as ``(K, 4)`` rays: laser origin and hit point, world mm.
+
+    Each scan is placed at its ``robotGlobal:`` pose when the log has one (the localised pose),
+    else at its odometry pose, so the log must be in the map's frame: recorded while the robot
+    was localised on this map, or simulated from it. Beams without a return give no ray.
+
+    Args:
+        log: A path, the log's bytes, or a :class:`~mapkit.model.scan.LaserLog`.
+        max_range: Readings farther than this (mm) are left out.
+
+    Returns:
+        The rays.
+
+    Raises:
+        LogFormatError: When the log cannot be read.
+    """
+    from mapkit.formats.laser2d import iter_log
+    from mapkit.model.scan import LaserLog, LaserScan, laser_to_robot, robot_to_world
+
+    if isinstance(log, LaserLog):
+        header, records = log.header, log.records
+    else:
+        reader = iter_log(log)
+        header, records = reader.header, reader
+    out: list[NDArray[np.float64]] = []
+    for rec in records:
+        if not isinstance(rec, LaserScan) or rec.xy is None:
+            continue
+        laser = header.laser(rec.laser)
+        pose = rec.robot_global if rec.robot_global is not None else rec.robot
+        hits = rec.global_points(laser, pose=pose, max_range=max_range)
+        if len(hits) == 0:
+            continue
+        origin = robot_to_world(laser_to_robot(np.zeros((1, 2)), laser.pose), pose)[0]
+        out.append(np.column_stack([np.broadcast_to(origin, hits.shape), hits]))
+    return np.concatenate(out) if out else np.zeros((0, 4))
+
+
 def rasterize(
     m: MapData,
     resolution: float = 0.05,
@@ -661,8 +700,8 @@ def rasterize(
         free: How free space is decided (see above).
         inflate_mm: Grow occupied cells by this radius (mm).
         forbidden_as_walls: Also mark forbidden areas and lines occupied.
-        log: Reserved for ray-casting free space from a ``.2d`` laser log (not available yet;
-            anything but ``None`` raises :class:`RasterError`).
+        log: A ``.2d`` laser log (path or :class:`~mapkit.model.scan.LaserLog`) whose beams
+            give the free space (``free`` is then ``"rays"``); see :func:`rays_from_log`.
         rays_mm: ``(K, 4)`` beams (sensor x, y, end x, y in mm) for ``free="rays"``, each ending
             on an obstacle.
         like: Use this grid's geometry (shape, resolution, origin) instead of one fitted to the
@@ -677,10 +716,12 @@ def rasterize(
     """
     if free not in ("flood", "hull", "all", "none", "rays"):
         raise RasterError(f"free must be one of flood, hull, all, none, rays; got {free!r}")
-    if (free == "rays") != (rays_mm is not None):
+    if log is None and (free == "rays") != (rays_mm is not None):
         raise RasterError('free="rays" and rays_mm go together: give both or neither')
     if log is not None:
-        raise RasterError("ray-casting free space from a .2d log is not available yet")
+        if rays_mm is not None:
+            raise RasterError("give a .2d log or rays_mm, not both")
+        rays_mm, free = rays_from_log(log), "rays"
     if not (math.isfinite(inflate_mm) and inflate_mm >= 0):
         raise RasterError(f"inflation must be zero or more millimetres, got {inflate_mm!r}")
     if like is not None:
