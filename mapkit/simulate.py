@@ -89,8 +89,8 @@ def _beam_pairs(lo: FloatArray, width: FloatArray, start: float, step: float,
 
 
 def ray_cast(
-    pose: Sequence[float], angles_deg: FloatArray, segments: FloatArray, points: FloatArray,
-    *, max_range: float, point_size: float = 20.0,
+    pose: Sequence[float] | FloatArray, angles_deg: FloatArray, segments: FloatArray,
+    points: FloatArray, *, max_range: float, point_size: float = 20.0,
 ) -> FloatArray:
     """Ranges (mm) of beams from ``pose`` to the nearest segment or point; ``inf`` for no hit.
 
@@ -377,8 +377,8 @@ class SimulatedLog:
                f"/ {self.odometry_error[1]:.1f} deg at the end")
         if truth:
             tpath = truth_path_for(path) if truth is True else truth
-            atomic_write(tpath, self.truth_text(os.path.basename(os.fspath(path))).encode())  # type: ignore[arg-type]
-            msg += f"; true poses in {os.fspath(tpath)}"  # type: ignore[arg-type]
+            atomic_write(tpath, self.truth_text(os.path.basename(os.fspath(path))).encode())
+            msg += f"; true poses in {os.fspath(tpath)}"
         return msg
 
 
@@ -429,7 +429,8 @@ def _points_off_lines(points: FloatArray, segments: FloatArray, tol: float) -> F
     t = (np.arange(int(k.sum())) - np.repeat(np.cumsum(k) - k, k)) / np.repeat(k - 1, k)
     samples = segments[idx, :2] + t[:, None] * (segments[idx, 2:] - segments[idx, :2])
     d, _ = cKDTree(samples).query(points, k=1, distance_upper_bound=tol * 1.2)
-    return points[~(d <= tol * 1.1)]
+    kept: FloatArray = points[~(d <= tol * 1.1)]
+    return kept
 
 
 def _map_home(m: MapData) -> tuple[float, float, float] | None:
@@ -551,7 +552,9 @@ def simulate_log(
                        comments=("Created by mapkit simulate",))
     dt = 0.1
     records: list[LogRecord] = []
-    truth, truth_ids, truth_times = [], [], []
+    truth: list[FloatArray] = []
+    truth_ids: list[int] = []
+    truth_times: list[float] = []
     true = np.array(home, dtype=np.float64)
     odo = true.copy() if odometry_origin == "start" else np.zeros(3)
     last_logged: FloatArray | None = None

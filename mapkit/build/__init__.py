@@ -200,7 +200,7 @@ def _quantise(world: FloatArray, res: float, min_hits: int, thin: float,
     def neighbour(dx: Any, dy: Any) -> np.ndarray[Any, Any]:
         nk = ((cx + dx + off) << 32) | (cy + dy + off)
         pos = np.minimum(np.searchsorted(uk, nk), len(uk) - 1)
-        return np.where(uk[pos] == nk, counts[pos], 0)  # type: ignore[no-any-return]
+        return np.where(uk[pos] == nk, counts[pos], 0)
 
     best = counts.copy()
     for dx in (-1, 0, 1):
@@ -496,7 +496,8 @@ def _edge_info(world_info: FloatArray, pose_j: FloatArray) -> FloatArray:
     """A world-frame pose information turned into the frame of an edge's error (pose j)."""
     c, s = math.cos(pose_j[2]), math.sin(pose_j[2])
     M = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-    return M.T @ world_info @ M + np.eye(3) * 1e-9
+    info: FloatArray = M.T @ world_info @ M + np.eye(3) * 1e-9
+    return info
 
 
 def _close(i: int, j: int, est: FloatArray, src: list[FloatArray], pts: list[FloatArray],

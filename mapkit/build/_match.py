@@ -17,7 +17,7 @@ FloatArray = np.ndarray[Any, np.dtype[np.float64]]
 def transform(pts: FloatArray, pose: FloatArray) -> FloatArray:
     """Points through a pose (theta in radians)."""
     c, s = math.cos(pose[2]), math.sin(pose[2])
-    out = pts @ np.array([[c, s], [-s, c]])
+    out: FloatArray = pts @ np.array([[c, s], [-s, c]])
     out[:, 0] += pose[0]
     out[:, 1] += pose[1]
     return out
@@ -101,7 +101,7 @@ class MatchResult:
             P = np.eye(3)
             P[:2, :2] -= np.outer(weak, weak)
             info = P.T @ info @ P
-        return info  # type: ignore[no-any-return]
+        return info
 
 
 def _solve3(H: FloatArray, g: FloatArray) -> FloatArray | None:

@@ -42,8 +42,9 @@ def demo(folder: str, log_path: str | None, as_json: bool) -> None:
             click.echo(f"[{order.index(step) + 1}/{len(order)}] {titles[step]}", err=True)
         if step == "build" and 0 < done < total:
             if state["bar"] is None:
-                state["bar"] = click.progressbar(length=total, label="      scans", file=sys.stderr)
-                state["bar"].render_progress()
+                state["bar"] = bar = click.progressbar(length=total, label="      scans",
+                                                       file=sys.stderr)
+                bar.render_progress()
             bar = state["bar"]
             bar.update(done - bar.pos)
 

@@ -802,7 +802,7 @@ def iter_log(source: PathLike | IO[bytes] | bytes, *, strict: bool = True,
     if hasattr(source, "readline"):
         return LogReader(source, source=name or getattr(source, "name", "<stream>"),  # type: ignore[arg-type]
                          strict=strict)
-    path = os.fspath(source)  # type: ignore[arg-type]
+    path = os.fspath(source)
     fh = open(path, "rb", buffering=1 << 20)
     try:
         size = os.fstat(fh.fileno()).st_size
@@ -1238,6 +1238,7 @@ def write_log(
         ValueError: For an unknown version or a value that cannot be written (NaN).
         OSError: When the file cannot be written (the old file is then unchanged).
     """
+    records: Iterable[LogRecord]
     if isinstance(log, LaserLog):
         header, records, end = log.header, log.records, log.complete
     else:

@@ -277,7 +277,8 @@ class LaserScan:
     def valid(self) -> NDArray[np.bool_]:
         """Mask of the readings with a return (``xy`` not ``(0, 0)``; for raw ranges ``> 0``)."""
         if self.xy is not None:
-            return np.any(self.xy != 0.0, axis=1)
+            mask: NDArray[np.bool_] = np.any(self.xy != 0.0, axis=1)
+            return mask
         if self.ranges is not None:
             return self.ranges > 0.0
         return np.zeros(0, dtype=bool)

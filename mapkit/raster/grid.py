@@ -176,7 +176,8 @@ class OccupancyGrid:
     @property
     def free(self) -> NDArray[np.bool_]:
         """Boolean mask of free cells (value 0)."""
-        return self.data == FREE
+        mask: NDArray[np.bool_] = self.data == FREE
+        return mask
 
     @property
     def unknown(self) -> NDArray[np.bool_]:

@@ -540,7 +540,8 @@ def flood_fill(open_mask: NDArray[np.bool_], seeds_rc: ArrayLike) -> NDArray[np.
     ids = np.unique(labels[seeds[:, 0], seeds[:, 1]])
     lut = np.zeros(int(labels.max()) + 1, dtype=bool)
     lut[ids] = True
-    return lut[labels]
+    filled: NDArray[np.bool_] = lut[labels]
+    return filled
 
 
 def hull_mask(mask: NDArray[np.bool_], extra_rc: ArrayLike | None = None) -> NDArray[np.bool_]:
@@ -645,8 +646,9 @@ def rays_from_log(log: Any, *, max_range: float = 16000.0) -> NDArray[np.float64
         LogFormatError: When the log cannot be read.
     """
     from mapkit.formats.laser2d import iter_log
-    from mapkit.model.scan import LaserLog, LaserScan, laser_to_robot, robot_to_world
+    from mapkit.model.scan import LaserLog, LaserScan, LogRecord, laser_to_robot, robot_to_world
 
+    records: Iterable[LogRecord]
     if isinstance(log, LaserLog):
         header, records = log.header, log.records
     else:

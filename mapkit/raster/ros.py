@@ -187,7 +187,8 @@ def _pixel_lut(
     values = levels.astype(np.uint8).view(np.int8).astype(np.int64)  # index -> cell value
     if mode == "raw":
         return levels.astype(np.uint8), opaque
-    kw = {"negate": negate, "occupied_thresh": occupied_thresh, "free_thresh": free_thresh}
+    kw: dict[str, Any] = {"negate": negate, "occupied_thresh": occupied_thresh,
+                          "free_thresh": free_thresh}
     # What each grey level reads back as, in both loaders (grey as written, before negate).
     ros1 = load_pixel_values(levels, mode, flavor="ros1", **kw).astype(np.int64)
     nav2 = load_pixel_values(levels, mode, flavor="nav2", **kw).astype(np.int64)
@@ -622,7 +623,7 @@ _PNM_TOKEN = re.compile(rb"(?:\s|#[^\n\r]*[\n\r])*([^\s#]+)")
 def _read_pnm(data: bytes, src: str) -> _Image:
     magic = data[:2]
     pos = 2
-    fields = []
+    fields: list[bytes] = []
     need = 2 if magic in (b"P1", b"P4") else 3
     while len(fields) < need:
         m = _PNM_TOKEN.match(data, pos)
