@@ -120,8 +120,6 @@ class _ScanState:
     name: str
     prefix: str  # keyword prefix, "" for the default source
     header: dict[str, Any] = field(default_factory=dict)
-    point_chunks: list[np.ndarray[Any, Any]] = field(default_factory=list)
-    line_chunks: list[np.ndarray[Any, Any]] = field(default_factory=list)
 
 
 class _Parser:

@@ -57,6 +57,7 @@ __all__ = [
     "map_bounds",
     "object_polygons",
     "rasterize",
+    "rays_from_log",
     "seed_points",
     "segment_cells",
     "wall_mask",
