@@ -21,6 +21,8 @@ import errno
 import os
 import re
 import stat
+import struct
+import zlib
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import IO, Any
@@ -267,12 +269,57 @@ def _from_pillow(im: Any) -> _Image:
     return _Image(np.asarray(conv, dtype=np.uint8), "A" in mode, 255)
 
 
+_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+def _check_png_chunks(fh: IO[bytes], src: str) -> None:
+    """Walk a PNG's chunks as libpng does: CRCs, PLTE for palette images, IEND at the end.
+
+    Pillow skips these checks; map_server's libpng refuses such files. Reads in blocks.
+    """
+    fh.seek(len(_PNG_SIGNATURE))
+    color_type, seen_plte = -1, False
+    while True:
+        head = fh.read(8)
+        if len(head) < 8:
+            raise RosMapError("truncated PNG (no IEND chunk)", source=src)
+        length, kind = struct.unpack(">I4s", head)
+        if length > 0x7FFFFFFF:
+            raise RosMapError(f"bad PNG chunk length {length}", source=src)
+        crc = zlib.crc32(kind)
+        left = length
+        first = b""
+        while left:
+            block = fh.read(min(left, 1 << 20))
+            if not block:
+                raise RosMapError(f"truncated PNG (inside a {kind!r} chunk)", source=src)
+            if not first:
+                first = block[:13]
+            crc = zlib.crc32(block, crc)
+            left -= len(block)
+        tail = fh.read(4)
+        if len(tail) < 4 or struct.unpack(">I", tail)[0] != crc:
+            raise RosMapError(f"PNG chunk {kind.decode('latin-1')!r} has a bad CRC (corrupt file)",
+                              source=src)
+        if kind == b"IHDR" and len(first) == 13:
+            color_type = first[9]
+        elif kind == b"PLTE":
+            seen_plte = True
+        elif kind == b"IDAT" and color_type == 3 and not seen_plte:
+            raise RosMapError("palette PNG without a PLTE chunk", source=src)
+        elif kind == b"IEND":
+            return
+
+
 def _decode_pillow(fh: IO[bytes], src: str) -> _Image:
     try:
         from PIL import Image
     except ImportError as err:  # pragma: no cover - Pillow comes with matplotlib
         raise RosMapError("reading this image format needs Pillow (pip install pillow)",
                           source=src) from err
+    if fh.read(len(_PNG_SIGNATURE)) == _PNG_SIGNATURE:
+        _check_png_chunks(fh, src)
+    fh.seek(0)
     try:
         with Image.open(fh) as im:
             w, h = im.size
