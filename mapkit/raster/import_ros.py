@@ -386,7 +386,7 @@ def _check_extent(info: RosMapInfo, width: int, height: int) -> tuple[float, tup
 
 def _stream_cells(
     src: ImageSource, info: RosMapInfo, *, flavor: Flavor, occupied_value: int, lines: bool,
-    band_rows: int | None, progress: Callable[[int], None] | None,
+    band_rows: int | None, progress: Callable[[int, int], None] | None,
 ) -> tuple[list[NDArray[np.int64]], list[NDArray[np.int64]]]:
     """Occupied cells and face cells (row, col), band by band from the southern row up."""
     w, h = src.width, src.height
@@ -407,7 +407,7 @@ def _stream_cells(
             f[:, 0] += g0
             faces.append(f)
         if progress is not None:
-            progress(g1 - g0)
+            progress(g1, h)
     return occupied, faces
 
 
@@ -420,7 +420,7 @@ def import_ros(
     lines: bool = True,
     min_line_m: float = 0.3,
     band_rows: int | None = None,
-    progress: Callable[[int], None] | None = None,
+    progress: Callable[[int, int], None] | None = None,
 ) -> MapData:
     """Read a map_server map (and optionally a keepout mask) as an ARIA map.
 
@@ -437,7 +437,7 @@ def import_ros(
         lines: Extract wall lines (else points only).
         min_line_m: Shortest wall line, in metres.
         band_rows: Rows per band (default: about :data:`BAND_CELLS` cells).
-        progress: Called with the number of rows done after each band.
+        progress: Called after each band with the rows done so far and the image's height.
 
     Returns:
         The map (category ``2D-Map``).

@@ -77,10 +77,10 @@ def test_binary_pgm_is_read_band_by_band(tmp_path: Path, monkeypatch: pytest.Mon
         return real(self, top, bottom)
 
     monkeypatch.setattr(ImageSource, "read_rows", spy)
-    done: list[int] = []
-    m = import_ros(files.yaml, band_rows=16, progress=done.append)
+    done: list[tuple[int, int]] = []
+    m = import_ros(files.yaml, band_rows=16, progress=lambda d, t: done.append((d, t)))
     assert max(b - t for t, b in spans) <= 16 + 2  # a band and its two halo rows
-    assert len(spans) == math.ceil(200 / 16) and sum(done) == 200
+    assert len(spans) == math.ceil(200 / 16) and done[-1] == (200, 200)
     monkeypatch.setattr(ImageSource, "read_rows", real)
     same(m, whole(files.yaml))
 
@@ -92,5 +92,5 @@ def test_default_band_follows_the_width(tmp_path: Path, monkeypatch: pytest.Monk
     files = write_ros_map(g, tmp_path / "m.yaml")
     monkeypatch.setattr(mod, "BAND_CELLS", 40 * 10)  # ten rows a band
     done: list[int] = []
-    same(import_ros(files.yaml, progress=done.append), whole(files.yaml))
-    assert done == [10] * 6 + [4]
+    same(import_ros(files.yaml, progress=lambda d, _t: done.append(d)), whole(files.yaml))
+    assert done == [10, 20, 30, 40, 50, 60, 64]
