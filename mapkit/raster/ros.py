@@ -735,7 +735,8 @@ def pixel_values(img: _Image, info: RosMapInfo, *, flavor: Flavor = "ros1") -> N
         alpha = None if n == 1 else data8[..., n - 1]
         if avg_n == 1 and n == 1:
             lut = load_pixel_values(np.arange(256), info.mode, **kw)
-            return lut[data8[..., 0]]
+            values: NDArray[np.int8] = lut[data8[..., 0]]
+            return values
         grey = data8[..., :avg_n].sum(axis=2, dtype=np.int64) / avg_n
         return load_pixel_values(grey, info.mode, alpha=alpha, **kw)
     full = img.maxval
