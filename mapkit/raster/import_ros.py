@@ -193,16 +193,35 @@ def _face_lines(rc: NDArray[np.int64], n: int) -> NDArray[np.int64]:
     straight = runs[axis & (length >= n)]
     diag = runs[~axis & (length * math.sqrt(2) >= n)]
     if len(diag):
-        w = int(rc[:, 1].max()) + 1
-        _, rr, cc = _run_cells(straight)
-        covered = np.unique(rr * w + cc)
         rid, rr, cc = _run_cells(diag)
-        keys = rr * w + cc
-        at = np.minimum(np.searchsorted(covered, keys), max(len(covered) - 1, 0))
-        hit = covered[at] == keys if len(covered) else np.zeros(len(keys), dtype=bool)
+        hit = _on_runs(rr, cc, straight, rc)
         hits = np.bincount(rid, weights=hit, minlength=len(diag))
         diag = diag[hits / np.bincount(rid, minlength=len(diag)) < 0.5]
     return np.concatenate([straight, diag])
+
+
+def _on_runs(rr: NDArray[np.int64], cc: NDArray[np.int64], straight: NDArray[np.int64],
+             rc: NDArray[np.int64]) -> NDArray[np.bool_]:
+    """Which cells ``(rr, cc)`` lie on one of the row or column runs ``straight``.
+
+    Runs of one row (or column) are disjoint, so each cell is looked up by binary search among
+    the runs' starts: no run is expanded into its cells.
+    """
+    hit = np.zeros(len(rr), dtype=bool)
+    big_c, big_r = int(rc[:, 1].max()) + 1, int(rc[:, 0].max()) + 1
+    row_runs = straight[straight[:, 0] == straight[:, 2]]
+    col_runs = straight[straight[:, 0] != straight[:, 2]]
+    for runs, major, minor, size in ((row_runs, 0, 1, big_c), (col_runs, 1, 0, big_r)):
+        if not len(runs):
+            continue
+        starts = runs[:, major] * size + np.minimum(runs[:, minor], runs[:, minor + 2])
+        ends = runs[:, major] * size + np.maximum(runs[:, minor], runs[:, minor + 2])
+        order = np.argsort(starts)
+        starts, ends = starts[order], ends[order]
+        keys = (rr if major == 0 else cc) * size + (cc if major == 0 else rr)
+        at = np.searchsorted(starts, keys, side="right") - 1
+        hit |= (at >= 0) & (ends[np.maximum(at, 0)] >= keys)
+    return hit
 
 
 def _line_world(keep: NDArray[np.int64], r: float, origin_mm: tuple[float, float],
@@ -387,8 +406,10 @@ def _check_extent(info: RosMapInfo, width: int, height: int) -> tuple[float, tup
 def _stream_cells(
     src: ImageSource, info: RosMapInfo, *, flavor: Flavor, occupied_value: int, lines: bool,
     band_rows: int | None, progress: Callable[[int, int], None] | None,
+    to_world: Callable[[NDArray[np.int64]], NDArray[np.int64]],
 ) -> tuple[list[NDArray[np.int64]], list[NDArray[np.int64]]]:
-    """Occupied cells and face cells (row, col), band by band from the southern row up."""
+    """Occupied points (``to_world`` of their cells) and face cells (row, col), band by band
+    from the southern row up."""
     w, h = src.width, src.height
     rows = max(1, band_rows if band_rows else BAND_CELLS // w)
     occupied: list[NDArray[np.int64]] = []
@@ -401,7 +422,7 @@ def _stream_cells(
         a = g0 - lo
         cells = np.argwhere(occ[a:a + g1 - g0]).astype(np.int64)
         cells[:, 0] += g0
-        occupied.append(cells)
+        occupied.append(to_world(cells))
         if lines and len(cells):
             f = np.argwhere(_faces(np.pad(occ, 1), a + 1, a + 1 + g1 - g0)).astype(np.int64)
             f[:, 0] += g0
@@ -464,14 +485,16 @@ def import_ros(
     if yaw:
         log_.warning("%s: origin yaw %.6g rad: rotating the map by it (most ROS tools ignore "
                      "yaw)", os.fspath(yaml_path), yaw)
+
+    def to_world(cells: NDArray[np.int64]) -> NDArray[np.int64]:  # as occupied_points does
+        uv = cells[:, ::-1].astype(np.float64) + 0.5
+        return np.rint(_world(r, origin, uv, yaw)).astype(np.int64)
+
     occupied, faces = _stream_cells(src, info, flavor=flavor, occupied_value=occupied_value,
-                                    lines=lines, band_rows=band_rows, progress=progress)
-    cells = np.concatenate(occupied)
+                                    lines=lines, band_rows=band_rows, progress=progress,
+                                    to_world=to_world)
+    pts = np.concatenate(occupied)
     del occupied
-    uv = cells[:, ::-1].astype(np.float64) + 0.5
-    del cells
-    pts = np.rint(_world(r, origin, uv, yaw)).astype(np.int64)
-    del uv
     segs = np.zeros((0, 4), dtype=np.int64)
     if lines and faces:
         keep = _face_lines(np.concatenate(faces), _min_cells(min_line_m, info.resolution))
