@@ -282,3 +282,19 @@ def test_image_variants_that_load(tmp_path: Path) -> None:
             assert m.scan.num_points >= 0, name
     y = tmp_path / "comments.pgm.yaml"
     assert import_ros(y).scan.num_points == 3
+
+
+def test_cli_gives_one_line_and_exit_1(folder: Path) -> None:
+    from click.testing import CliRunner
+
+    from mapkit.cli.main import cli
+
+    y = folder / "m.yaml"
+    for text, says in ((yaml_text(negate="09"), "m.yaml:4: negate must be an integer"),
+                       (yaml_text(image='"m\\0.pgm"'), r"m\x00.pgm: image file name is not"),
+                       (yaml_text(resolution="1e308"), "reaches beyond the +-2,147,483 m")):
+        y.write_text(text)
+        result = CliRunner().invoke(cli, ["import-ros", str(y), "-o", str(folder / "o.map")])
+        assert result.exit_code == 1, result.output
+        assert result.output.count("\n") == 1 and says in result.output, result.output
+        assert not (folder / "o.map").exists()
