@@ -85,13 +85,27 @@ def occupied_points(
     return np.rint(_to_world(grid, uv, yaw)).astype(np.int64)
 
 
+def _pair_order(major: NDArray[np.int64], pos: NDArray[np.int64]) -> NDArray[np.intp]:
+    """``np.lexsort((pos, major))``, faster: one stable sort of a combined key, none if sorted."""
+    if len(major) < 2:
+        return np.arange(len(major))
+    m0, p0 = int(major.min()), int(pos.min())
+    span_m, span_p = int(major.max()) - m0 + 1, int(pos.max()) - p0 + 1
+    if span_m * span_p >= 2**62:
+        return np.lexsort((pos, major))
+    key = (major - m0) * span_p + (pos - p0)
+    if bool((key[1:] >= key[:-1]).all()):  # row-major input, as argwhere gives it
+        return np.arange(len(key))
+    return np.argsort(key, kind="stable")
+
+
 def _runs(major: NDArray[np.int64], pos: NDArray[np.int64]) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
     """Maximal runs of consecutive ``pos`` values sharing a ``major`` value (vectorised).
 
     Returns:
         Indices (into the inputs) of each run's first and last element.
     """
-    order = np.lexsort((pos, major))
+    order = _pair_order(major, pos)
     mj, ps = major[order], pos[order]
     brk = np.ones(len(order), dtype=bool)
     brk[1:] = (mj[1:] != mj[:-1]) | (ps[1:] != ps[:-1] + 1)
@@ -497,7 +511,10 @@ def import_ros(
     del occupied
     segs = np.zeros((0, 4), dtype=np.int64)
     if lines and faces:
-        keep = _face_lines(np.concatenate(faces), _min_cells(min_line_m, info.resolution))
+        face_cells = np.concatenate(faces)
+        faces.clear()
+        keep = _face_lines(face_cells, _min_cells(min_line_m, info.resolution))
+        del face_cells
         segs = _line_world(keep, r, origin, yaw)
     objects: list[MapObject] = []
     if minfo is not None and msrc is not None:

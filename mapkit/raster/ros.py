@@ -544,9 +544,11 @@ _SPECIAL_FLOATS = {**{s + v: math.inf for s in ("", "+") for v in (".inf", ".Inf
                    **{"-" + v: -math.inf for v in (".inf", ".Inf", ".INF")},
                    **{v: math.nan for v in (".nan", ".NaN", ".NAN")}}
 #: Largest map YAML read (a real one is a few hundred bytes).
-MAX_YAML_BYTES = 1 << 20
+MAX_YAML_BYTES = 1 << 16
 #: Deepest nesting of lists and mappings read (composing recurses once per level).
 MAX_YAML_DEPTH = 64
+#: Most YAML values read (a real map YAML has about 15); bounds the time composing takes.
+MAX_YAML_NODES = 4096
 
 
 def _as_int(text: str) -> int | None:
@@ -589,8 +591,13 @@ def _compose(data: bytes, src: str) -> Any:
     loader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
     try:
         text = data.decode("utf-8-sig")
-        depth = 0
+        depth = nodes = 0
         for event in yaml.parse(text, Loader=loader):  # no recursion: the nesting is bounded
+            if isinstance(event, yaml.NodeEvent):
+                nodes += 1
+                if nodes > MAX_YAML_NODES:
+                    raise RosMapError(f"not a map YAML: over {MAX_YAML_NODES:,} values",
+                                      source=src)
             if isinstance(event, yaml.CollectionStartEvent):
                 depth += 1
                 if depth > MAX_YAML_DEPTH:

@@ -111,7 +111,10 @@ ODD_YAML = [
     "a: " + "[" * 100_000 + "\n",  # nested deeper than the composer can recurse
     "a: " + "{b: " * 5000 + "\n",
     yaml_text(origin="*nowhere"),  # an undefined alias
-    "x: " + "y" * (2 << 20) + "\n",  # over 1 MiB
+    "x: " + "y" * (2 << 20) + "\n",  # over the size limit
+    yaml_text(origin="[" + "0, " * 20_000 + "0]"),  # too many values to compose quickly
+    yaml_text() + "".join(f"k{i}: {i}\n" for i in range(5000)),
+    yaml_text() + "b: [" + "*a, " * 5000 + "]\n",
 ]
 
 
