@@ -380,6 +380,7 @@ def grid_to_map(
     """
     if not (math.isfinite(min_line_m) and min_line_m >= 0):
         raise RasterError(f"min_line_m must be zero or more metres, got {min_line_m!r}")
+    _check_extent(grid.resolution, (*grid.origin, yaw), grid.width, grid.height, "<grid>")
     pts = occupied_points(grid, occupied_value=occupied_value, yaw=yaw)
     segs = (wall_lines(grid, occupied_value=occupied_value, min_line_m=min_line_m, yaw=yaw)
             if lines else np.zeros((0, 4), dtype=np.int64))
@@ -398,23 +399,24 @@ MAX_KEEPOUT_CELLS = MAX_DECODED_PIXELS
 _ARIA_LIMIT_MM = 2**31 - 1
 
 
-def _check_extent(info: RosMapInfo, width: int, height: int) -> tuple[float, tuple[float, float]]:
+def _check_extent(resolution: float, origin: tuple[float, float, float], width: int,
+                  height: int, source: str) -> tuple[float, tuple[float, float]]:
     """Resolution and origin in mm, when the whole map fits ARIA's 32-bit millimetre range.
 
     Raises:
-        RosMapError: Naming the YAML, when some cell would lie beyond it.
+        RosMapError: Naming ``source``, when some cell would lie beyond it.
     """
-    r = _round_mm(info.resolution)
-    origin = (_round_mm(info.origin[0]), _round_mm(info.origin[1]))
+    r = _round_mm(resolution)
+    origin_mm = (_round_mm(origin[0]), _round_mm(origin[1]))
     corners = np.array([[0, 0], [width, 0], [width, height], [0, height]], dtype=np.float64)
     with np.errstate(all="ignore"):
-        xy = _world(r, origin, corners, info.origin[2]) if math.isfinite(r) else np.array([np.inf])
+        xy = _world(r, origin_mm, corners, origin[2]) if math.isfinite(r) else np.array([np.inf])
     if not (np.isfinite(xy).all() and np.abs(xy).max() <= _ARIA_LIMIT_MM):
         raise RosMapError(
-            f"the map ({width} x {height} cells of {info.resolution!r} m from origin "
-            f"{info.origin[0]!r}, {info.origin[1]!r}) reaches beyond the +-{_ARIA_LIMIT_MM // 1000:,}"
-            " m an ARIA map can hold (32-bit millimetres)", source=str(info.source))
-    return r, origin
+            f"the map ({width} x {height} cells of {resolution!r} m from origin "
+            f"{origin[0]!r}, {origin[1]!r}) reaches beyond the +-{_ARIA_LIMIT_MM // 1000:,}"
+            " m an ARIA map can hold (32-bit millimetres)", source=source)
+    return r, origin_mm
 
 
 def _stream_cells(
@@ -486,12 +488,14 @@ def import_ros(
         raise RasterError(f"min_line_m must be zero or more metres, got {min_line_m!r}")
     info = read_ros_yaml(yaml_path, flavor=flavor)
     src = open_map_image(info, flavor=flavor)
-    r, origin = _check_extent(info, src.width, src.height)
+    r, origin = _check_extent(info.resolution, info.origin, src.width, src.height,
+                              str(info.source))
     minfo, msrc = None, None
     if keepout is not None:  # checked before the long work
         minfo = read_ros_yaml(keepout, flavor=flavor)
         msrc = open_map_image(minfo, flavor=flavor)
-        _check_extent(minfo, msrc.width, msrc.height)
+        _check_extent(minfo.resolution, minfo.origin, msrc.width, msrc.height,
+                      str(minfo.source))
         if msrc.width * msrc.height > MAX_KEEPOUT_CELLS:
             raise RosMapError(f"keepout mask of {msrc.width} x {msrc.height} cells: mapkit reads "
                               f"masks up to {MAX_KEEPOUT_CELLS:,} cells", source=str(msrc.path))

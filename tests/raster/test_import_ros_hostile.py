@@ -301,3 +301,15 @@ def test_cli_gives_one_line_and_exit_1(folder: Path) -> None:
         assert result.exit_code == 1, result.output
         assert result.output.count("\n") == 1 and says in result.output, result.output
         assert not (folder / "o.map").exists()
+
+
+def test_grid_to_map_refuses_a_grid_beyond_arias_range() -> None:
+    from mapkit.raster import OccupancyGrid
+    from mapkit.raster.import_ros import grid_to_map
+
+    wall = np.full((2, 2), 100, dtype=np.int8)
+    with pytest.raises(MapkitError, match="beyond the"):
+        grid_to_map(OccupancyGrid(wall, 0.05, (1e300, 0.0)))
+    with pytest.raises(MapkitError, match="beyond the"):
+        grid_to_map(OccupancyGrid(wall, 1e7, (0.0, 0.0)))
+    assert grid_to_map(OccupancyGrid(wall, 0.05, (2e6, -2e6))).scan.num_points == 4
