@@ -17,6 +17,7 @@ from __future__ import annotations
 import hashlib
 import math
 import os
+import stat
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -171,7 +172,11 @@ def served_map(path: str | os.PathLike[str], resolution: float = 0.05, **raster:
         text = text[len("file://"):]
     p = Path(text)
     try:
+        if not stat.S_ISREG(os.stat(p).st_mode) and not p.is_dir():  # a pipe would block
+            raise MapLoadError(f"{p}: not a regular file (a device or pipe)", LOAD_NOT_FOUND)
         data = p.read_bytes()
+    except ValueError as err:  # a NUL byte in the name
+        raise MapLoadError(f"{text!r}: not a valid file name", LOAD_NOT_FOUND) from err
     except FileNotFoundError as err:
         raise MapLoadError(f"{p}: no such map file", LOAD_NOT_FOUND) from err
     except IsADirectoryError as err:

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import subprocess
 from pathlib import Path
 from typing import Any
@@ -206,6 +207,12 @@ def test_served_map_refuses_bad_input_with_loadmap_codes(tmp_path: Path) -> None
     with pytest.raises(MapLoadError, match=r"bad\.map:2") as e:
         served_map(tmp_path / "bad.map")
     assert e.value.code == 2
+    os.mkfifo(tmp_path / "pipe.yaml")  # refused at once, not read (a read would block)
+    with pytest.raises(MapLoadError, match="not a regular file") as e:
+        served_map(tmp_path / "pipe.yaml")
+    assert e.value.code == 1
+    with pytest.raises(MapLoadError, match="not a valid file name"):
+        served_map(str(tmp_path / "nul\0.yaml"))
     (tmp_path / "ok.map").write_bytes(b"2D-Map\nDATA\n0 0\n")
     with pytest.raises(MapLoadError, match="resolution must be a positive") as e:
         served_map(tmp_path / "ok.map", resolution=0)
