@@ -93,7 +93,10 @@ def _pair_order(major: NDArray[np.int64], pos: NDArray[np.int64]) -> NDArray[np.
     span_m, span_p = int(major.max()) - m0 + 1, int(pos.max()) - p0 + 1
     if span_m * span_p >= 2**62:
         return np.lexsort((pos, major))
-    key = (major - m0) * span_p + (pos - p0)
+    key = major - m0  # built in place: this runs on millions of wall cells
+    key *= span_p
+    key += pos
+    key -= p0
     if bool((key[1:] >= key[:-1]).all()):  # row-major input, as argwhere gives it
         return np.arange(len(key))
     return np.argsort(key, kind="stable")
@@ -143,7 +146,10 @@ def _cell_runs_rc(rc: NDArray[np.int64], min_cells: int) -> NDArray[np.int64]:
     r, c = rc[:, 0], rc[:, 1]
     out = [np.zeros((0, 4), dtype=np.int64)]
     if len(rc):
-        for major, pos in ((r, c), (c, r), (c - r, r), (c + r, r)):
+        for direction in range(4):  # rows, columns, both diagonals (one key array at a time)
+            major = r if direction == 0 else c if direction == 1 else \
+                c - r if direction == 2 else c + r
+            pos = c if direction == 0 else r
             a, b = _runs(major, pos)
             keep = pos[b] - pos[a] + 1 >= min_cells
             a, b = a[keep], b[keep]
