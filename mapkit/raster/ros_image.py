@@ -156,9 +156,13 @@ def _pnm_header(head: bytes, src: str) -> _PnmHeader:
     return _PnmHeader(magic, w, h, maxval, pos)
 
 
-def _ascii_samples(fh: IO[bytes], count: int, maxval: int, src: str) -> NDArray[np.int64]:
-    """``count`` decimal samples (comments skipped), read in chunks; each at most ``maxval``."""
-    out = np.empty(count, dtype=np.int64)
+def _ascii_samples(fh: IO[bytes], count: int, maxval: int, src: str) -> NDArray[Any]:
+    """``count`` decimal samples (comments skipped), read in chunks; each at most ``maxval``.
+
+    Returns:
+        uint8 samples (uint16 when ``maxval`` is above 255).
+    """
+    out = np.empty(count, dtype=np.uint16 if maxval > 255 else np.uint8)
     got = 0
     carry = b""
     while got < count:
@@ -215,8 +219,7 @@ def _decode_ascii_pnm(fh: IO[bytes], hd: _PnmHeader, src: str) -> _Image:
             raise RosMapError("image data truncated", source=src)
         arr: NDArray[Any] = np.concatenate(digits).astype(np.uint8)
     else:
-        vals = _ascii_samples(fh, count, hd.maxval, src)
-        arr = vals.astype(np.uint16 if hd.maxval > 255 else np.uint8)
+        arr = _ascii_samples(fh, count, hd.maxval, src)
     bilevel = "pbm" if hd.magic == b"P1" else None
     return _Image(arr.reshape(hd.height, hd.width, hd.channels), False,
                   255 if bilevel else hd.maxval, bilevel=bilevel, pnm=True)
