@@ -197,7 +197,7 @@ def _faces(p: NDArray[np.bool_], a: int, b: int) -> NDArray[np.bool_]:
 def _min_cells(min_line_m: float, resolution: float) -> int:
     """Shortest line in cells (at least 2; huge ratios saturate instead of overflowing)."""
     ratio = min_line_m / resolution - 1e-9
-    return max(2, int(math.ceil(ratio)) if ratio < 2.0**62 else 1 << 62)
+    return max(2, math.ceil(ratio) if ratio < 2.0**62 else 1 << 62)
 
 
 def _face_lines(rc: NDArray[np.int64], n: int) -> NDArray[np.int64]:

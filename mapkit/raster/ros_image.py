@@ -135,7 +135,7 @@ def _pnm_header(head: bytes, src: str) -> _PnmHeader:
     need = 2 if magic in (b"P1", b"P4") else 3
     while len(fields) < need:
         m = _PNM_TOKEN.match(head, pos)
-        if not m or m.end() >= len(head) and len(head) >= _HEADER_MAX:
+        if not m or (m.end() >= len(head) and len(head) >= _HEADER_MAX):
             raise RosMapError("truncated or overlong PNM header", source=src)
         tok = m.group(1)
         if not tok.isdigit() or len(tok.lstrip(b"0")) > 9:

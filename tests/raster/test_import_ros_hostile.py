@@ -38,7 +38,8 @@ def yaml_text(**fields: str | None) -> str:
 def png_bytes(w: int, h: int, raw: bytes, *, depth: int = 8, color: int = 0,
               extra: list[tuple[bytes, bytes]] | None = None) -> bytes:
     def chunk(kind: bytes, data: bytes) -> bytes:
-        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+        crc = struct.pack(">I", zlib.crc32(kind + data))
+        return struct.pack(">I", len(data)) + kind + data + crc
 
     ihdr = struct.pack(">IIBBBBB", w, h, depth, color, 0, 0, 0)
     return b"".join([b"\x89PNG\r\n\x1a\n", chunk(b"IHDR", ihdr),
@@ -66,14 +67,16 @@ BAD_FIELDS = [
     ("image", '"m\\0.pgm"'), ("image", "x" * 300 + ".pgm"), ("image", "."), ("image", "gone.pgm"),
     ("image", "m.pgm/inner.pgm"), ("image", "/dev/zero"), ("image", "/dev/null"),
     ("resolution", None), ("resolution", "abc"), ("resolution", "[0.05]"), ("resolution", "0"),
-    ("resolution", "-0.05"), ("resolution", ".nan"), ("resolution", ".inf"), ("resolution", "1e309"),
+    ("resolution", "-0.05"), ("resolution", ".nan"), ("resolution", ".inf"),
+    ("resolution", "1e309"),
     ("resolution", "1e308"), ("resolution", "1" * 5000), ("resolution", "0x10"),
     ("resolution", "0." + "5" * 5000 + "x"), ("resolution", "~"),
     ("origin", None), ("origin", "0"), ("origin", "[0, 0]"), ("origin", "{x: 0}"),
     ("origin", "[[0], 0, 0]"), ("origin", "[a, 0, 0]"), ("origin", "[.nan, 0, 0]"),
     ("origin", "[0, .inf, 0]"), ("origin", "[0, 0, .nan]"), ("origin", "[1e300, 0, 0]"),
     ("origin", "[0, -3e6, 0]"), ("origin", "[" + "9" * 5000 + ", 0, 0]"),
-    ("negate", None), ("negate", "09"), ("negate", "1.0"), ("negate", "true"), ("negate", "1" * 5000),
+    ("negate", None), ("negate", "09"), ("negate", "1.0"), ("negate", "true"),
+    ("negate", "1" * 5000),
     ("negate", "2147483648"), ("negate", "[0]"), ("negate", "0o7"), ("negate", "''"),
     ("occupied_thresh", None), ("occupied_thresh", "high"), ("occupied_thresh", ".nan"),
     ("occupied_thresh", "-.inf"), ("occupied_thresh", "[0.6]"), ("free_thresh", ".inf"),
@@ -132,7 +135,7 @@ def test_invalid_utf8_and_alias_bombs(folder: Path) -> None:
     # A billion laughs: aliases are not expanded, so this is quick and small.
     bomb = "a: &a [x, x, x, x, x, x, x, x, x]\n" + "".join(
         f"{c}: &{c} [*{p}, *{p}, *{p}, *{p}, *{p}, *{p}, *{p}, *{p}, *{p}]\n"
-        for p, c in zip("abcdefgh", "bcdefghi"))
+        for p, c in zip("abcdefgh", "bcdefghi", strict=True))
     y.write_text(bomb + yaml_text(origin="*i"))
     expect_error(y, "origin must hold numbers")
     y.write_text("r: &r [*r]\n" + yaml_text(origin="&s [*s, 0, 0]"))
@@ -270,7 +273,8 @@ def test_image_variants_that_load(tmp_path: Path) -> None:
         (tmp_path / name).write_bytes(data)
     grey = np.array([[0, 254, 205], [0, 0, 254]], dtype=np.uint8)
     Image.fromarray(grey, "L").save(tmp_path / "grey.png")
-    Image.fromarray(np.stack([grey, np.full_like(grey, 255)], axis=2), "LA").save(tmp_path / "la.png")
+    opaque = np.full_like(grey, 255)
+    Image.fromarray(np.stack([grey, opaque], axis=2), "LA").save(tmp_path / "la.png")
     Image.fromarray(grey.astype(np.uint16) * 257).save(tmp_path / "deep.png")
     pal = Image.fromarray(grey, "L").convert("P")
     pal.save(tmp_path / "pal.png")

@@ -50,7 +50,8 @@ def test_thresholds_0_9_and_0_5_keep_unknown_unknown(tmp_path: Path) -> None:
     assert cells(files.yaml)[0].tolist() == [[-1, 0, 50, 100]]
 
 
-def test_squashing_thresholds_warn_or_refuse(tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
+def test_squashing_thresholds_warn_or_refuse(tmp_path: Path,
+                                             caplog: pytest.LogCaptureFixture) -> None:
     close = {"occupied_thresh": 0.65, "free_thresh": 0.649}
     g = OccupancyGrid(np.array([[0, 25, 50, 75, 100]], dtype=np.int8), 0.05, (0.0, 0.0))
     with caplog.at_level(logging.WARNING, logger="mapkit.raster.ros"):
