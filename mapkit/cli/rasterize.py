@@ -122,8 +122,14 @@ def import_ros(yaml_file: str, output: str | None, keepout: str | None, flavor: 
 
     out = Path(output) if output else Path(Path(yaml_file).stem + ".map")
     _refuse_existing([out], force)
-    m = do_import(yaml_file, keepout=keepout, flavor=flavor,  # type: ignore[arg-type]
-                  lines=not no_lines, min_line_m=min_line)
+    from mapkit.cli.logs import _Bar
+
+    bar = _Bar("importing rows", enabled=not as_json)
+    try:
+        m = do_import(yaml_file, keepout=keepout, flavor=flavor,  # type: ignore[arg-type]
+                      lines=not no_lines, min_line_m=min_line, progress=bar)
+    finally:
+        bar.close()
     md5 = save(m, out)
     areas = sum(1 for o in m.objects if o.type == "ForbiddenArea")
     lines = sum(1 for o in m.objects if o.type == "ForbiddenLine")

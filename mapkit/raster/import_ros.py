@@ -24,15 +24,24 @@ from __future__ import annotations
 import logging
 import math
 import os
+from collections.abc import Callable
 
 import numpy as np
 from numpy.typing import NDArray
 
 from mapkit._typing import PathLike
 from mapkit.model import MapData, MapObject, Scan
-from mapkit.raster.errors import RasterError
-from mapkit.raster.grid import OccupancyGrid
-from mapkit.raster.ros import Flavor, image_to_grid, read_image, read_ros_yaml
+from mapkit.raster.errors import RasterError, RosMapError
+from mapkit.raster.grid import OccupancyGrid, _round_mm
+from mapkit.raster.ros import (
+    Flavor,
+    RosMapInfo,
+    image_to_grid,
+    open_map_image,
+    pixel_values,
+    read_ros_yaml,
+)
+from mapkit.raster.ros_image import MAX_DECODED_PIXELS, ImageSource
 
 __all__ = [
     "cell_runs",
@@ -48,8 +57,12 @@ log_ = logging.getLogger(__name__)
 
 def _to_world(grid: OccupancyGrid, uv: NDArray[np.float64], yaw: float) -> NDArray[np.float64]:
     """Cell coordinates (u along columns, v along rows, in cells) to world millimetres."""
-    r = grid.resolution_mm
-    (ox, oy) = grid.origin_mm
+    return _world(grid.resolution_mm, grid.origin_mm, uv, yaw)
+
+
+def _world(r: float, origin_mm: tuple[float, float], uv: NDArray[np.float64],
+           yaw: float) -> NDArray[np.float64]:
+    (ox, oy) = origin_mm
     x, y = uv[..., 0] * r, uv[..., 1] * r
     if yaw:
         c, s = math.cos(yaw), math.sin(yaw)
@@ -72,13 +85,30 @@ def occupied_points(
     return np.rint(_to_world(grid, uv, yaw)).astype(np.int64)
 
 
+def _pair_order(major: NDArray[np.int64], pos: NDArray[np.int64]) -> NDArray[np.intp]:
+    """``np.lexsort((pos, major))``, faster: one stable sort of a combined key, none if sorted."""
+    if len(major) < 2:
+        return np.arange(len(major))
+    m0, p0 = int(major.min()), int(pos.min())
+    span_m, span_p = int(major.max()) - m0 + 1, int(pos.max()) - p0 + 1
+    if span_m * span_p >= 2**62:
+        return np.lexsort((pos, major))
+    key = major - m0  # built in place: this runs on millions of wall cells
+    key *= span_p
+    key += pos
+    key -= p0
+    if bool((key[1:] >= key[:-1]).all()):  # row-major input, as argwhere gives it
+        return np.arange(len(key))
+    return np.argsort(key, kind="stable")
+
+
 def _runs(major: NDArray[np.int64], pos: NDArray[np.int64]) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
     """Maximal runs of consecutive ``pos`` values sharing a ``major`` value (vectorised).
 
     Returns:
         Indices (into the inputs) of each run's first and last element.
     """
-    order = np.lexsort((pos, major))
+    order = _pair_order(major, pos)
     mj, ps = major[order], pos[order]
     brk = np.ones(len(order), dtype=bool)
     brk[1:] = (mj[1:] != mj[:-1]) | (ps[1:] != ps[:-1] + 1)
@@ -108,11 +138,18 @@ def cell_runs(mask: NDArray[np.bool_], min_cells: int = 2) -> NDArray[np.int64]:
         >>> cell_runs(np.eye(3, dtype=bool), 3).tolist()
         [[0, 0, 2, 2]]
     """
-    rc = np.argwhere(mask).astype(np.int64)
+    return _cell_runs_rc(np.argwhere(mask).astype(np.int64), min_cells)
+
+
+def _cell_runs_rc(rc: NDArray[np.int64], min_cells: int) -> NDArray[np.int64]:
+    """:func:`cell_runs` of the marked cells ``rc`` (``(N, 2)`` row, col; any order)."""
     r, c = rc[:, 0], rc[:, 1]
     out = [np.zeros((0, 4), dtype=np.int64)]
     if len(rc):
-        for major, pos in ((r, c), (c, r), (c - r, r), (c + r, r)):
+        for direction in range(4):  # rows, columns, both diagonals (one key array at a time)
+            major = r if direction == 0 else c if direction == 1 else \
+                c - r if direction == 2 else c + r
+            pos = c if direction == 0 else r
             a, b = _runs(major, pos)
             keep = pos[b] - pos[a] + 1 >= min_cells
             a, b = a[keep], b[keep]
@@ -142,26 +179,75 @@ def wall_lines(
     occ = grid.data >= occupied_value
     if not occ.any():
         return np.zeros((0, 4), dtype=np.int64)
-    p = np.pad(occ, 1)
-    inner = p[:-2, 1:-1] & p[2:, 1:-1] & p[1:-1, :-2] & p[1:-1, 2:]
-    faces = occ & ~inner
-    n = max(2, int(math.ceil(min_line_m / grid.resolution - 1e-9)))
-    runs = cell_runs(faces, 2)
+    faces = _faces(np.pad(occ, 1), 1, occ.shape[0] + 1)
+    keep = _face_lines(np.argwhere(faces).astype(np.int64),
+                       _min_cells(min_line_m, grid.resolution))
+    return _line_world(keep, grid.resolution_mm, grid.origin_mm, yaw)
+
+
+def _faces(p: NDArray[np.bool_], a: int, b: int) -> NDArray[np.bool_]:
+    """Face cells of rows ``a..b-1`` of a padded occupancy mask ``p`` (a False border around).
+
+    A face is an occupied cell with a non-occupied 4-neighbour.
+    """
+    inner = p[a - 1:b - 1, 1:-1] & p[a + 1:b + 1, 1:-1] & p[a:b, :-2] & p[a:b, 2:]
+    return p[a:b, 1:-1] & ~inner
+
+
+def _min_cells(min_line_m: float, resolution: float) -> int:
+    """Shortest line in cells (at least 2; huge ratios saturate instead of overflowing)."""
+    ratio = min_line_m / resolution - 1e-9
+    return max(2, math.ceil(ratio) if ratio < 2.0**62 else 1 << 62)
+
+
+def _face_lines(rc: NDArray[np.int64], n: int) -> NDArray[np.int64]:
+    """Runs of face cells (``(N, 2)`` row, col) kept as wall lines (row0, col0, row1, col1).
+
+    Runs along rows and columns of at least ``n`` cells are kept; diagonal runs too, where most
+    of their cells are not already on a row or column line (looked up among the straight runs'
+    cells, so memory follows the number of faces, not the grid's size).
+    """
+    runs = _cell_runs_rc(rc, 2)
     axis = (runs[:, 0] == runs[:, 2]) | (runs[:, 1] == runs[:, 3])
     length = np.maximum(np.abs(runs[:, 2] - runs[:, 0]), np.abs(runs[:, 3] - runs[:, 1])) + 1
     straight = runs[axis & (length >= n)]
     diag = runs[~axis & (length * math.sqrt(2) >= n)]
     if len(diag):
-        w = faces.shape[1]
-        covered = np.zeros(faces.size, dtype=bool)
-        _, rr, cc = _run_cells(straight)
-        covered[rr * w + cc] = True
         rid, rr, cc = _run_cells(diag)
-        hits = np.bincount(rid, weights=covered[rr * w + cc], minlength=len(diag))
+        hit = _on_runs(rr, cc, straight, rc)
+        hits = np.bincount(rid, weights=hit, minlength=len(diag))
         diag = diag[hits / np.bincount(rid, minlength=len(diag)) < 0.5]
-    keep = np.concatenate([straight, diag])
+    return np.concatenate([straight, diag])
+
+
+def _on_runs(rr: NDArray[np.int64], cc: NDArray[np.int64], straight: NDArray[np.int64],
+             rc: NDArray[np.int64]) -> NDArray[np.bool_]:
+    """Which cells ``(rr, cc)`` lie on one of the row or column runs ``straight``.
+
+    Runs of one row (or column) are disjoint, so each cell is looked up by binary search among
+    the runs' starts: no run is expanded into its cells.
+    """
+    hit = np.zeros(len(rr), dtype=bool)
+    big_c, big_r = int(rc[:, 1].max()) + 1, int(rc[:, 0].max()) + 1
+    row_runs = straight[straight[:, 0] == straight[:, 2]]
+    col_runs = straight[straight[:, 0] != straight[:, 2]]
+    for runs, major, minor, size in ((row_runs, 0, 1, big_c), (col_runs, 1, 0, big_r)):
+        if not len(runs):
+            continue
+        starts = runs[:, major] * size + np.minimum(runs[:, minor], runs[:, minor + 2])
+        ends = runs[:, major] * size + np.maximum(runs[:, minor], runs[:, minor + 2])
+        order = np.argsort(starts)
+        starts, ends = starts[order], ends[order]
+        keys = (rr if major == 0 else cc) * size + (cc if major == 0 else rr)
+        at = np.searchsorted(starts, keys, side="right") - 1
+        hit |= (at >= 0) & (ends[np.maximum(at, 0)] >= keys)
+    return hit
+
+
+def _line_world(keep: NDArray[np.int64], r: float, origin_mm: tuple[float, float],
+                yaw: float) -> NDArray[np.int64]:
     uv = np.stack([keep[:, [1, 0]], keep[:, [3, 2]]], axis=1).astype(np.float64) + 0.5
-    xy = _to_world(grid, uv, yaw)
+    xy = _world(r, origin_mm, uv, yaw)
     return np.rint(xy.reshape(-1, 4)).astype(np.int64)
 
 
@@ -300,6 +386,7 @@ def grid_to_map(
     """
     if not (math.isfinite(min_line_m) and min_line_m >= 0):
         raise RasterError(f"min_line_m must be zero or more metres, got {min_line_m!r}")
+    _check_extent(grid.resolution, (*grid.origin, yaw), grid.width, grid.height, "<grid>")
     pts = occupied_points(grid, occupied_value=occupied_value, yaw=yaw)
     segs = (wall_lines(grid, occupied_value=occupied_value, min_line_m=min_line_m, yaw=yaw)
             if lines else np.zeros((0, 4), dtype=np.int64))
@@ -310,6 +397,63 @@ def grid_to_map(
     return MapData(scans=(scan,), objects=tuple(objects))
 
 
+#: Cells per row band when importing (8 M: the band's image rows and a few masks of its size).
+BAND_CELLS = 1 << 23
+#: Largest keepout mask read (it is labelled whole).
+MAX_KEEPOUT_CELLS = MAX_DECODED_PIXELS
+#: ARIA reads coordinates as 32-bit integers (millimetres).
+_ARIA_LIMIT_MM = 2**31 - 1
+
+
+def _check_extent(resolution: float, origin: tuple[float, float, float], width: int,
+                  height: int, source: str) -> tuple[float, tuple[float, float]]:
+    """Resolution and origin in mm, when the whole map fits ARIA's 32-bit millimetre range.
+
+    Raises:
+        RosMapError: Naming ``source``, when some cell would lie beyond it.
+    """
+    r = _round_mm(resolution)
+    origin_mm = (_round_mm(origin[0]), _round_mm(origin[1]))
+    corners = np.array([[0, 0], [width, 0], [width, height], [0, height]], dtype=np.float64)
+    with np.errstate(all="ignore"):
+        xy = _world(r, origin_mm, corners, origin[2]) if math.isfinite(r) else np.array([np.inf])
+    if not (np.isfinite(xy).all() and np.abs(xy).max() <= _ARIA_LIMIT_MM):
+        raise RosMapError(
+            f"the map ({width} x {height} cells of {resolution!r} m from origin "
+            f"{origin[0]!r}, {origin[1]!r}) reaches beyond the +-{_ARIA_LIMIT_MM // 1000:,}"
+            " m an ARIA map can hold (32-bit millimetres)", source=source)
+    return r, origin_mm
+
+
+def _stream_cells(
+    src: ImageSource, info: RosMapInfo, *, flavor: Flavor, occupied_value: int, lines: bool,
+    band_rows: int | None, progress: Callable[[int, int], None] | None,
+    to_world: Callable[[NDArray[np.int64]], NDArray[np.int64]],
+) -> tuple[list[NDArray[np.int64]], list[NDArray[np.int64]]]:
+    """Occupied points (``to_world`` of their cells) and face cells (row, col), band by band
+    from the southern row up."""
+    w, h = src.width, src.height
+    rows = max(1, band_rows if band_rows else BAND_CELLS // w)
+    occupied: list[NDArray[np.int64]] = []
+    faces: list[NDArray[np.int64]] = []
+    for g0 in range(0, h, rows):
+        g1 = min(h, g0 + rows)
+        lo, hi = max(0, g0 - 1), min(h, g1 + 1)  # one halo row each side, for the faces
+        band = pixel_values(src.read_rows(h - hi, h - lo), info, flavor=flavor)[::-1]
+        occ = band >= occupied_value
+        a = g0 - lo
+        cells = np.argwhere(occ[a:a + g1 - g0]).astype(np.int64)
+        cells[:, 0] += g0
+        occupied.append(to_world(cells))
+        if lines and len(cells):
+            f = np.argwhere(_faces(np.pad(occ, 1), a + 1, a + 1 + g1 - g0)).astype(np.int64)
+            f[:, 0] += g0
+            faces.append(f)
+        if progress is not None:
+            progress(g1, h)
+    return occupied, faces
+
+
 def import_ros(
     yaml_path: PathLike,
     *,
@@ -318,8 +462,14 @@ def import_ros(
     occupied_value: int = 65,
     lines: bool = True,
     min_line_m: float = 0.3,
+    band_rows: int | None = None,
+    progress: Callable[[int, int], None] | None = None,
 ) -> MapData:
     """Read a map_server map (and optionally a keepout mask) as an ARIA map.
+
+    The image is read in row bands (binary PGM straight from the file), so memory follows the
+    band and the map's occupied cells, not the image: a 20,768 x 13,612 PGM imports in a few
+    hundred MB. The result is the same as :func:`grid_to_map` of the whole grid.
 
     Args:
         yaml_path: The map's YAML.
@@ -329,24 +479,56 @@ def import_ros(
         occupied_value: Cells with at least this value are walls.
         lines: Extract wall lines (else points only).
         min_line_m: Shortest wall line, in metres.
+        band_rows: Rows per band (default: about :data:`BAND_CELLS` cells).
+        progress: Called after each band with the rows done so far and the image's height.
 
     Returns:
         The map (category ``2D-Map``).
 
     Raises:
-        RosMapError: For a YAML or image map_server would refuse.
+        RosMapError: For a YAML or image map_server would refuse, or a map beyond what an ARIA
+            map can hold.
+        RasterError: For bad options.
     """
+    if not (math.isfinite(min_line_m) and min_line_m >= 0):
+        raise RasterError(f"min_line_m must be zero or more metres, got {min_line_m!r}")
     info = read_ros_yaml(yaml_path, flavor=flavor)
-    grid = image_to_grid(read_image(info.image_path), info, flavor=flavor)
-    if info.origin[2]:
-        log_.warning("%s: origin yaw %.6g rad: rotating the map by it (most ROS tools ignore "
-                     "yaw)", os.fspath(yaml_path), info.origin[2])
-    mask = None
-    mask_yaw = 0.0
-    if keepout is not None:
+    src = open_map_image(info, flavor=flavor)
+    r, origin = _check_extent(info.resolution, info.origin, src.width, src.height,
+                              str(info.source))
+    minfo, msrc = None, None
+    if keepout is not None:  # checked before the long work
         minfo = read_ros_yaml(keepout, flavor=flavor)
-        mask = image_to_grid(read_image(minfo.image_path), minfo, flavor=flavor)
-        mask_yaw = minfo.origin[2]
-    return grid_to_map(grid, occupied_value=occupied_value, lines=lines, min_line_m=min_line_m,
-                       yaw=info.origin[2], keepout=mask, keepout_yaw=mask_yaw)
+        msrc = open_map_image(minfo, flavor=flavor)
+        _check_extent(minfo.resolution, minfo.origin, msrc.width, msrc.height,
+                      str(minfo.source))
+        if msrc.width * msrc.height > MAX_KEEPOUT_CELLS:
+            raise RosMapError(f"keepout mask of {msrc.width} x {msrc.height} cells: mapkit reads "
+                              f"masks up to {MAX_KEEPOUT_CELLS:,} cells", source=str(msrc.path))
+    yaw = info.origin[2]
+    if yaw:
+        log_.warning("%s: origin yaw %.6g rad: rotating the map by it (most ROS tools ignore "
+                     "yaw)", os.fspath(yaml_path), yaw)
 
+    def to_world(cells: NDArray[np.int64]) -> NDArray[np.int64]:  # as occupied_points does
+        uv = cells[:, ::-1].astype(np.float64) + 0.5
+        return np.rint(_world(r, origin, uv, yaw)).astype(np.int64)
+
+    occupied, faces = _stream_cells(src, info, flavor=flavor, occupied_value=occupied_value,
+                                    lines=lines, band_rows=band_rows, progress=progress,
+                                    to_world=to_world)
+    pts = np.concatenate(occupied)
+    del occupied
+    segs = np.zeros((0, 4), dtype=np.int64)
+    if lines and faces:
+        face_cells = np.concatenate(faces)
+        faces.clear()
+        keep = _face_lines(face_cells, _min_cells(min_line_m, info.resolution))
+        del face_cells
+        segs = _line_world(keep, r, origin, yaw)
+    objects: list[MapObject] = []
+    if minfo is not None and msrc is not None:
+        mask = image_to_grid(msrc.read_all(), minfo, flavor=flavor)
+        objects = keepout_objects(mask, yaw=minfo.origin[2])
+    scan = Scan.from_arrays(pts, segs, resolution=max(1, round(r)))
+    return MapData(scans=(scan,), objects=tuple(objects))

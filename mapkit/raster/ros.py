@@ -39,6 +39,7 @@ Examples:
 from __future__ import annotations
 
 import json
+import logging
 import math
 import os
 import re
@@ -55,6 +56,7 @@ from mapkit._atomic import atomic_write
 from mapkit._typing import PathLike
 from mapkit.raster.errors import RasterError, RosMapError
 from mapkit.raster.grid import OccupancyGrid
+from mapkit.raster.ros_image import ImageSource, _Image, open_image
 
 __all__ = [
     "DEFAULT_FREE_THRESH",
@@ -67,6 +69,8 @@ __all__ = [
     "grid_to_image",
     "image_to_grid",
     "load_pixel_values",
+    "open_map_image",
+    "pixel_values",
     "read_image",
     "read_ros_map",
     "read_ros_yaml",
@@ -80,6 +84,8 @@ Flavor = Literal["ros1", "nav2"]
 MODES: tuple[str, ...] = ("trinary", "scale", "raw")
 DEFAULT_OCCUPIED_THRESH = 0.65
 DEFAULT_FREE_THRESH = 0.196
+
+log_ = logging.getLogger(__name__)
 
 #: map_saver's grey levels.
 SAVER_FREE, SAVER_OCCUPIED, SAVER_UNKNOWN = 254, 0, 205
@@ -157,12 +163,16 @@ def load_pixel_values(
         between &= opaque
         if flavor == "nav2":
             out[~opaque] = -1
-    ratio = (occ - free_thresh) / (occupied_thresh - free_thresh)
+    if not between.any():
+        return out
+    if occupied_thresh == free_thresh:
+        raise RasterError("scale mode divides by occupied_thresh - free_thresh, which is 0")
+    ratio = (occ[between] - free_thresh) / (occupied_thresh - free_thresh)
     if flavor == "ros1":
         val = np.trunc(1.0 + 98.0 * ratio)
     else:
         val = np.rint(ratio * 100.0)
-    out[between] = val[between].astype(np.int64).astype(np.uint8).view(np.int8)
+    out[between] = val.astype(np.int64).astype(np.uint8).view(np.int8)
     return out
 
 
@@ -227,9 +237,48 @@ def _pixel_lut(
     table[0], table[100] = free_px, occ_px
     inside = (values >= 0) & (values <= 100)
     lut[inside] = table[values[inside]]
-    lut[~inside] = 255 - SAVER_UNKNOWN if negate else SAVER_UNKNOWN
+    # Unknown cells are transparent. ROS 1 checks the thresholds before the alpha, so the grey
+    # level under a transparent pixel must lie between them (Nav2 reads any transparent pixel
+    # as unknown): the level nearest map_saver's 205 that ROS 1 reads as unknown when clear.
+    clear = load_pixel_values(levels, "scale", alpha=np.zeros(256), flavor="ros1", **kw)
+    unk = np.flatnonzero(clear == -1)
+    pref = 255 - SAVER_UNKNOWN if negate else SAVER_UNKNOWN
+    lut[~inside] = unk[np.argmin(np.abs(unk - pref))] if len(unk) else pref
     opaque[~inside] = False
     return lut, opaque
+
+
+def _check_scale(grid: OccupancyGrid, lut: NDArray[np.uint8], negate: bool,
+                 occupied_thresh: float, free_thresh: float) -> None:
+    """Refuse unknown cells no grey level keeps unknown; warn for values the thresholds squash.
+
+    Raises:
+        RasterError: When the grid has unknown cells and no grey level lies between the
+            thresholds (ROS 1 would read them as free or occupied).
+    """
+    kw: dict[str, Any] = {"negate": negate, "occupied_thresh": occupied_thresh,
+                          "free_thresh": free_thresh}
+    counts = np.bincount(grid.data.view(np.uint8).ravel(), minlength=256)
+    values = np.arange(256).astype(np.uint8).view(np.int8).astype(np.int64)
+    unknown = int(counts[(values < 0) | (values > 100)].sum())
+    pending = f"thresholds free {free_thresh!r} / occupied {occupied_thresh!r}"
+    if unknown:
+        clear = load_pixel_values(lut.astype(np.int64), "scale", alpha=np.zeros(256),
+                                  flavor="ros1", **kw)
+        if ((clear != -1) & ((values < 0) | (values > 100))).any():
+            raise RasterError(
+                f"scale mode with {pending} leaves no grey level between them: ROS 1 map_server "
+                f"would read the {unknown:,} unknown cells as free or occupied; widen the "
+                "thresholds or use trinary mode")
+    present = np.flatnonzero(counts[:101]) if grid.data.size else np.zeros(0, dtype=np.int64)
+    back = load_pixel_values(lut[present].astype(np.int64), "scale", flavor="ros1",
+                             **kw).astype(np.int64)
+    off = np.abs(back - present)
+    squashed = off > 1  # one grey level per value at best: 1 off is rounding, more is loss
+    if squashed.any():
+        log_.warning("scale mode with %s: %d of the %d cell values in this grid read back more "
+                     "than 1 off in ROS 1 map_server (up to %d off); widen the thresholds to keep "
+                     "them", pending, int(squashed.sum()), len(present), int(off.max()))
 
 
 def grid_to_image(
@@ -267,6 +316,8 @@ def grid_to_image(
     if mode == "raw" and negate:
         raise RasterError("negate is not supported in raw mode (Nav2 ignores it, ROS 1 applies it)")
     lut, opaque = _pixel_lut(mode, negate, occupied_thresh, free_thresh)
+    if mode == "scale":
+        _check_scale(grid, lut, negate, occupied_thresh, free_thresh)
     idx = grid.data[::-1].view(np.uint8)
     grey = lut[idx]
     alpha = None
@@ -487,28 +538,79 @@ class RosMapInfo:
     mode: str
 
 
-_INT = re.compile(r"^[-+]?(?:[0-9]+|0[xX][0-9a-fA-F]+|0o[0-7]+)$")
+_INT = re.compile(r"[-+]?(?:0[xX][0-9a-fA-F]+|0[0-7]*|[1-9][0-9]*)")
+_FLOAT = re.compile(r"[-+]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][-+]?[0-9]+)?")
+_SPECIAL_FLOATS = {**{s + v: math.inf for s in ("", "+") for v in (".inf", ".Inf", ".INF")},
+                   **{"-" + v: -math.inf for v in (".inf", ".Inf", ".INF")},
+                   **{v: math.nan for v in (".nan", ".NaN", ".NAN")}}
+#: Largest map YAML read (a real one is a few hundred bytes).
+MAX_YAML_BYTES = 1 << 16
+#: Deepest nesting of lists and mappings read (composing recurses once per level).
+MAX_YAML_DEPTH = 64
+#: Most YAML values read (a real map YAML has about 15); bounds the time composing takes.
+MAX_YAML_NODES = 4096
 
 
 def _as_int(text: str) -> int | None:
+    """A 32-bit integer as yaml-cpp reads one (C++ stream, base from the prefix), else ``None``.
+
+    Examples:
+        >>> [_as_int(t) for t in ("1", "010", "0x1F", "-0", "09", "1.0", "true", "9" * 5000)]
+        [1, 8, 31, 0, None, None, None, None]
+    """
     t = text.strip()
-    if not _INT.match(t):
+    if len(t) > 40 or not _INT.fullmatch(t):  # overflows long before 40 characters
         return None
-    return int(t, 0) if not re.match(r"^[-+]?0[0-9]+$", t) else int(t, 8)
+    body = t.lstrip("+-")
+    value = int(body, 16) if body[:2] in ("0x", "0X") else int(body, 8) if body[:1] == "0" \
+        else int(body)
+    value = -value if t.startswith("-") else value
+    return value if -(1 << 31) <= value < (1 << 31) else None
 
 
 def _as_float(text: str) -> float | None:
+    """A double as yaml-cpp reads one (``.inf``, ``.nan``; overflow fails), else ``None``.
+
+    Examples:
+        >>> [_as_float(t) for t in ("5e-2", "-.inf", "1e309", "0x10", "1" * 5000 + "x")]
+        [0.05, -inf, None, None, None]
+    """
     t = text.strip()
-    low = t.lower()
-    special = {".inf": math.inf, "+.inf": math.inf, "-.inf": -math.inf, ".nan": math.nan}
-    if low in special:
-        return special[low]
-    try:
-        if not re.match(r"^[-+]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][-+]?[0-9]+)?$", t):
-            return None
-        return float(t)
-    except ValueError:
+    if t in _SPECIAL_FLOATS:
+        return _SPECIAL_FLOATS[t]
+    if not _FLOAT.fullmatch(t):  # linear: no nested or overlapping repeats
         return None
+    value = float(t)
+    return value if math.isfinite(value) else None  # the C++ stream fails on overflow
+
+
+def _compose(data: bytes, src: str) -> Any:
+    """The YAML node graph (aliases are not expanded; recursion and size are bounded)."""
+    import yaml
+
+    loader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+    try:
+        text = data.decode("utf-8-sig")
+        depth = nodes = 0
+        for event in yaml.parse(text, Loader=loader):  # no recursion: the nesting is bounded
+            if isinstance(event, yaml.NodeEvent):
+                nodes += 1
+                if nodes > MAX_YAML_NODES:
+                    raise RosMapError(f"not a map YAML: over {MAX_YAML_NODES:,} values",
+                                      source=src)
+            if isinstance(event, yaml.CollectionStartEvent):
+                depth += 1
+                if depth > MAX_YAML_DEPTH:
+                    mark = event.start_mark
+                    raise RosMapError(f"not a map YAML: nested over {MAX_YAML_DEPTH} levels",
+                                      source=src, line=None if mark is None else mark.line + 1)
+            elif isinstance(event, yaml.CollectionEndEvent):
+                depth -= 1
+        return yaml.compose(text, Loader=loader)
+    except (yaml.YAMLError, UnicodeDecodeError) as err:
+        line = getattr(getattr(err, "problem_mark", None), "line", None)
+        raise RosMapError(f"not valid YAML: {err}".splitlines()[0],
+                          source=src, line=None if line is None else line + 1) from err
 
 
 def read_ros_yaml(path: PathLike, *, flavor: Flavor = "ros1") -> RosMapInfo:
@@ -516,31 +618,38 @@ def read_ros_yaml(path: PathLike, *, flavor: Flavor = "ros1") -> RosMapInfo:
 
     ``negate`` must be an integer for ROS 1 (Nav2 also takes ``true``/``false``); ``origin`` needs
     at least 3 numbers (exactly 3 for Nav2); ``mode`` is case-sensitive; numbers may be quoted or
-    use exponents; extra keys are ignored.
+    use exponents; extra keys are ignored. Numbers are read as yaml-cpp does (a value the C++
+    stream cannot hold, such as ``1e309`` or a 5,000-digit integer, is refused); a key given twice
+    and non-finite thresholds are refused (map_server's result would be undefined).
 
     Raises:
         RosMapError: Naming the file and line of what map_server would reject.
     """
     import yaml
 
+    from mapkit.raster.ros_image import open_regular
+
     p = Path(os.fspath(path))
     src = str(p)
-    try:
-        text = p.read_bytes()
-    except FileNotFoundError as err:
-        raise RosMapError("no such file", source=src) from err
-    try:
-        node = yaml.compose(text.decode("utf-8-sig"), Loader=yaml.SafeLoader)
-    except (yaml.YAMLError, UnicodeDecodeError) as err:
-        line = getattr(getattr(err, "problem_mark", None), "line", None)
-        raise RosMapError(f"not valid YAML: {err}".splitlines()[0],
-                          source=src, line=None if line is None else line + 1) from err
+    with open_regular(p, "map YAML") as fh:
+        try:
+            text = fh.read(MAX_YAML_BYTES + 1)
+        except OSError as err:
+            raise RosMapError(f"cannot read: {err.strerror or err}", source=src) from err
+    if len(text) > MAX_YAML_BYTES:
+        raise RosMapError(f"not a map YAML: larger than {MAX_YAML_BYTES:,} bytes", source=src)
+    node = _compose(text, src)
     if not isinstance(node, yaml.MappingNode):
         raise RosMapError("a map YAML is a mapping of keys (image, resolution, origin, ...)",
                           source=src, line=1)
     keys: dict[str, Any] = {}
     for k, v in node.value:
         if isinstance(k, yaml.ScalarNode):
+            if k.value in keys:
+                raise RosMapError(f"key {k.value!r} is given twice (lines "
+                                  f"{keys[k.value].start_mark.line + 1} and "
+                                  f"{k.start_mark.line + 1})", source=src,
+                                  line=k.start_mark.line + 1)
             keys[k.value] = v
 
     def need(key: str) -> Any:
@@ -593,6 +702,11 @@ def read_ros_yaml(path: PathLike, *, flavor: Flavor = "ros1") -> RosMapInfo:
                           "as an int)", source=src, line=nline)
     occ = number("occupied_thresh")
     free = number("free_thresh")
+    for key, value in (("occupied_thresh", occ), ("free_thresh", free)):
+        if not math.isfinite(value):
+            raise RosMapError(f"{key} must be a finite number, got {value!r} (map_server's "
+                              "result is undefined)", source=src,
+                              line=keys[key].start_mark.line + 1)
     mode = "trinary"
     if "mode" in keys:
         mvalue, mline = scalar("mode")
@@ -600,138 +714,22 @@ def read_ros_yaml(path: PathLike, *, flavor: Flavor = "ros1") -> RosMapInfo:
             raise RosMapError(f"mode must be trinary, scale or raw (case-sensitive), got {mvalue!r}",
                               source=src, line=mline)
         mode = mvalue
+    if mode == "scale" and occ == free:
+        raise RosMapError(f"scale mode divides by occupied_thresh - free_thresh, which is 0 here "
+                          f"({occ!r})", source=src, line=keys["free_thresh"].start_mark.line + 1)
     img_path = Path(image) if os.path.isabs(image) else p.parent / image
     return RosMapInfo(p, image, img_path, resolution, (ox, oy, yaw), int(negate != 0),
                       occ, free, mode)
 
 
-@dataclass(frozen=True, slots=True)
-class _Image:
-    """Decoded pixels: ``channels`` ``(h, w, c)``, which of them is alpha, and the full scale."""
+def pixel_values(img: _Image, info: RosMapInfo, *, flavor: Flavor = "ros1") -> NDArray[np.int8]:
+    """Cell values of decoded pixels under a YAML's settings, by the loader's rules.
 
-    channels: NDArray[Any]
-    has_alpha: bool
-    maxval: int
-    palette_rgba: NDArray[np.uint8] | None = None  # a paletted image's colours (for Nav2)
-    bilevel: str | None = None  # "pbm" (1 = black) or "png" (1 = white): 0/1 samples
-    pnm: bool = False  # read by mapkit's own PNM decoder
+    Works pixel by pixel, so a band of rows gives the same values as the whole image does.
 
-
-_PNM_TOKEN = re.compile(rb"(?:\s|#[^\n\r]*[\n\r])*([^\s#]+)")
-
-
-def _read_pnm(data: bytes, src: str) -> _Image:
-    magic = data[:2]
-    pos = 2
-    fields: list[bytes] = []
-    need = 2 if magic in (b"P1", b"P4") else 3
-    while len(fields) < need:
-        m = _PNM_TOKEN.match(data, pos)
-        if not m:
-            raise RosMapError("truncated PNM header", source=src)
-        fields.append(m.group(1))
-        pos = m.end()
-    try:
-        w, h = int(fields[0]), int(fields[1])
-        maxval = int(fields[2]) if need == 3 else 1
-    except ValueError as err:
-        raise RosMapError(f"bad PNM header {fields!r}", source=src) from err
-    if w <= 0 or h <= 0 or not (0 < maxval < 65536):
-        raise RosMapError(f"bad PNM size {w}x{h} or maxval {maxval}", source=src)
-    nch = 3 if magic in (b"P3", b"P6") else 1
-    count = w * h * nch
-    if magic in (b"P5", b"P6"):
-        pos += 1  # the single whitespace after maxval
-        dtype = np.dtype(">u2") if maxval > 255 else np.dtype(np.uint8)
-        buf = data[pos:pos + count * dtype.itemsize]
-        if len(buf) < count * dtype.itemsize:
-            raise RosMapError(f"image data truncated: expected {count} samples of "
-                              f"{w}x{h}", source=src)
-        arr = np.frombuffer(buf, dtype=dtype).astype(np.uint16 if maxval > 255 else np.uint8)
-    elif magic == b"P4":
-        stride = (w + 7) // 8
-        buf = data[pos + 1:pos + 1 + stride * h]
-        if len(buf) < stride * h:
-            raise RosMapError("image data truncated", source=src)
-        bits = np.unpackbits(np.frombuffer(buf, np.uint8).reshape(h, stride), axis=1)[:, :w]
-        arr = bits.astype(np.uint8)
-    else:  # P1 P2 P3: ASCII
-        body = data[pos:]
-        if magic == b"P1":
-            body = re.sub(rb"#[^\n\r]*", b" ", body)
-            digits = np.frombuffer(re.sub(rb"[^01]", b"", body), np.uint8) - ord("0")
-            if len(digits) < count:
-                raise RosMapError("image data truncated", source=src)
-            arr = digits[:count].astype(np.uint8)
-        else:
-            body = re.sub(rb"#[^\n\r]*", b" ", body)
-            try:
-                vals = np.array(body.split()[:count], dtype=np.int64)
-            except ValueError as err:
-                raise RosMapError("bad ASCII PNM sample", source=src) from err
-            if len(vals) < count:
-                raise RosMapError("image data truncated", source=src)
-            arr = np.clip(vals, 0, maxval).astype(np.uint16 if maxval > 255 else np.uint8)
-    bilevel = "pbm" if magic in (b"P1", b"P4") else None
-    return _Image(arr.reshape(h, w, nch), False, 255 if bilevel else maxval, bilevel=bilevel,
-                  pnm=True)
-
-
-def _read_pillow(path: Path, src: str) -> _Image:
-    try:
-        from PIL import Image
-    except ImportError as err:  # pragma: no cover - Pillow comes with matplotlib
-        raise RosMapError("reading this image format needs Pillow (pip install pillow)",
-                          source=src) from err
-    try:
-        with Image.open(path) as im:
-            im.load()
-            mode = im.mode
-            if mode == "P":
-                # ROS 1 (SDL) reads the index as a one-channel pixel; Nav2 the colour.
-                idx = np.asarray(im, dtype=np.uint8)
-                rgba = np.asarray(im.convert("RGBA"), dtype=np.uint8)
-                return _Image(idx[..., None], False, 255, palette_rgba=rgba)
-            if mode == "1":
-                return _Image(np.asarray(im, dtype=np.uint8)[..., None], False, 255, bilevel="png")
-            if mode in ("I;16", "I;16B", "I;16L", "I"):
-                arr = np.asarray(im).astype(np.int64)
-                return _Image(np.clip(arr, 0, 65535).astype(np.uint16)[..., None], False, 65535)
-            if mode == "L":
-                return _Image(np.asarray(im, dtype=np.uint8)[..., None], False, 255)
-            if mode == "LA":
-                a = np.asarray(im, dtype=np.uint8)
-                rgba = np.stack([a[..., 0], a[..., 0], a[..., 0], a[..., 1]], axis=2)
-                return _Image(rgba, True, 255)
-            if mode == "RGB":
-                return _Image(np.asarray(im, dtype=np.uint8), False, 255)
-            if mode == "RGBA":
-                return _Image(np.asarray(im, dtype=np.uint8), True, 255)
-            conv = im.convert("RGBA" if "A" in mode else "RGB")
-            return _Image(np.asarray(conv, dtype=np.uint8), "A" in mode, 255)
-    except (OSError, ValueError, SyntaxError) as err:
-        raise RosMapError(f"cannot read image: {err}", source=src) from err
-
-
-def read_image(path: PathLike) -> _Image:
-    """Decode an image file (PNM natively, anything else through Pillow)."""
-    p = Path(os.fspath(path))
-    src = str(p)
-    try:
-        with open(p, "rb") as fh:
-            head = fh.read(2)
-            if head in (b"P1", b"P2", b"P3", b"P4", b"P5", b"P6"):
-                return _read_pnm(head + fh.read(), src)
-    except FileNotFoundError as err:
-        raise RosMapError("image file not found", source=src) from err
-    except IsADirectoryError as err:
-        raise RosMapError("image path is a folder", source=src) from err
-    return _read_pillow(p, src)
-
-
-def image_to_grid(img: _Image, info: RosMapInfo, *, flavor: Flavor = "ros1") -> OccupancyGrid:
-    """Cell values of a decoded image under a YAML's settings, by the loader's rules."""
-    src = str(info.image_path)
+    Returns:
+        int8 ``(h, w)`` in the image's row order (first row at the top).
+    """
     ch = img.channels
     kw: dict[str, Any] = {"negate": bool(info.negate), "occupied_thresh": info.occupied_thresh,
                           "free_thresh": info.free_thresh, "flavor": flavor}
@@ -744,34 +742,59 @@ def image_to_grid(img: _Image, info: RosMapInfo, *, flavor: Flavor = "ros1") -> 
         alpha = None if n == 1 else data8[..., n - 1]
         if avg_n == 1 and n == 1:
             lut = load_pixel_values(np.arange(256), info.mode, **kw)
-            values = lut[data8[..., 0]]
-        else:
-            grey = data8[..., :avg_n].sum(axis=2, dtype=np.int64) / avg_n
-            values = load_pixel_values(grey, info.mode, alpha=alpha, **kw)
+            values: NDArray[np.int8] = lut[data8[..., 0]]
+            return values
+        grey = data8[..., :avg_n].sum(axis=2, dtype=np.int64) / avg_n
+        return load_pixel_values(grey, info.mode, alpha=alpha, **kw)
+    full = img.maxval
+    rgb: NDArray[Any]
+    alpha_ch: NDArray[Any] | None = None
+    if img.palette_rgba is not None:
+        rgb = img.palette_rgba[..., :3]
+        if (img.palette_rgba[..., 3] < 255).any():
+            alpha_ch = img.palette_rgba[..., 3]
+    elif ch.shape[2] == 1:
+        rgb = ch
     else:
-        full = img.maxval
-        rgb: NDArray[Any]
-        alpha_ch: NDArray[Any] | None = None
-        if img.palette_rgba is not None:
-            rgb = img.palette_rgba[..., :3]
-            if (img.palette_rgba[..., 3] < 255).any():
-                alpha_ch = img.palette_rgba[..., 3]
-        elif ch.shape[2] == 1:
-            rgb = ch
-        else:
-            rgb = ch[..., :3]
-            if img.has_alpha:
-                alpha_ch = ch[..., 3]
-        if img.bilevel == "pbm":
-            rgb = (1 - rgb.astype(np.int64)) * 255
-        elif img.bilevel == "png":
-            rgb = rgb.astype(np.int64) * 255
-        grey = rgb.astype(np.float64).mean(axis=2) if rgb.shape[2] > 1 else rgb[..., 0]
-        if info.mode == "trinary" and alpha_ch is not None:
-            grey = (rgb.astype(np.float64).sum(axis=2) + alpha_ch) / 4.0
-        values = load_pixel_values(grey, info.mode, alpha=alpha_ch, maxval=full, **kw)
-    data = np.ascontiguousarray(values[::-1])
+        rgb = ch[..., :3]
+        if img.has_alpha:
+            alpha_ch = ch[..., 3]
+    if img.bilevel == "pbm":
+        rgb = (1 - rgb.astype(np.int64)) * 255
+    elif img.bilevel == "png":
+        rgb = rgb.astype(np.int64) * 255
+    grey = rgb.astype(np.float64).mean(axis=2) if rgb.shape[2] > 1 else rgb[..., 0]
+    if info.mode == "trinary" and alpha_ch is not None:
+        grey = (rgb.astype(np.float64).sum(axis=2) + alpha_ch) / 4.0
+    return load_pixel_values(grey, info.mode, alpha=alpha_ch, maxval=full, **kw)
+
+
+def image_to_grid(img: _Image, info: RosMapInfo, *, flavor: Flavor = "ros1") -> OccupancyGrid:
+    """The grid of a decoded image under a YAML's settings (rows flipped: north up in files)."""
+    data = np.ascontiguousarray(pixel_values(img, info, flavor=flavor)[::-1])
     return OccupancyGrid(data, info.resolution, (info.origin[0], info.origin[1]))
+
+
+def read_image(path: PathLike) -> _Image:
+    """Decode a whole image file (PNM natively, anything else through Pillow).
+
+    Raises:
+        RosMapError: Naming the file, for anything that is not a readable image.
+    """
+    return open_image(Path(os.fspath(path))).read_all()
+
+
+def open_map_image(info: RosMapInfo, *, flavor: Flavor = "ros1") -> ImageSource:
+    """Open a YAML's image as the flavor's map_server would (header checks only).
+
+    Raises:
+        RosMapError: For an image the loader refuses (ROS 1: PGM deeper than 8 bits).
+    """
+    src = open_image(info.image_path)
+    if flavor == "ros1" and src.pnm and src.maxval > 255:
+        raise RosMapError(f"16-bit PGM images (maxval {src.maxval}) fail to load in ROS 1 "
+                          "map_server; use 8-bit (or --flavor nav2)", source=str(info.image_path))
+    return src
 
 
 def read_ros_map(path: PathLike, *, flavor: Flavor = "ros1") -> OccupancyGrid:
@@ -788,9 +811,5 @@ def read_ros_map(path: PathLike, *, flavor: Flavor = "ros1") -> OccupancyGrid:
         RosMapError: For what map_server would refuse, naming the file (and line).
     """
     info = read_ros_yaml(path, flavor=flavor)
-    img = read_image(info.image_path)
-    if flavor == "ros1" and img.pnm and img.maxval > 255:
-        raise RosMapError("16-bit PGM images fail to load in ROS 1 map_server; use 8-bit",
-                          source=str(info.image_path))
-    return image_to_grid(img, info, flavor=flavor)
+    return image_to_grid(open_map_image(info, flavor=flavor).read_all(), info, flavor=flavor)
 

@@ -17,6 +17,7 @@ from __future__ import annotations
 import hashlib
 import math
 import os
+import stat
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -85,6 +86,8 @@ class ServedMap:
         docks: Docks.
         sha256: SHA-256 of the file's bytes.
         md5: MD5 of the file's bytes (ARIA's map checksum).
+        yaw: The origin's yaw in radians (a map_server YAML's third ``origin`` value; published
+            in ``info.origin.orientation`` as map_server does).
     """
 
     path: str
@@ -95,6 +98,7 @@ class ServedMap:
     docks: tuple[Pose, ...]
     sha256: str
     md5: str
+    yaw: float = 0.0
 
     @property
     def name(self) -> str:
@@ -168,7 +172,11 @@ def served_map(path: str | os.PathLike[str], resolution: float = 0.05, **raster:
         text = text[len("file://"):]
     p = Path(text)
     try:
+        if not stat.S_ISREG(os.stat(p).st_mode) and not p.is_dir():  # a pipe would block
+            raise MapLoadError(f"{p}: not a regular file (a device or pipe)", LOAD_NOT_FOUND)
         data = p.read_bytes()
+    except ValueError as err:  # a NUL byte in the name
+        raise MapLoadError(f"{text!r}: not a valid file name", LOAD_NOT_FOUND) from err
     except FileNotFoundError as err:
         raise MapLoadError(f"{p}: no such map file", LOAD_NOT_FOUND) from err
     except IsADirectoryError as err:
@@ -178,8 +186,8 @@ def served_map(path: str | os.PathLike[str], resolution: float = 0.05, **raster:
     sha256, md5 = hashlib.sha256(data).hexdigest(), hashlib.md5(data).hexdigest()
     suffix = p.suffix.lower()
     if suffix in (".yaml", ".yml"):
-        grid = _read_yaml_grid(p)
-        return ServedMap(str(p), grid, None, (), (), (), sha256, md5)
+        grid, yaw = _read_yaml_grid(p)
+        return ServedMap(str(p), grid, None, (), (), (), sha256, md5, yaw)
     if not (math.isfinite(resolution) and resolution > 0):
         raise MapLoadError(f"resolution must be a positive number of metres, got {resolution!r}",
                            LOAD_INVALID_METADATA)
@@ -195,11 +203,12 @@ def served_map(path: str | os.PathLike[str], resolution: float = 0.05, **raster:
     return ServedMap(str(p), grid, _keepout(m, grid), goals, homes, docks, sha256, md5)
 
 
-def _read_yaml_grid(p: Path) -> OccupancyGrid:
-    from mapkit.raster.ros import read_ros_map
+def _read_yaml_grid(p: Path) -> tuple[OccupancyGrid, float]:
+    from mapkit.raster.ros import image_to_grid, open_map_image, read_ros_yaml
 
     try:
-        return read_ros_map(p)
+        info = read_ros_yaml(p)
+        return image_to_grid(open_map_image(info).read_all(), info), info.origin[2]
     except FormatError as err:
         # A YAML that map_server would not accept is bad metadata; a bad image is bad data.
         code = LOAD_INVALID_METADATA if str(err.source).lower().endswith((".yaml", ".yml")) \
@@ -216,30 +225,32 @@ def _header(msg: Any, frame_id: str, stamp: Any) -> None:
         msg.header.stamp = stamp
 
 
-def _info(info: Any, grid: OccupancyGrid, load_time: Any) -> Any:
+def _info(info: Any, grid: OccupancyGrid, load_time: Any, yaw: float = 0.0) -> Any:
     if load_time is not None:
         info.map_load_time = load_time
     info.resolution = grid.resolution
     info.width = grid.width
     info.height = grid.height
     info.origin.position.x, info.origin.position.y = grid.origin
-    info.origin.orientation.w = 1.0
+    # map_server: tf2::Quaternion::setEulerZYX(yaw, 0, 0), a rotation about z.
+    info.origin.orientation.z = math.sin(yaw / 2.0)
+    info.origin.orientation.w = math.cos(yaw / 2.0)
     return info
 
 
-def metadata_message(grid: OccupancyGrid, load_time: Any = None) -> Any:
-    """A ``nav_msgs/MapMetaData`` for a grid (``load_time`` a ``rospy.Time``)."""
+def metadata_message(grid: OccupancyGrid, load_time: Any = None, yaw: float = 0.0) -> Any:
+    """A ``nav_msgs/MapMetaData`` for a grid (``load_time`` a ``rospy.Time``; origin ``yaw``)."""
     msgs = ros_import("nav_msgs.msg")
-    return _info(msgs.MapMetaData(), grid, load_time)
+    return _info(msgs.MapMetaData(), grid, load_time, yaw)
 
 
 def grid_message(grid: OccupancyGrid, frame_id: str = "map", stamp: Any = None,
-                 load_time: Any = None) -> Any:
+                 load_time: Any = None, yaw: float = 0.0) -> Any:
     """A ``nav_msgs/OccupancyGrid`` for a grid: row-major from the southern row, int8 cells."""
     msgs = ros_import("nav_msgs.msg")
     msg = msgs.OccupancyGrid()
     _header(msg, frame_id, stamp)
-    _info(msg.info, grid, load_time)
+    _info(msg.info, grid, load_time, yaw)
     msg.data = np.ascontiguousarray(grid.data, dtype=np.int8).ravel().tolist()
     return msg
 

@@ -56,6 +56,7 @@ def map_info(served: ServedMap) -> dict[str, Any]:
         "height": g.height,
         "resolution": g.resolution,
         "origin": list(g.origin),
+        "yaw": served.yaw,
         "keepout": served.keepout is not None,
         "goals": [p.name for p in served.goals],
         "homes": [p.name for p in served.homes],
@@ -119,9 +120,9 @@ class MapServer:
             cur = self.current
             now = rp.Time.now()
             self._load_time = now
-            self._grid_msg = grid_message(cur.grid, self.frame_id, now, now)
+            self._grid_msg = grid_message(cur.grid, self.frame_id, now, now, yaw=cur.yaw)
         pubs = self._pubs
-        pubs["map_metadata"].publish(metadata_message(cur.grid, now))
+        pubs["map_metadata"].publish(metadata_message(cur.grid, now, yaw=cur.yaw))
         pubs["map"].publish(self._grid_msg)
         if cur.keepout is not None:
             pubs["keepout_mask"].publish(grid_message(cur.keepout, self.frame_id, now, now))

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import subprocess
 from pathlib import Path
 from typing import Any
@@ -17,6 +18,7 @@ import pytest
 import yaml
 
 import mapkit
+from mapkit.raster import OccupancyGrid
 from mapkit.raster.rasterize import rasterize
 from mapkit.ros.grids import map_poses, served_map
 from tests.ros.conftest import Ros
@@ -166,6 +168,35 @@ def test_change_map_to_a_map_server_yaml(ros: Ros, server: Any, sample: Path,
         assert change(str(sample)) == 0
 
 
+def test_origin_yaw_of_a_yaml_is_published_as_map_server_does(ros: Ros, server: Any, sample: Path,
+                                                               tmp_path: Path) -> None:
+    """map_server puts the YAML's origin yaw in info.origin.orientation (setEulerZYX(yaw, 0, 0))."""
+    from mapkit.raster.ros import write_ros_map
+
+    def change(url: str) -> int:
+        out = ros.run(["rosservice", "call", "/change_map", f"map_url: '{url}'"], timeout=60).stdout
+        return int(ros_yaml(out)["result"])
+
+    grid = OccupancyGrid(np.array([[0, 100, -1], [100, 0, 0]], dtype=np.int8), 0.2, (1.0, -2.0))
+    files = write_ros_map(grid, tmp_path / "turned.yaml")
+    yaw = 0.7
+    files.yaml.write_text(files.yaml.read_text().replace("origin: [1.0, -2.0, 0.0]",
+                                                         f"origin: [1.0, -2.0, {yaw!r}]"))
+    assert served_map(files.yaml).yaw == yaw
+    try:
+        assert change(str(files.yaml)) == 0
+        for info in (echo(ros, "/map_metadata"), echo(ros, "/map")["info"]):
+            q = info["origin"]["orientation"]
+            assert (q["x"], q["y"]) == (0.0, 0.0)
+            assert q["z"] == pytest.approx(math.sin(yaw / 2), abs=1e-12)
+            assert q["w"] == pytest.approx(math.cos(yaw / 2), abs=1e-12)
+            assert info["origin"]["position"]["x"] == pytest.approx(1.0)
+        assert json.loads(echo(ros, "/map_info")["data"])["yaw"] == yaw
+    finally:
+        assert change(str(sample)) == 0
+    assert echo(ros, "/map_metadata")["origin"]["orientation"]["w"] == 1.0
+
+
 def test_served_map_refuses_bad_input_with_loadmap_codes(tmp_path: Path) -> None:
     from mapkit.ros.grids import MapLoadError
 
@@ -176,6 +207,12 @@ def test_served_map_refuses_bad_input_with_loadmap_codes(tmp_path: Path) -> None
     with pytest.raises(MapLoadError, match=r"bad\.map:2") as e:
         served_map(tmp_path / "bad.map")
     assert e.value.code == 2
+    os.mkfifo(tmp_path / "pipe.yaml")  # refused at once, not read (a read would block)
+    with pytest.raises(MapLoadError, match="not a regular file") as e:
+        served_map(tmp_path / "pipe.yaml")
+    assert e.value.code == 1
+    with pytest.raises(MapLoadError, match="not a valid file name"):
+        served_map(str(tmp_path / "nul\0.yaml"))
     (tmp_path / "ok.map").write_bytes(b"2D-Map\nDATA\n0 0\n")
     with pytest.raises(MapLoadError, match="resolution must be a positive") as e:
         served_map(tmp_path / "ok.map", resolution=0)
