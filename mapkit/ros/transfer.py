@@ -455,14 +455,35 @@ class RobotNode:
         wait = max(0.0, min([timeout, *(d - now for d in dls)]))
         item = self.link.receive(wait)
         while item is not None:
-            self._dispatch(*item)
+            try:
+                self._dispatch(*item)
+            except Exception:  # no message may end the node: drop its session, go on
+                self._failed(_session_id(item[1]), "a message")
             item = self.link.receive(0)
         now = time.monotonic()
         for sid, s in list(self.sessions.items()):
-            s.poll(now)
+            try:
+                s.poll(now)
+            except Exception:
+                self._failed(sid, "a timer")
+                continue
             if s.closed or now - s.last > max(LINGER, self.idle_timeout):
                 s._release()
                 del self.sessions[sid]
+
+    def _failed(self, sid: int | None, what: str) -> None:
+        """Log an unexpected error met while handling ``what`` of session ``sid``, tell the
+        client (REJECT ``internal``, untagged) and forget the session (its partial file stays)."""
+        log.exception("internal error while handling %s of session %s", what,
+                      "?" if sid is None else f"{sid:016x}")
+        s = self.sessions.pop(sid, None) if sid is not None else None
+        if s is not None:
+            s.closed = True
+            with contextlib.suppress(Exception):
+                s._release()
+            with contextlib.suppress(Exception):
+                s.conn.send([reject_out(LocalTransferError("internal error on the robot"),
+                                        plain=True)])
 
     def _dispatch(self, src: str, data: bytes) -> None:
         sid = _session_id(data)
