@@ -61,7 +61,8 @@ from mapkit.transfer.store import (
 )
 from mapkit.transfer.tcp import FrameLink, listen, run, tune_socket
 
-__all__ = ["ACTIVE_NAME", "PREVIOUS_NAME", "MapFolder", "MapServer", "validate_map_file"]
+__all__ = ["ACTIVE_NAME", "PREVIOUS_NAME", "MapFolder", "MapServer", "same_transfer",
+           "validate_map_file"]
 
 log = logging.getLogger(__name__)
 
@@ -88,6 +89,12 @@ def validate_map_file(path: str) -> dict[str, Any]:
     except MapFormatError as err:
         raise StoreError(f"not a valid map: {err}", Status.PARSE_ERROR) from err
     return {"md5": hashlib.md5(data).hexdigest(), "kind": "map"}
+
+
+def same_transfer(a: Offer, b: Offer) -> bool:
+    """True when two offers are the same transfer: same name, SHA-256, size and chunk size
+    (the resume journal and every chunk offset then mean the same bytes)."""
+    return (a.name, a.sha256, a.size, a.chunk_size) == (b.name, b.sha256, b.size, b.chunk_size)
 
 
 def _validator(name: str) -> Callable[[str], dict[str, Any]] | None:
@@ -704,11 +711,21 @@ class MapServer:
                 raise
             with self._lock:
                 holder = self._writers.get(offer.name)
-            if holder is None or time.monotonic() - holder[1].last_heard < self.takeover_after:
+            if holder is None:
                 raise
-            log.warning("%s: taking over %s from a session silent for %.1f s", peer, offer.name,
-                        time.monotonic() - holder[1].last_heard)
-            holder[0].close()  # its thread ends, keeps the partial file, releases the lock
+            silent = time.monotonic() - holder[1].last_heard
+            if same_transfer(holder[1].offer, offer):
+                # the same file (SHA-256, size, chunk size): the sender resuming after a cut
+                # the robot did not notice (no FIN); whoever sends, the same bytes land
+                log.warning("%s: resuming %s, taking it over from a session silent for %.1f s",
+                            peer, offer.name, silent)
+            elif silent < self.takeover_after:
+                raise
+            else:
+                log.warning("%s: taking over %s from a session silent for %.1f s", peer,
+                            offer.name, silent)
+            with contextlib.suppress(OSError):  # its thread ends, keeps the partial, unlocks
+                holder[0].sock.shutdown(socket.SHUT_RDWR)
             end = time.monotonic() + 5.0
             while True:
                 time.sleep(0.02)
