@@ -177,6 +177,8 @@ class _RobotSession:
         if isinstance(ev, Damaged):
             return self._to_active(ev, now) if isinstance(self.active, Receiver) else []
         t = ev.type
+        if t not in FrameType._value2member_map_:
+            return []  # an unknown type on a message transport is ignored (spec, section 3)
         if t == FrameType.HELLO:
             return self.hs.handle(ev, now)  # our HELLO_ACK was lost: the same answer again
         if t == FrameType.AUTH:
