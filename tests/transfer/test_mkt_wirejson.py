@@ -115,3 +115,25 @@ def test_every_control_frame_has_a_schema_and_frames_use_it() -> None:
         Frame(FrameType.OFFER, 1, 1, b'{"size":"12"}').json()
     with pytest.raises(ProtocolError, match="HELLO payload refused: nested"):
         parse_json(b"[" * 100_000, "HELLO")
+
+
+def test_the_spec_states_the_limits_the_code_applies() -> None:
+    from pathlib import Path
+
+    from mapkit.transfer.wirejson import MAX_INT_DIGITS
+
+    spec = (Path(__file__).resolve().parents[2] / "docs" / "transfer-protocol.md").read_text()
+    assert f"at most **{MAX_DEPTH}** levels" in spec
+    assert f"integers of at most **{MAX_INT_DIGITS}** digits" in spec
+    refused = [b"[" * 100_000, b'{"a":' * 100_000, b'{"size":' + b"9" * 50_000 + b"}",
+               b'{"t":1e400}', b'{"t":NaN}', b'{"name":"\\udc00.map"}', b"\xc3\x28", b"[1,2]"]
+    for vector in refused:
+        with pytest.raises(WireJSONError):
+            decode_object(vector)
+    for vector in (b'{"size":"12"}', b'{"size":true}'):
+        with pytest.raises(ProtocolError):
+            Frame(FrameType.OFFER, 1, 1, vector).json()
+    accepted = [b'{"s":"' + b"[" * 1000 + b'"}', b'{"pair":"\\ud83d\\ude00"}',
+                b'{"unknown":[[[1]]],"x":{"y":true}}']
+    for vector in accepted:
+        decode_object(vector)

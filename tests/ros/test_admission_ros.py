@@ -1,0 +1,43 @@
+"""The robot node's limits on sessions that never authenticate, and a sender resuming the same
+transfer, over the in-memory bus of test_sessions (the same RobotNode that runs on ROS topics)."""
+
+from __future__ import annotations
+
+import os
+import time
+from pathlib import Path
+
+from tests.ros.test_sessions import Bus, robot_on, terminal
+
+from mapkit.transfer.protocol import Channel, FrameType, Offer, Out, dump_json
+
+
+def _hello(session: int) -> bytes:
+    c = Channel(initiator=True, session=session, ordered=False)
+    return c.encode(Out(FrameType.HELLO, dump_json({"versions": [1], "nonce": "ab" * 32,
+                                                    "auth": ["blake2b"], "peer": "flood"})))
+
+
+def test_a_hello_flood_is_bounded_and_expires(tmp_path: Path) -> None:
+    bus = Bus()
+    rt, robot = robot_on(bus, tmp_path, handshake_timeout=0.5, per_node=4, max_pending=8)
+    node = rt.node
+    try:
+        flood = bus.link("/flood")
+        for i in range(2000):  # never AUTH
+            flood.send(robot.node, _hello(i + 1))
+        end = time.monotonic() + 10
+        while time.monotonic() < end and node.admission.pending() < 4:
+            time.sleep(0.01)
+        assert node.admission.pending("/flood") <= 4
+        assert len(node.sessions) <= 8 + 4  # pending, plus failed ones about to go
+        # an honest terminal is served meanwhile
+        data = os.urandom(5000)
+        (res,) = terminal(bus).push([robot], data, Offer.for_bytes("a.2d", data, chunk_size=1024))
+        assert res.ok and (tmp_path / "a.2d").read_bytes() == data
+        end = time.monotonic() + 10  # and the flood's sessions go at their deadline
+        while time.monotonic() < end and node.admission.pending("/flood"):
+            time.sleep(0.02)
+        assert node.admission.pending("/flood") == 0 and node.admission.timed_out >= 1
+    finally:
+        rt.close()
