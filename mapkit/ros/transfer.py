@@ -35,6 +35,7 @@ from mapkit.errors import LocalTransferError, TransferError
 from mapkit.ros.errors import RosError
 from mapkit.ros.node import ros_import, rospy, wait_until
 from mapkit.ros.transport import DEFAULT_WINDOW, RosLink
+from mapkit.transfer.admission import Admission
 from mapkit.transfer.protocol import (
     DEFAULT_CHUNK_SIZE,
     MAGIC,
@@ -58,7 +59,6 @@ from mapkit.transfer.protocol import (
     kind_of,
     reject_out,
 )
-from mapkit.transfer.admission import Admission
 from mapkit.transfer.server import MapFolder, same_transfer
 from mapkit.transfer.store import PartialFile, StoreError
 
@@ -487,7 +487,7 @@ class RobotNode:
                 del self.sessions[sid]
                 self.admission.release(sid)
 
-    def _forget(self, sid: int, why: str) -> None:
+    def _forget(self, sid: Any, why: str) -> None:
         s = self.sessions.pop(sid, None)
         self.admission.release(sid)
         if s is not None:
@@ -531,7 +531,8 @@ class RobotNode:
         s.feed(data, now)
         if not was_open and s.hs.finished and s.hs.error is None \
                 and not self.admission.authenticated(sid):
-            log.warning("%s: refused: %d sessions already", s.conn.peer, self.admission.max_sessions)
+            log.warning("%s: refused: %d sessions already", s.conn.peer,
+                        self.admission.max_sessions)
             s.conn.send([reject_out(StoreError(f"this robot serves {self.admission.max_sessions} "
                                                "sessions already; try again later", Status.BUSY))])
             self._forget(sid, "too many sessions")

@@ -88,10 +88,12 @@ class Admission:
         to make room for it (it is always admitted)."""
         with self._lock:
             evict: list[Hashable] = []
-            mine = [k for k, e in self._entries.items() if not e.authenticated and e.address == address]
+            mine = [k for k, e in self._entries.items()
+                    if not e.authenticated and e.address == address]
             if len(mine) >= self.per_address:
                 evict.append(self._victim(mine))
-            pending = [k for k, e in self._entries.items() if not e.authenticated and k not in evict]
+            pending = [k for k, e in self._entries.items()
+                       if not e.authenticated and k not in evict]
             if len(pending) >= self.max_pending:
                 counts: dict[str, int] = {}
                 for k in pending:
@@ -137,7 +139,8 @@ class Admission:
     def expired(self, now: float) -> list[Hashable]:
         """Pending connections past their handshake deadline (forgotten here; close them)."""
         with self._lock:
-            late = [k for k, e in self._entries.items() if not e.authenticated and now >= e.deadline]
+            late = [k for k, e in self._entries.items()
+                    if not e.authenticated and now >= e.deadline]
             for k in late:
                 del self._entries[k]
             self.timed_out += len(late)

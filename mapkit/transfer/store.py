@@ -697,7 +697,8 @@ def expire_partials(folder: str, max_age: float, *, now: float | None = None) ->
         name = e.name[1:-len(".mkpart")]
         temp, journal = partial_paths(folder, name)
         try:
-            fd = os.open(temp, os.O_RDWR | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_CLOEXEC", 0))
+            fd = os.open(temp, os.O_RDWR | getattr(os, "O_NOFOLLOW", 0)
+                         | getattr(os, "O_CLOEXEC", 0))
         except OSError:
             continue
         try:

@@ -30,8 +30,8 @@ import re
 from collections.abc import Mapping
 from typing import Any
 
-__all__ = ["MAX_DEPTH", "MAX_INT_DIGITS", "MAX_SIZE", "SCHEMAS", "ListOf", "WireJSONError", "check_fields",
-           "decode_object", "json_depth"]
+__all__ = ["MAX_DEPTH", "MAX_INT_DIGITS", "MAX_SIZE", "SCHEMAS", "ListOf", "WireJSONError",
+           "check_fields", "decode_object", "json_depth"]
 
 MAX_SIZE = 1024 * 1024
 MAX_DEPTH = 16

@@ -19,10 +19,12 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "transfer"))
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
-from mkt_fuzz import _RAW_TEXTS, frame_types, mutate_bytes, mutate_payload  # noqa: E402
+import contextlib
 
-from mapkit.ros.node import rospy, start_node  # noqa: E402
-from mapkit.transfer.protocol import (  # noqa: E402
+from mkt_fuzz import _RAW_TEXTS, frame_types, mutate_bytes, mutate_payload
+
+from mapkit.ros.node import rospy, start_node
+from mapkit.transfer.protocol import (
     Channel,
     ClientHandshake,
     FrameType,
@@ -42,10 +44,8 @@ def main() -> None:
     me = rp.get_name()
 
     def announce(msg: String) -> None:
-        try:
+        with contextlib.suppress(ValueError, KeyError, TypeError):
             robots.add(json.loads(msg.data)["node"])
-        except (ValueError, KeyError, TypeError):
-            pass
 
     def reply(msg: UInt8MultiArray) -> None:
         dims = msg.layout.dim
@@ -65,7 +65,8 @@ def main() -> None:
     def send(frame: bytes) -> None:
         for node in robots:
             dim = MultiArrayDimension(label=f"{me} {node}", size=len(frame), stride=len(frame))
-            pub.publish(UInt8MultiArray(layout=MultiArrayLayout(dim=[dim], data_offset=0), data=frame))
+            layout = MultiArrayLayout(dim=[dim], data_offset=0)
+            pub.publish(UInt8MultiArray(layout=layout, data=frame))
 
     rng = random.Random(seed)
     sent = 0

@@ -7,9 +7,8 @@ import os
 import time
 from pathlib import Path
 
-from tests.ros.test_sessions import Bus, robot_on, terminal
-
 from mapkit.transfer.protocol import Channel, FrameType, Offer, Out, dump_json
+from tests.ros.test_sessions import Bus, robot_on, terminal
 
 
 def _hello(session: int) -> bytes:

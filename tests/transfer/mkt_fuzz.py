@@ -71,9 +71,11 @@ def hostile_value(rng: random.Random) -> Any:
     if k == 7:
         return {str(rng.randrange(100)): hostile_value(rng) for _ in range(rng.randrange(3))}
     if k == 8:
-        return [[rng.randrange(-5, 1 << 33), rng.randrange(-5, 1 << 33)] for _ in range(rng.randrange(40))]
+        return [[rng.randrange(-5, 1 << 33), rng.randrange(-5, 1 << 33)]
+                for _ in range(rng.randrange(40))]
     if k == 9:
-        return "".join(rng.choice("0123456789abcdefABCDEF") for _ in range(rng.choice([0, 31, 32, 64, 65])))
+        n = rng.choice([0, 31, 32, 64, 65])
+        return "".join(rng.choice("0123456789abcdefABCDEF") for _ in range(n))
     if k == 10:
         return rng.randrange(-3, 70)
     if k == 11:
@@ -124,7 +126,8 @@ def mutate_payload(ftype: int, rng: random.Random) -> bytes:
         elif op == 1:
             d.pop(key, None)
         elif op == 2:
-            d[rng.choice(["extra", "rollback", "skip", "if_sha256", "chunks", "window"])] = hostile_value(rng)
+            extra = rng.choice(["extra", "rollback", "skip", "if_sha256", "chunks", "window"])
+            d[extra] = hostile_value(rng)
         else:
             d[key] = _nested(rng.choice([2, 15, 16, 17, 40]), rng)
     try:
@@ -162,4 +165,4 @@ def frame_types(rng: random.Random) -> int:
     """A frame type: mostly known ones, sometimes reserved or unknown."""
     if rng.random() < 0.1:
         return rng.choice([0, 10, 15, 22, 31, 39, 200, 255])
-    return int(rng.choice(list(HONEST) + [FrameType.DATA]))
+    return int(rng.choice([*list(HONEST), FrameType.DATA]))

@@ -83,7 +83,7 @@ def honest_round_trip(tmp_path: Path, address: tuple[str, int], tag: str) -> Non
     assert out.read_bytes() == data
 
 
-# -- peers that never authenticate ----------------------------------------------------------------------
+# -- peers that never authenticate ----------------------------------------------------------------
 
 
 def test_silent_connections_beyond_every_limit_do_not_lock_clients_out(tmp_path, serve) -> None:
@@ -253,7 +253,7 @@ def test_server_sockets_probe_dead_peers_with_keepalive(serve) -> None:
         assert 2 in kinds, kinds
 
 
-# -- a network cut mid-send -------------------------------------------------------------------------------
+# -- a network cut mid-send -----------------------------------------------------------------------
 
 
 def test_resend_after_a_cut_without_fin_takes_over_at_once(tmp_path, serve, robot_dir) -> None:
@@ -267,7 +267,7 @@ def test_resend_after_a_cut_without_fin_takes_over_at_once(tmp_path, serve, robo
     def doomed() -> None:  # the laptop whose Wi-Fi drops after 1 MiB
         try:
             send_file(src, *proxy.address, chunk_size=64 * 1024, **client_options())
-        except BaseException as err:  # noqa: BLE001 - expected to fail
+        except BaseException as err:
             first["err"] = err
 
     t = threading.Thread(target=doomed, daemon=True)
@@ -291,7 +291,7 @@ def test_resend_after_a_cut_without_fin_takes_over_at_once(tmp_path, serve, robo
         t.join(30)
 
 
-# -- interrupted offers and abandoned partial files ----------------------------------------------------
+# -- interrupted offers and abandoned partial files -----------------------------------------------
 
 
 def _disk_bytes(folder: Path) -> int:
@@ -386,7 +386,7 @@ def test_concurrent_offers_cannot_overcommit_the_disk(robot_dir) -> None:
     b.close(keep=False)
 
 
-# -- names and offers every request checks ------------------------------------------------------------
+# -- names and offers every request checks --------------------------------------------------------
 
 LONG_NAMES = [
     "a" * 252 + ".map",  # 256 bytes: over the file system's 255

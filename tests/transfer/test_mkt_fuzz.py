@@ -43,7 +43,8 @@ SEED = int(os.environ.get("MKT_FUZZ_SEED", "20261125"))
 OFFER = Offer("office.map", 40, "ab" * 32, 16, "cd" * 16, "map")
 
 
-def _encode(ch: Channel, ftype: int, payload: bytes, rng: random.Random, ref: int | None = None) -> bytes:
+def _encode(ch: Channel, ftype: int, payload: bytes, rng: random.Random,
+            ref: int | None = None) -> bytes:
     flags = rng.choice([0, 0, int(Flag.ACKREQ), int(Flag.RETX), rng.randrange(1 << 16)])
     out = Out(ftype, payload, ref=rng.randrange(4) if ref is None else ref, flags=flags)  # type: ignore[arg-type]
     data = ch.encode(out)
@@ -124,7 +125,8 @@ def _receiver(rng: random.Random, ordered: bool) -> None:
         t = rng.choice([FrameType.DATA, FrameType.DATA, FrameType.DONE, FrameType.OFFER]) \
             if rng.random() < 0.6 else frame_types(rng)
         ref = rng.choice([0, 1, 2, 3, 1 << 31]) if t == FrameType.DATA else rng.choice([1, 1, 2])
-        payload = bytes(rng.choice([16, 16, 8, 0, 17])) if t == FrameType.DATA else mutate_payload(t, rng)
+        payload = bytes(rng.choice([16, 16, 8, 0, 17])) if t == FrameType.DATA \
+            else mutate_payload(t, rng)
         for ev in _events(s, _encode(c, t, payload, rng, ref), ordered):
             _look(ev)
             rx.handle(ev, float(i))
@@ -149,7 +151,8 @@ def _request(rng: random.Random, ordered: bool) -> None:
     c, s = _pair(ordered)
     kind, answers = rng.choice([(FrameType.LIST, [FrameType.LISTING]),
                                 (FrameType.GET, [FrameType.OFFER, FrameType.NOT_MODIFIED]),
-                                (FrameType.LOAD, [FrameType.LOADED]), (FrameType.PING, [FrameType.PONG])])
+                                (FrameType.LOAD, [FrameType.LOADED]),
+                                (FrameType.PING, [FrameType.PONG])])
     req = Request(kind, HONEST.get(kind, {}), ref=1, answers=answers)
     req.start(0.0)
     for i in range(rng.randrange(1, 4)):
@@ -204,7 +207,7 @@ def test_every_hostile_text_in_every_control_frame_type() -> None:
     assert refused > len(_RAW_TEXTS) * len(HONEST)
 
 
-# -- a real server ------------------------------------------------------------------------------------
+# -- a real server --------------------------------------------------------------------------------
 
 
 @pytest.fixture
@@ -251,7 +254,8 @@ def test_fuzzed_frames_never_end_a_real_server(tmp_path, robot_dir, secret_file)
                     t = frame_types(rng)
                     payload = mutate_payload(t, rng)
                     if rng.random() < 0.15:
-                        link.sock.sendall(mutate_bytes(link.channel.encode(Out(t, payload, ref=1)), rng))  # type: ignore[arg-type]
+                        raw = link.channel.encode(Out(t, payload, ref=1))  # type: ignore[arg-type]
+                        link.sock.sendall(mutate_bytes(raw, rng))
                     else:
                         link.send([Out(t, payload, ref=rng.choice([0, 1, 2, 7]))])  # type: ignore[arg-type]
                     frames += 1
@@ -270,7 +274,8 @@ def test_fuzzed_frames_never_end_a_real_server(tmp_path, robot_dir, secret_file)
         src = tmp_path / "after.map"
         src.write_bytes(data)
         send_file(src, *srv.address, **client_options())
-        assert "after.map" in [m["name"] for m in list_maps(*srv.address, **client_options())["maps"]]
+        listed = list_maps(*srv.address, **client_options())["maps"]
+        assert "after.map" in [m["name"] for m in listed]
         back = tmp_path / "back.map"
         fetch_file(srv.address[0], "after.map", back, port=srv.address[1], **client_options())
         assert hashlib.sha256(back.read_bytes()).digest() == hashlib.sha256(data).digest()
