@@ -544,9 +544,11 @@ class MapServer:
             tune_socket(c.sock, keepalive=True)
             if self.tls is not None:
                 c.sock.settimeout(self.handshake_timeout)
-                c.sock = self.tls.wrap_socket(c.sock, server_side=True)
-                if c.closing:  # evicted during the TLS handshake
+                tls = self.tls.wrap_socket(c.sock, server_side=True, do_handshake_on_connect=False)
+                c.sock = tls  # from now on the reaper shuts this one down at the deadline
+                if c.closing:  # evicted meanwhile
                     return
+                tls.do_handshake()
             link = FrameLink(c.sock, Channel(initiator=False), peer=peer)
             self._session(link, c)
         except (TransferError, OSError, ssl.SSLError) as err:

@@ -23,10 +23,10 @@ def test_a_hello_flood_is_bounded_and_expires(tmp_path: Path) -> None:
     node = rt.node
     try:
         flood = bus.link("/flood")
-        for i in range(2000):  # never AUTH
+        for i in range(1000):  # never AUTH
             flood.send(robot.node, _hello(i + 1))
-        end = time.monotonic() + 10
-        while time.monotonic() < end and node.admission.pending() < 4:
+        end = time.monotonic() + 30  # the robot has handled every one (a queue, not a limit)
+        while time.monotonic() < end and not node.link.inbox.empty():
             time.sleep(0.01)
         assert node.admission.pending("/flood") <= 4
         assert len(node.sessions) <= 8 + 4  # pending, plus failed ones about to go

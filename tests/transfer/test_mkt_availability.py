@@ -451,3 +451,27 @@ def test_a_map_offer_must_carry_its_md5_and_kind(serve, robot_dir) -> None:
         finally:
             link.close()
     assert os.listdir(robot_dir) == []
+
+
+def test_a_slow_tls_handshake_is_cut_too(make_server, cert) -> None:
+    from mapkit.transfer import server_tls_context
+
+    crt, key = cert
+    srv = make_server(tls=server_tls_context(str(crt), str(key)), handshake_timeout=1.0)
+    s = socket.create_connection(srv.address)
+    closed = False
+    try:
+        end = time.monotonic() + CLOSED_WITHIN
+        hello = bytes.fromhex("16030100c8010000c40303") + bytes(200)  # a ClientHello's start
+        for b in hello:  # a byte every 0.2 s: each read alone is well within a socket timeout
+            try:
+                s.sendall(bytes([b]))
+            except OSError:
+                closed = True
+                break
+            if closed_by_peer(s, 0.2) or time.monotonic() > end:
+                closed = time.monotonic() <= end
+                break
+    finally:
+        s.close()
+    assert closed
