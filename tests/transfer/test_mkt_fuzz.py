@@ -92,29 +92,30 @@ def _pair(ordered: bool) -> tuple[Channel, Channel]:
     return c, s
 
 
+def _handshake_frames(rng: random.Random, ordered: bool, machine: Any, mine: Channel,
+                      theirs: Channel, first: FrameType) -> None:
+    """Feed a handshake machine 1-3 mutated frames (the first mostly of type ``first``)."""
+    machine.start(0.0)
+    for i in range(rng.randrange(1, 4)):
+        t = first if i == 0 and rng.random() < 0.6 else frame_types(rng)
+        for ev in _events(mine, _encode(theirs, t, mutate_payload(t, rng), rng, 0), ordered):
+            machine.handle(ev, float(i))
+        machine.poll(float(i) + rng.random() * 10)
+
+
 def _server_handshake(rng: random.Random, ordered: bool) -> None:
     s = Channel(initiator=False, ordered=ordered)
     secret = rng.choice([SECRET, None])
     sh = ServerHandshake(s, secret, insecure=secret is None or rng.random() < 0.5, timeout=5.0)
-    sh.start(0.0)
     c = Channel(initiator=True, session=rng.randrange(1, 1 << 64), ordered=ordered)
-    for i in range(rng.randrange(1, 4)):
-        t = FrameType.HELLO if i == 0 and rng.random() < 0.6 else frame_types(rng)
-        for ev in _events(s, _encode(c, t, mutate_payload(t, rng), rng, 0), ordered):
-            sh.handle(ev, float(i))
-        sh.poll(float(i) + rng.random() * 10)
+    _handshake_frames(rng, ordered, sh, s, c, FrameType.HELLO)
 
 
 def _client_handshake(rng: random.Random, ordered: bool) -> None:
     c = Channel(initiator=True, session=77, ordered=ordered)
     ch = ClientHandshake(c, rng.choice([SECRET, None]))
-    ch.start(0.0)
     s = Channel(initiator=False, session=77, ordered=ordered)
-    for i in range(rng.randrange(1, 4)):
-        t = FrameType.HELLO_ACK if i == 0 and rng.random() < 0.6 else frame_types(rng)
-        for ev in _events(c, _encode(s, t, mutate_payload(t, rng), rng, 0), ordered):
-            ch.handle(ev, float(i))
-        ch.poll(float(i) + rng.random() * 10)
+    _handshake_frames(rng, ordered, ch, c, s, FrameType.HELLO_ACK)
 
 
 def _receiver(rng: random.Random, ordered: bool) -> None:
