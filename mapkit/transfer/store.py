@@ -404,7 +404,7 @@ class PartialFile:
     @property
     def outstanding(self) -> int:
         """Bytes of the file not written yet (what it may still take of the disk)."""
-        n = sum(self.have)
+        n = self.have.count(1)
         if not n:
             return self.offer.size
         written = n * self.offer.chunk_size

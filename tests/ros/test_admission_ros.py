@@ -40,3 +40,45 @@ def test_a_hello_flood_is_bounded_and_expires(tmp_path: Path) -> None:
         assert node.admission.pending("/flood") == 0 and node.admission.timed_out >= 1
     finally:
         rt.close()
+
+
+def test_the_same_file_from_a_new_sender_takes_over_at_once(tmp_path: Path, monkeypatch) -> None:
+    """A terminal restarted after a cut (a new node name) offers the same file: the robot's old
+    session, not silent long enough to count as stale, gives way to it at once."""
+    import threading
+
+    import mapkit.ros.transfer as ros_transfer
+
+    monkeypatch.setattr(ros_transfer, "STALE", 1000.0)  # only the same-transfer rule can apply
+    bus = Bus()
+    rt, robot = robot_on(bus, tmp_path)
+    try:
+        data = os.urandom(64 * 1024)
+        offer = Offer.for_bytes("scan.2d", data, chunk_size=1024)
+        first = terminal(bus, "/laptop-before", idle_timeout=3.0)
+        link = bus.links["/laptop-before"]
+        real_send = link.send
+        sent = {"data": 0}
+
+        def cut(to: str, frame: bytes) -> None:  # the Wi-Fi drops after 10 chunks
+            if len(frame) > 5 and frame[5] == FrameType.DATA:
+                sent["data"] += 1
+            if sent["data"] <= 10:
+                real_send(to, frame)
+
+        link.send = cut  # type: ignore[method-assign]
+        t = threading.Thread(target=lambda: first.push([robot], data, offer), daemon=True)
+        t.start()
+        end = time.monotonic() + 10
+        while time.monotonic() < end and sent["data"] <= 10:
+            time.sleep(0.01)
+        other = os.urandom(64 * 1024)  # another file for the name: busy
+        (busy,) = terminal(bus, "/someone").push([robot], other,
+                                                 Offer.for_bytes("scan.2d", other, chunk_size=1024))
+        assert not busy.ok and "busy" in (busy.error or "")
+        (res,) = terminal(bus, "/laptop-after").push([robot], data, offer)
+        assert res.ok, res.error
+        assert (tmp_path / "scan.2d").read_bytes() == data
+        t.join(10)
+    finally:
+        rt.close()
