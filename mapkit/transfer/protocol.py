@@ -144,6 +144,8 @@ TAG_SIZE = 16
 DEFAULT_CHUNK_SIZE = 256 * 1024
 MAX_CHUNK_SIZE = 4 * 1024 * 1024
 MAX_CONTROL_PAYLOAD = 1024 * 1024
+MAX_HANDSHAKE_PAYLOAD = 16 * 1024  # HELLO ... AUTH_OK: a few hundred bytes; read before any proof
+MAX_REFUSAL_PAYLOAD = 64 * 1024  # REJECT / CANCEL: may arrive untagged
 DEFAULT_MAX_PAYLOAD = MAX_CHUNK_SIZE
 MAX_CHUNKS = 1 << 24
 NONCE_SIZE = 32
@@ -318,7 +320,8 @@ class Frame:
         Raises:
             ProtocolError: When the payload is not a UTF-8 JSON object.
         """
-        return parse_json(self.payload, _type_name(self.type), SCHEMAS.get(self.type))
+        return parse_json(self.payload, _type_name(self.type), SCHEMAS.get(self.type),
+                          max_size=_SMALL_PAYLOADS.get(self.type, MAX_CONTROL_PAYLOAD))
 
 
 @dataclass(frozen=True, slots=True)
@@ -356,6 +359,13 @@ class Out:
 
 Event = Union[Frame, Damaged]
 
+# payloads that a peer can send before it proved anything are small: decoding them costs little
+_SMALL_PAYLOADS = {
+    FrameType.HELLO: MAX_HANDSHAKE_PAYLOAD, FrameType.HELLO_ACK: MAX_HANDSHAKE_PAYLOAD,
+    FrameType.AUTH: MAX_HANDSHAKE_PAYLOAD, FrameType.AUTH_OK: MAX_HANDSHAKE_PAYLOAD,
+    FrameType.REJECT: MAX_REFUSAL_PAYLOAD, FrameType.CANCEL: MAX_REFUSAL_PAYLOAD,
+}
+
 
 def _type_name(t: int) -> str:
     try:
@@ -370,10 +380,11 @@ def dump_json(obj: dict[str, Any]) -> bytes:
 
 
 def parse_json(payload: bytes | bytearray, what: str = "frame",
-               schema: Mapping[str, Any] | None = None) -> dict[str, Any]:
+               schema: Mapping[str, Any] | None = None, *,
+               max_size: int = MAX_CONTROL_PAYLOAD) -> dict[str, Any]:
     """Parse a control payload with the bounded decoder (:mod:`mapkit.transfer.wirejson`):
-    at most 1 MiB, 16 levels deep, 20-digit integers, finite numbers, valid Unicode, and the
-    field types of ``schema`` (see :data:`~mapkit.transfer.wirejson.SCHEMAS`).
+    at most ``max_size`` bytes, 16 levels deep, 20-digit integers, finite numbers, valid
+    Unicode, and the field types of ``schema`` (see :data:`~mapkit.transfer.wirejson.SCHEMAS`).
 
     Raises:
         ProtocolError: When it is not a JSON object within those limits.
@@ -381,13 +392,13 @@ def parse_json(payload: bytes | bytearray, what: str = "frame",
     Examples:
         >>> parse_json(b'{"name":"a.map"}', "GET")
         {'name': 'a.map'}
-        >>> parse_json(b'[' * 100000, "HELLO")  # doctest: +ELLIPSIS
+        >>> parse_json(b'[' * 100000, "HELLO")
         Traceback (most recent call last):
         ...
-        mapkit.transfer.protocol.ProtocolError: HELLO payload refused: nested 100000 deep ...
+        mapkit.transfer.protocol.ProtocolError: HELLO payload refused: nested deeper than 16 levels
     """
     try:
-        obj = decode_object(payload, max_size=MAX_CONTROL_PAYLOAD)
+        obj = decode_object(payload, max_size=max_size)
         if schema is not None:
             check_fields(obj, schema, what)
     except WireJSONError as err:

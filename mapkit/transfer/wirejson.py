@@ -8,8 +8,9 @@ accepts ``NaN``, ``Infinity`` and lone UTF-16 surrogates. :func:`decode_object` 
 front of it and behind it:
 
 * **size**: at most ``max_size`` bytes (1 MiB for control frames);
-* **depth**: measured before parsing, in linear time, with strings skipped: at most
-  ``max_depth`` nested arrays/objects (MKT/1's deepest message, a LISTING, nests 3);
+* **depth**: checked before parsing, in linear time, with strings skipped: at most
+  ``max_depth`` nested arrays/objects (MKT/1's deepest message, a LISTING, nests 3), see
+  :func:`deeper_than`;
 * **numbers**: integers of at most 20 digits (every protocol integer fits in 64 bits), finite
   floats of at most 40 characters; ``NaN``/``Infinity`` are refused;
 * **strings**: valid Unicode (no lone surrogates), so a name or message can always be encoded
@@ -31,7 +32,7 @@ from collections.abc import Mapping
 from typing import Any
 
 __all__ = ["MAX_DEPTH", "MAX_INT_DIGITS", "MAX_SIZE", "SCHEMAS", "ListOf", "WireJSONError",
-           "check_fields", "decode_object", "json_depth"]
+           "check_fields", "decode_object", "deeper_than", "json_depth"]
 
 MAX_SIZE = 1024 * 1024
 MAX_DEPTH = 16
@@ -69,6 +70,37 @@ def json_depth(data: bytes) -> int:
         return 0
     structure = _STRING.sub(b"", data).translate(None, _KEEP)
     return max(itertools.accumulate(map(_DELTA.__getitem__, structure)), default=0)
+
+
+# brackets as ( and ): one bytes.replace of "()" removes exactly one level (it does not rescan)
+_PARENS = bytes.maketrans(b"[{]}", b"(())")
+_SURROGATE_ESCAPE = re.compile(rb"\\u[dD][89a-fA-F]")
+
+
+def deeper_than(data: bytes, limit: int) -> bool:
+    """True when JSON text nests arrays/objects more than ``limit`` deep, or its brackets (outside
+    strings) do not balance. Linear, in C: strings are cut out, then at most ``limit`` rounds
+    remove the innermost pairs.
+
+    Examples:
+        >>> deeper_than(b'{"a":[1,{"b":"[[["}]}', 3), deeper_than(b'{"a":[1,{"b":2}]}', 2)
+        (False, True)
+        >>> deeper_than(b"[" * 100000, 16)
+        True
+    """
+    if data.count(b"[") + data.count(b"{") <= limit:
+        return False  # not enough openers to nest deeper (closers in excess fail to parse)
+    structure = _STRING.sub(b"", data).translate(_PARENS, _KEEP)
+    if b"(" * (limit + 1) in structure:
+        return True  # a run of openers deeper than the limit
+    for _ in range(limit):
+        before = len(structure)
+        structure = structure.replace(b"()", b"")
+        if not structure:
+            return False
+        if len(structure) == before:
+            return True  # nothing left to pair: unbalanced
+    return bool(structure)
 
 
 def _parse_int(text: str) -> int:
@@ -121,16 +153,15 @@ def decode_object(payload: bytes | bytearray | memoryview | str, *, max_size: in
         >>> decode_object(b"[" * 100000)
         Traceback (most recent call last):
         ...
-        mapkit.transfer.wirejson.WireJSONError: nested 100000 deep (at most 16)
+        mapkit.transfer.wirejson.WireJSONError: nested deeper than 16 levels
     """
     data = payload.encode("utf-8", "surrogatepass") if isinstance(payload, str) else bytes(payload)
     if len(data) > max_size:
         raise WireJSONError(f"{len(data)} bytes (at most {max_size})")
     if not data:
         return {}
-    depth = json_depth(data)
-    if depth > max_depth:
-        raise WireJSONError(f"nested {depth} deep (at most {max_depth})")
+    if deeper_than(data, max_depth):
+        raise WireJSONError(f"nested deeper than {max_depth} levels")
     try:
         text = data.decode("utf-8")
         obj = json.loads(text, parse_int=_parse_int, parse_float=_parse_float,
@@ -143,7 +174,8 @@ def decode_object(payload: bytes | bytearray | memoryview | str, *, max_size: in
         raise WireJSONError("nested too deep") from err
     if not isinstance(obj, dict):
         raise WireJSONError("not a JSON object")
-    _check_strings(obj)
+    if _SURROGATE_ESCAPE.search(data):  # raw UTF-8 cannot hold one; only a \u escape can
+        _check_strings(obj)
     return obj
 
 
@@ -214,22 +246,31 @@ SCHEMAS: dict[int, dict[str, Spec]] = {
 }
 
 
-def _matches(value: Any, spec: Spec, where: str) -> bool:
+def _fail(value: Any, spec: Spec) -> str | None:
+    """Where and why ``value`` does not match ``spec`` (a path suffix and a reason), or None."""
     for alt in spec:
-        if isinstance(alt, dict):
+        if isinstance(alt, str):
+            if _KINDS[alt](value):
+                return None
+        elif isinstance(alt, dict):
             if isinstance(value, dict):
-                check_fields(value, alt, where)
-                return True
-        elif isinstance(alt, ListOf):
-            if isinstance(value, list):
-                for i, v in enumerate(value):
-                    if not _matches(v, alt.item, f"{where}[{i}]"):
-                        raise WireJSONError(f"{where}[{i}] must be {_describe(alt.item)}, not "
-                                            f"{type(v).__name__}")
-                return True
-        elif _KINDS[alt](value):
-            return True
-    return False
+                return _fields_fail(value, alt)
+        elif isinstance(value, list):  # ListOf
+            for i, v in enumerate(value):
+                why = _fail(v, alt.item)
+                if why is not None:
+                    return f"[{i}]{why}"
+            return None
+    return f" must be {_describe(spec)}, not {type(value).__name__}"
+
+
+def _fields_fail(obj: Mapping[str, Any], schema: Mapping[str, Spec]) -> str | None:
+    for key, spec in schema.items():
+        if key in obj:
+            why = _fail(obj[key], spec)
+            if why is not None:
+                return f".{key}{why}"
+    return None
 
 
 def _describe(spec: Spec) -> str:
@@ -241,15 +282,18 @@ def check_fields(obj: Mapping[str, Any], schema: Mapping[str, Spec], what: str =
     """Check the types of the known fields of ``obj`` (absent fields and unknown ones pass).
 
     Raises:
-        WireJSONError: Naming the first field of the wrong type.
+        WireJSONError: Naming the first field of the wrong type, as a path.
 
     Examples:
         >>> check_fields({"size": "3"}, SCHEMAS[16], "OFFER")
         Traceback (most recent call last):
         ...
-        mapkit.transfer.wirejson.WireJSONError: OFFER field 'size' must be an integer, not str
+        mapkit.transfer.wirejson.WireJSONError: OFFER.size must be an integer, not str
+        >>> check_fields({"sack": [[0, 2], [5, None]]}, SCHEMAS[19], "ACK")
+        Traceback (most recent call last):
+        ...
+        mapkit.transfer.wirejson.WireJSONError: ACK.sack[1][1] must be an integer, not NoneType
     """
-    for key, spec in schema.items():
-        if key in obj and not _matches(obj[key], spec, f"{what}.{key}"):
-            raise WireJSONError(f"{what} field {key!r} must be {_describe(spec)}, not "
-                                f"{type(obj[key]).__name__}")
+    why = _fields_fail(obj, schema)
+    if why is not None:
+        raise WireJSONError(what + why)
