@@ -16,19 +16,19 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from _timing import best  # noqa: E402
+import contextlib
 
-from mapkit.transfer.protocol import FrameType, ProtocolError, parse_json  # noqa: E402
-from mapkit.transfer.wirejson import SCHEMAS  # noqa: E402
+from _timing import best
+
+from mapkit.transfer.protocol import FrameType, ProtocolError, parse_json
+from mapkit.transfer.wirejson import SCHEMAS
 
 
 def _refuse(data: bytes, ftype: FrameType) -> None:
     from mapkit.transfer.protocol import Frame
 
-    try:
+    with contextlib.suppress(ProtocolError):
         Frame(ftype, 1, 0, data).json()
-    except ProtocolError:
-        pass
 
 
 def main() -> None:
@@ -41,11 +41,13 @@ def main() -> None:
                                     "active": i == 3} for i in range(1000)],
                           "active": "map3.map", "active_md5": "cd" * 16, "previous": None}).encode()
     print(f"{'payload':<24}{'json.loads':>14}{'bounded':>14}{'ratio':>9}")
-    for name, data, ftype in (("OFFER", offer, FrameType.OFFER), ("ACK, 32 ranges", ack, FrameType.ACK),
-                              ("LISTING, 1000 maps", listing, FrameType.LISTING)):
+    cases = (("OFFER", offer, FrameType.OFFER), ("ACK, 32 ranges", ack, FrameType.ACK),
+             ("LISTING, 1000 maps", listing, FrameType.LISTING))
+    for name, data, ftype in cases:
         n = 2000 if len(data) < 10_000 else 20
         base = best(lambda d=data, n=n: [json.loads(d) for _ in range(n)], 5) / n
-        ours = best(lambda d=data, t=ftype, n=n: [parse_json(d, "x", SCHEMAS[t]) for _ in range(n)], 5) / n
+        schema = SCHEMAS[ftype]
+        ours = best(lambda d=data, n=n, s=schema: [parse_json(d, "x", s) for _ in range(n)], 5) / n
         print(f"{name:<24}{base * 1e6:>11.1f} us{ours * 1e6:>11.1f} us{ours / base:>8.2f}x")
     hello = b'{"a":' * 3200  # 16 KiB: the most a HELLO may hold
     t = best(lambda: _refuse(hello, FrameType.HELLO), 5)
@@ -57,10 +59,8 @@ def main() -> None:
         data = data[:1 << 20]
 
         def refuse(d: bytes = data) -> None:
-            try:
+            with contextlib.suppress(ProtocolError):
                 parse_json(d, "x")
-            except ProtocolError:
-                pass
 
         print(f"  {name:<28}{best(refuse, 3) * 1e3:>8.1f} ms")
 

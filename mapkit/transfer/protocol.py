@@ -360,7 +360,7 @@ class Out:
 Event = Union[Frame, Damaged]
 
 # payloads that a peer can send before it proved anything are small: decoding them costs little
-_SMALL_PAYLOADS = {
+_SMALL_PAYLOADS: dict[int, int] = {
     FrameType.HELLO: MAX_HANDSHAKE_PAYLOAD, FrameType.HELLO_ACK: MAX_HANDSHAKE_PAYLOAD,
     FrameType.AUTH: MAX_HANDSHAKE_PAYLOAD, FrameType.AUTH_OK: MAX_HANDSHAKE_PAYLOAD,
     FrameType.REJECT: MAX_REFUSAL_PAYLOAD, FrameType.CANCEL: MAX_REFUSAL_PAYLOAD,
