@@ -82,3 +82,27 @@ def test_the_same_file_from_a_new_sender_takes_over_at_once(tmp_path: Path, monk
         t.join(10)
     finally:
         rt.close()
+
+
+def test_long_names_are_bad_names_on_every_ros_request(tmp_path: Path) -> None:
+    import pytest
+
+    from mapkit.errors import RemoteTransferError
+
+    bus = Bus()
+    rt, robot = robot_on(bus, tmp_path)
+    try:
+        term = terminal(bus)
+        for name in ("a" * 252 + ".map", "é" * 120 + ".map", "c" * 198 + ".2d"):  # > 200 bytes
+            data = b"2D-Map\nDATA\n1 2\n"
+            (res,) = term.push([robot], data, Offer.for_bytes(name, data))
+            assert not res.ok and "bad_name" in (res.error or ""), res.error
+            for ftype, payload, answers in (
+                    (FrameType.GET, {"name": name}, [FrameType.OFFER]),
+                    (FrameType.LOAD, {"name": name, "md5": "0" * 32}, [FrameType.LOADED])):
+                with pytest.raises(RemoteTransferError, match="bad_name"):
+                    term.request(robot, ftype, payload, answers)
+        assert term.request(robot, FrameType.LIST, {}, [FrameType.LISTING]).json()["maps"] == []
+    finally:
+        rt.close()
+    assert os.listdir(tmp_path) == []
