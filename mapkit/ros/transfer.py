@@ -59,7 +59,7 @@ from mapkit.transfer.protocol import (
     kind_of,
     reject_out,
 )
-from mapkit.transfer.server import MapFolder, same_transfer
+from mapkit.transfer.server import DEFAULT_PARTIAL_TTL, MapFolder, same_transfer
 from mapkit.transfer.store import PartialFile, StoreError
 
 __all__ = [
@@ -376,7 +376,8 @@ class RobotNode:
                  idle_timeout: float = 30.0, window: int = DEFAULT_WINDOW, rto: float = 1.0,
                  on_received: Callable[[dict[str, Any]], None] | None = None,
                  handshake_timeout: float = 5.0, max_sessions: int = 64, max_pending: int = 32,
-                 per_node: int = 8) -> None:
+                 per_node: int = 8, partial_ttl: float = DEFAULT_PARTIAL_TTL,
+                 sweep_interval: float = 60.0) -> None:
         if secret is None and not insecure:
             raise LocalTransferError("no shared secret: give --secret-file or MAPKIT_SECRET, or "
                                      "--insecure to accept anyone")
@@ -398,6 +399,10 @@ class RobotNode:
         self.handshake_timeout = handshake_timeout
         self.admission = Admission(max_sessions=max_sessions, max_pending=max_pending,
                                    per_address=per_node, handshake_timeout=handshake_timeout)
+        # interrupted transfers nobody resumed for partial_ttl seconds are deleted
+        self.partial_ttl = partial_ttl
+        self.sweep_interval = sweep_interval
+        self._next_sweep = 0.0
 
     # announcement ----------------------------------------------------------------------------
     def announcement(self) -> dict[str, Any]:
@@ -474,6 +479,14 @@ class RobotNode:
                 self._failed(_session_id(item[1]), "a message")
             item = self.link.receive(0)
         now = time.monotonic()
+        if now >= self._next_sweep:
+            self._next_sweep = now + self.sweep_interval
+            try:
+                for name in self.folder.expire_partials(self.partial_ttl):
+                    log.info("deleted the abandoned partial file of %s", name)
+            except OSError as err:
+                log.warning("cannot sweep %s for abandoned partial files: %s", self.folder.root,
+                            err)
         for sid in self.admission.expired(now):
             self._forget(sid, f"no handshake within {self.handshake_timeout:g} s")
         for sid, s in list(self.sessions.items()):

@@ -106,3 +106,20 @@ def test_long_names_are_bad_names_on_every_ros_request(tmp_path: Path) -> None:
     finally:
         rt.close()
     assert os.listdir(tmp_path) == []
+
+
+def test_the_robot_node_deletes_abandoned_partial_files(tmp_path: Path) -> None:
+    old = time.time() - 3 * 86400
+    for name in (".lost.map.mkpart", ".lost.map.mkpart.json", ".fresh.2d.mkpart"):
+        (tmp_path / name).write_bytes(b"{}")
+    for name in (".lost.map.mkpart", ".lost.map.mkpart.json"):
+        os.utime(tmp_path / name, (old, old))
+    bus = Bus()
+    rt, _ = robot_on(bus, tmp_path)
+    try:
+        end = time.monotonic() + 10
+        while time.monotonic() < end and (tmp_path / ".lost.map.mkpart").exists():
+            time.sleep(0.02)
+    finally:
+        rt.close()
+    assert sorted(os.listdir(tmp_path)) == [".fresh.2d.mkpart"]
