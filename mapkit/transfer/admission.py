@@ -8,11 +8,11 @@ two separate pools:
 * **pending** (connected, handshake not finished): at most ``max_pending`` in all and
   ``per_address`` per peer address, each with a handshake deadline (a few seconds after the
   connection, however slowly bytes trickle in). When a pool is full, a new connection is still
-  admitted and the *least useful* pending one is evicted instead: one that has not sent a
-  single complete frame before one that has, the oldest first, from the address holding the
-  most. So an attacker's silent or byte-per-second connections make room for an honest client
-  that completes its handshake in milliseconds, and cannot fill the pool for longer than the
-  deadline.
+  admitted and the *least useful* pending one is evicted instead: a silent one before one
+  with bytes waiting, and both before one that sent a complete frame; the oldest first, from
+  the address holding the most. So an attacker's silent or byte-per-second connections make
+  room for an honest client that completes its handshake in milliseconds, and cannot fill the
+  pool for longer than the deadline.
 * **sessions** (authenticated): up to ``max_sessions``, never taken by pending connections, so
   room is always kept for peers that know the secret.
 
@@ -23,7 +23,7 @@ This module does no I/O: the server closes what :meth:`Admission.admit` and
 from __future__ import annotations
 
 import threading
-from collections.abc import Hashable
+from collections.abc import Callable, Hashable
 from dataclasses import dataclass
 
 __all__ = ["Admission"]
@@ -83,15 +83,25 @@ class Admission:
             return sum(1 for e in self._entries.values() if e.authenticated)
 
     # transitions ----------------------------------------------------------------------------
-    def admit(self, key: Hashable, address: str, now: float) -> list[Hashable]:
+    def admit(self, key: Hashable, address: str, now: float,
+              waiting: Callable[[Hashable], bool] | None = None) -> list[Hashable]:
         """A new connection ``key`` from ``address``; returns the pending connections to close
-        to make room for it (it is always admitted)."""
+        to make room for it (it is always admitted).
+
+        Args:
+            key: The new connection.
+            address: Its peer address.
+            now: The clock.
+            waiting: Tells whether a connection has bytes waiting to be read (its peer is
+                not silent): among those that have not sent a complete frame, such ones are
+                evicted after the silent ones.
+        """
         with self._lock:
             evict: list[Hashable] = []
             mine = [k for k, e in self._entries.items()
                     if not e.authenticated and e.address == address]
             if len(mine) >= self.per_address:
-                evict.append(self._victim(mine))
+                evict.append(self._victim(mine, waiting))
             pending = [k for k, e in self._entries.items()
                        if not e.authenticated and k not in evict]
             if len(pending) >= self.max_pending:
@@ -100,16 +110,23 @@ class Admission:
                     counts[self._entries[k].address] = counts.get(self._entries[k].address, 0) + 1
                 top = max(counts.values())
                 evict.append(self._victim([k for k in pending
-                                           if counts[self._entries[k].address] == top]))
+                                           if counts[self._entries[k].address] == top], waiting))
             for k in evict:
                 del self._entries[k]
             self.evicted += len(evict)
             self._entries[key] = _Entry(address, now, now + self.handshake_timeout)
             return evict
 
-    def _victim(self, keys: list[Hashable]) -> Hashable:
-        """The least useful of ``keys``: no complete frame yet before some, oldest first."""
-        return min(keys, key=lambda k: (self._entries[k].progressed, self._entries[k].since))
+    def _victim(self, keys: list[Hashable],
+                waiting: Callable[[Hashable], bool] | None) -> Hashable:
+        """The least useful of ``keys``: silent, then with bytes waiting, then with a complete
+        frame; the oldest first."""
+        def rank(k: Hashable) -> tuple[int, float]:
+            e = self._entries[k]
+            level = 2 if e.progressed else 1 if waiting is not None and waiting(k) else 0
+            return level, e.since
+
+        return min(keys, key=rank)
 
     def progressed(self, key: Hashable) -> None:
         """The connection sent a complete, valid frame (it is less likely an attacker's)."""

@@ -19,6 +19,7 @@ import hashlib
 import json
 import logging
 import os
+import select
 import socket
 import ssl
 import threading
@@ -459,7 +460,7 @@ class MapServer:
             self._next_id += 1
             c = _Connection(self._next_id, conn, f"{addr[0]}:{addr[1]}", str(addr[0]))
             self._conns[c.id] = c
-        for key in self.admission.admit(c.id, c.address, time.monotonic()):
+        for key in self.admission.admit(c.id, c.address, time.monotonic(), self._waiting):
             self._drop(key, "evicted: too many connections in their handshake")
         t = threading.Thread(target=self._connection, args=(c,), daemon=True,
                              name=f"mapkit-{c.peer}")
@@ -474,6 +475,18 @@ class MapServer:
             self.admission.release(c.id)
             raise
         self._wake.set()
+
+    def _waiting(self, key: Any) -> bool:
+        """True when a connection has bytes waiting to be read (its peer is not silent)."""
+        c = self._conns.get(key)
+        if c is None:
+            return False
+        try:
+            poller = select.poll()
+            poller.register(c.sock, select.POLLIN)
+            return any(ev & select.POLLIN for _, ev in poller.poll(0))
+        except (OSError, ValueError):
+            return False
 
     def _drop(self, key: Any, why: str) -> None:
         """Disconnect a connection (its thread ends and cleans up)."""

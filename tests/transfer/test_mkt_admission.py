@@ -81,3 +81,15 @@ def test_bounds_hold_whatever_happens(ops) -> None:
             a.expired(now)
         assert a.pending() <= 6 and a.sessions() <= 5
         assert all(a.pending(x) <= 3 for x in "ABCD")
+
+
+def test_peers_with_bytes_waiting_go_after_silent_ones() -> None:
+    a = Admission(max_pending=10, per_address=3, handshake_timeout=5)
+    for i in range(3):
+        a.admit(i, "A", now=float(i))
+    talking = {0}  # 0 is the oldest, but its HELLO sits in the socket buffer
+
+    assert a.admit(3, "A", now=3.0, waiting=talking.__contains__) == [1]
+    assert a.admit(4, "A", now=4.0, waiting=talking.__contains__) == [2]
+    assert a.admit(5, "A", now=5.0, waiting=lambda k: k in (0, 4)) == [3]
+    assert a.admit(6, "A", now=6.0, waiting=lambda k: True) == [0]  # all talk: the oldest
