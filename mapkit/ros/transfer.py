@@ -161,6 +161,12 @@ class _RobotSession:
                 ref = ev.ref if isinstance(ev, Frame) else 0
                 log.warning("%s: %s", self.client, err)
                 self.conn.send([reject_out(err, ref)])
+            except Exception as err:  # a bug met by this request: tell the client, end the session
+                log.exception("%s: internal error", self.client)
+                self.closed = True
+                self._release()
+                self.conn.send([reject_out(err, ev.ref if isinstance(ev, Frame) else 0)])
+                return
 
     def _handle(self, ev: Frame | Damaged, now: float) -> list[Out]:
         if not self.hs.finished:

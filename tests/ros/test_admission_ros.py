@@ -123,3 +123,32 @@ def test_the_robot_node_deletes_abandoned_partial_files(tmp_path: Path) -> None:
     finally:
         rt.close()
     assert sorted(os.listdir(tmp_path)) == [".fresh.2d.mkpart"]
+
+
+def test_an_unexpected_error_ends_only_its_ros_session(tmp_path: Path, caplog) -> None:
+    import pytest
+
+    from mapkit.errors import RemoteTransferError
+
+    bus = Bus()
+    rt, robot = robot_on(bus, tmp_path)
+    real = rt.node.folder.listing
+    calls = {"n": 0}
+
+    def broken() -> dict:
+        calls["n"] += 1
+        if calls["n"] == 1:
+            raise RuntimeError("a bug")
+        return real()
+
+    rt.node.folder.listing = broken  # type: ignore[method-assign]
+    try:
+        term = terminal(bus)
+        with pytest.raises(RemoteTransferError, match="internal"):
+            term.request(robot, FrameType.LIST, {}, [FrameType.LISTING])
+        assert "RuntimeError: a bug" in caplog.text
+        assert rt.thread.is_alive()
+        listing = term.request(robot, FrameType.LIST, {}, [FrameType.LISTING]).json()
+        assert listing["maps"] == []
+    finally:
+        rt.close()

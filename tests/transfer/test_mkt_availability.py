@@ -475,3 +475,25 @@ def test_a_slow_tls_handshake_is_cut_too(make_server, cert) -> None:
     finally:
         s.close()
     assert closed
+
+
+def test_an_unexpected_error_in_a_request_ends_only_that_session(make_server, robot_dir,
+                                                                 tmp_path, caplog) -> None:
+    """A bug met by one request (here: the listing raises RuntimeError) is logged, told to the
+    client as `internal`, and the server goes on serving everyone else."""
+    srv = make_server()
+    real = srv.folder.listing
+    calls = {"n": 0}
+
+    def broken() -> dict:
+        calls["n"] += 1
+        if calls["n"] == 1:
+            raise RuntimeError("a bug")
+        return real()
+
+    srv.folder.listing = broken  # type: ignore[method-assign]
+    with pytest.raises(Rejected, match="internal") as e:
+        list_maps(*srv.address, **client_options())
+    assert e.value.status == Status.INTERNAL
+    assert "internal error in LIST" in caplog.text and "RuntimeError: a bug" in caplog.text
+    honest_round_trip(tmp_path, srv.address, "after-bug")
