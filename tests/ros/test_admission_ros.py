@@ -131,17 +131,11 @@ def test_an_unexpected_error_ends_only_its_ros_session(tmp_path: Path, caplog) -
     from mapkit.errors import RemoteTransferError
 
     bus = Bus()
+    from tests.transfer.mkt_helpers import fails_once
+
     rt, robot = robot_on(bus, tmp_path)
-    real = rt.node.folder.listing
-    calls = {"n": 0}
-
-    def broken() -> dict:
-        calls["n"] += 1
-        if calls["n"] == 1:
-            raise RuntimeError("a bug")
-        return real()
-
-    rt.node.folder.listing = broken  # type: ignore[method-assign]
+    rt.node.folder.listing = fails_once(rt.node.folder.listing,  # type: ignore[method-assign]
+                                        RuntimeError("a bug"))
     try:
         term = terminal(bus)
         with pytest.raises(RemoteTransferError, match="internal"):

@@ -131,7 +131,7 @@ def listing(folder: Path) -> list[str]:
     return sorted(os.listdir(folder))
 
 
-# -- a real `mapkit serve` process, raw peers, a proxy that freezes -----------------------------------
+# -- a real `mapkit serve` process, raw peers, a proxy that freezes ----------------------------
 
 
 class ServeProcess:
@@ -198,7 +198,7 @@ def silent_connection(address: tuple[str, int], source: str = "127.0.0.1") -> so
 
 
 def closed_by_peer(sock: socket.socket, timeout: float) -> bool:
-    """True when the peer closes (or resets) ``sock`` within ``timeout`` s (data read is dropped)."""
+    """True when the peer closes (or resets) ``sock`` within ``timeout`` s (reads are dropped)."""
     end = time.monotonic() + timeout
     while time.monotonic() < end:
         sock.settimeout(max(0.01, end - time.monotonic()))
@@ -222,7 +222,8 @@ def raw_session(address: tuple[str, int], secret: bytes | None = SECRET, *,
     from mapkit.transfer.tcp import FrameLink, connect, run
 
     sock = connect(*address, timeout=timeout)
-    link = FrameLink(sock, Channel(initiator=True, session=_secrets.randbits(64) or 1), peer="robot")
+    channel = Channel(initiator=True, session=_secrets.randbits(64) or 1)
+    link = FrameLink(sock, channel, peer="robot")
     run(link, ClientHandshake(link.channel, secret, peer="raw", idle_timeout=timeout))
     return link
 
@@ -277,7 +278,17 @@ class FreezeProxy:
     def close(self) -> None:
         self.sock.close()
         for s in self._held:
-            try:
-                s.close()
-            except OSError:
-                pass
+            s.close()  # closing a closed socket is harmless
+
+
+def fails_once(real: Any, error: BaseException) -> Any:
+    """``real`` wrapped so that its first call raises ``error`` (a bug met once), then works."""
+    calls = {"n": 0}
+
+    def wrapper(*args: Any, **kw: Any) -> Any:
+        calls["n"] += 1
+        if calls["n"] == 1:
+            raise error
+        return real(*args, **kw)
+
+    return wrapper

@@ -24,6 +24,7 @@ from mkt_helpers import (
     ServeProcess,
     client_options,
     closed_by_peer,
+    fails_once,
     make_map,
     raw_session,
     silent_connection,
@@ -482,16 +483,7 @@ def test_an_unexpected_error_in_a_request_ends_only_that_session(make_server, ro
     """A bug met by one request (here: the listing raises RuntimeError) is logged, told to the
     client as `internal`, and the server goes on serving everyone else."""
     srv = make_server()
-    real = srv.folder.listing
-    calls = {"n": 0}
-
-    def broken() -> dict:
-        calls["n"] += 1
-        if calls["n"] == 1:
-            raise RuntimeError("a bug")
-        return real()
-
-    srv.folder.listing = broken  # type: ignore[method-assign]
+    srv.folder.listing = fails_once(srv.folder.listing, RuntimeError("a bug"))  # type: ignore[method-assign]
     with pytest.raises(Rejected, match="internal") as e:
         list_maps(*srv.address, **client_options())
     assert e.value.status == Status.INTERNAL
