@@ -2,7 +2,8 @@
 
 Run as ``python tests/ros/hostile_peer.py CHANNEL MODE SEED COUNT`` against a running roscore
 (``ROS_MASTER_URI``). MODE ``deep`` sends unauthenticated frames whose JSON nests 100,000 deep
-(and other hostile texts); ``fuzz`` sends COUNT fuzzed frames (see tests/transfer/mkt_fuzz.py),
+(and other hostile texts); ``flood`` starts COUNT handshakes and finishes none; ``fuzz`` sends
+COUNT fuzzed frames (see tests/transfer/mkt_fuzz.py),
 unauthenticated and, with ``MAPKIT_SECRET`` set, inside an authenticated session. Prints
 ``sent N`` and exits.
 """
@@ -78,6 +79,14 @@ def main() -> None:
         deep = b"[" * 100_000
         send(b"".join(encode_frame(FrameType.HELLO, deep, session=999, seq=1)))
         sent += 1
+    elif mode == "flood":  # COUNT handshakes started and never finished
+        from mapkit.transfer.protocol import dump_json
+
+        hello = dump_json({"versions": [1], "nonce": "ab" * 32, "auth": ["blake2b"],
+                           "peer": "flood", "software": "x"})
+        for i in range(count):
+            send(b"".join(encode_frame(FrameType.HELLO, hello, session=5000 + i, seq=1)))
+            sent += 1
     else:
         secret = os.environ.get("MAPKIT_SECRET", "").encode() or None
         for i in range(count):

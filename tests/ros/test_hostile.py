@@ -1,6 +1,6 @@
 """Hostile frames on a real roscore: one unauthenticated message nested 100,000 deep used to
-kill `mapkit ros serve` and `mapkit ros receive`. Now no message ends a robot node, and it still
-serves an honest terminal afterwards."""
+kill `mapkit ros serve` and `mapkit ros receive`. Now no message ends a robot node (deep JSON,
+fuzzed frames, 500 handshakes never finished), and it still serves an honest terminal."""
 
 from __future__ import annotations
 
@@ -45,6 +45,8 @@ def test_hostile_frames_do_not_end_a_robot_node(net: Ros, tmp_path: Path, comman
     assert deep.stdout.startswith("sent"), deep.stdout + deep.stderr
     fuzz = net.run([sys.executable, str(HOSTILE), channel, "fuzz", "7", "24"], timeout=120)
     assert fuzz.stdout.startswith("sent"), fuzz.stdout + fuzz.stderr
+    flood = net.run([sys.executable, str(HOSTILE), channel, "flood", "0", "500"], timeout=120)
+    assert flood.stdout.startswith("sent 500"), flood.stdout + flood.stderr
     assert proc.poll() is None, net.output(proc)  # type: ignore[attr-defined]
     # an honest terminal is still served
     src = tmp_path / "after.map"
