@@ -684,7 +684,8 @@ class PartialFile:
 
 def expire_partials(folder: str, max_age: float, *, now: float | None = None) -> list[str]:
     """Delete abandoned partial files in ``folder``: a ``.NAME.mkpart`` (with its journal) that
-    no session holds (its lock is free) and that nothing touched for ``max_age`` seconds.
+    no session holds (its lock is free) and that nothing touched for ``max_age`` seconds, and a
+    journal as old whose temp file is gone.
 
     Returns:
         The names (``NAME``) whose partial files were deleted.
@@ -692,7 +693,15 @@ def expire_partials(folder: str, max_age: float, *, now: float | None = None) ->
     now = time.time() if now is None else now
     gone = []
     with os.scandir(folder) as it:
-        entries = [e for e in it if e.name.startswith(".") and e.name.endswith(".mkpart")]
+        entries = [e for e in it if e.name.startswith(".") and e.name.endswith((".mkpart",
+                                                                                 ".mkpart.json"))]
+    names = {e.name for e in entries}
+    for e in [e for e in entries if e.name.endswith(".json")]:  # a journal without its file
+        entries.remove(e)
+        if e.name[:-len(".json")] not in names and e.is_file(follow_symlinks=False):
+            with contextlib.suppress(OSError):
+                if now - e.stat(follow_symlinks=False).st_mtime >= max_age:
+                    os.unlink(e.path)
     for e in entries:
         name = e.name[1:-len(".mkpart")]
         temp, journal = partial_paths(folder, name)

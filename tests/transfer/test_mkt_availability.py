@@ -338,11 +338,13 @@ def _partial(folder: Path, name: str, age: float) -> None:
 def test_abandoned_partials_are_deleted_when_the_server_starts(serve, robot_dir) -> None:
     _partial(robot_dir, "old.map", 3 * 3600)
     _partial(robot_dir, "young.map", 60)
+    _partial(robot_dir, "orphan.map", 3 * 3600)
+    os.unlink(robot_dir / ".orphan.map.mkpart")  # a journal left alone
     (robot_dir / "office.map").write_bytes(make_map(10))
     (robot_dir / ".notes.tmp").write_bytes(b"not ours")
     srv = serve("--partial-ttl", "3600")
     end = time.monotonic() + 10
-    while time.monotonic() < end and (robot_dir / ".old.map.mkpart").exists():
+    while time.monotonic() < end and (robot_dir / ".orphan.map.mkpart.json").exists():
         time.sleep(0.05)
     assert sorted(os.listdir(robot_dir)) == [".notes.tmp", ".young.map.mkpart",
                                              ".young.map.mkpart.json", "office.map"]
