@@ -81,3 +81,23 @@ def test_imports_point_down(path: Path) -> None:
         same_layer_ok = other[1] == me[1] != 3
         ok = other[1] < me[1] or same_layer_ok or (me[0], other[0]) in ALLOWED_SIBLINGS
         assert ok, f"{path}:{lineno}: {me[0]} (layer {me[1]}) must not import {target}"
+
+
+# The sans-I/O core of the transfer protocol and its helpers use the standard library and
+# mapkit.errors only (so a binding for another transport can take them alone).
+SANS_IO = {"protocol": {"mapkit.errors", "mapkit.transfer.wirejson"}, "wirejson": set(),
+           "admission": set()}
+
+
+@pytest.mark.parametrize("name", sorted(SANS_IO))
+def test_the_transfer_core_is_stdlib_only(name: str) -> None:
+    path = PKG / "transfer" / f"{name}.py"
+    for target, lineno in imports(path):
+        top = target.split(".")[0]
+        if top == "mapkit":
+            assert target in SANS_IO[name], f"{path}:{lineno}: imports {target}"
+        else:
+            import sys
+
+            assert top in sys.stdlib_module_names or top == "__future__", \
+                f"{path}:{lineno}: imports {target}, not in the standard library"

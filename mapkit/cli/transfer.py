@@ -150,8 +150,13 @@ def _server_setup(listen_addr: str, secret_file: str | None, insecure: bool, tls
 @click.option("--tls-cert", type=click.Path(dir_okay=False, exists=True), help="TLS certificate (PEM).")
 @click.option("--tls-key", type=click.Path(dir_okay=False, exists=True), help="TLS private key (PEM).")
 @click.option("--max-size", type=int, default=1 << 30, show_default=True, help="Largest file accepted (bytes).")
+@click.option("--handshake-timeout", type=click.FloatRange(min=0.1), default=5.0, show_default=True,
+              help="Seconds a client has from connecting to proving the secret.")
+@click.option("--partial-ttl", type=click.FloatRange(min=0), default=24 * 3600.0, show_default=True,
+              help="Seconds after which an interrupted transfer's partial file is deleted.")
 def serve(folder: str, listen_addr: str, secret_file: str | None, insecure: bool,
-          tls_cert: str | None, tls_key: str | None, max_size: int) -> None:
+          tls_cert: str | None, tls_key: str | None, max_size: int, handshake_timeout: float,
+          partial_ttl: float) -> None:
     """Serve the maps in FOLDER to terminals: push, pull, list and load (run on the robot).
 
     Received maps are parsed before they replace anything; `load` makes a map active by writing
@@ -167,7 +172,8 @@ def serve(folder: str, listen_addr: str, secret_file: str | None, insecure: bool
 
     host, port, secret, tls = _server_setup(listen_addr, secret_file, insecure, tls_cert, tls_key)
     srv = MapServer(MapFolder(folder, max_size=max_size), host=host, port=port, secret=secret,
-                    insecure=insecure, tls=tls)
+                    insecure=insecure, tls=tls, handshake_timeout=handshake_timeout,
+                    partial_ttl=partial_ttl)
     h, p = srv.address
     err(f"mapkit serve: serving {srv.folder.root} on {h}:{p} "
         f"(auth {_auth_text(secret)}, tls {'on' if tls else 'off'})")

@@ -35,6 +35,7 @@ from mapkit.errors import LocalTransferError, TransferError
 from mapkit.ros.errors import RosError
 from mapkit.ros.node import ros_import, rospy, wait_until
 from mapkit.ros.transport import DEFAULT_WINDOW, RosLink
+from mapkit.transfer.admission import Admission
 from mapkit.transfer.protocol import (
     DEFAULT_CHUNK_SIZE,
     MAGIC,
@@ -58,7 +59,7 @@ from mapkit.transfer.protocol import (
     kind_of,
     reject_out,
 )
-from mapkit.transfer.server import MapFolder
+from mapkit.transfer.server import DEFAULT_PARTIAL_TTL, MapFolder, same_transfer
 from mapkit.transfer.store import PartialFile, StoreError
 
 __all__ = [
@@ -160,6 +161,12 @@ class _RobotSession:
                 ref = ev.ref if isinstance(ev, Frame) else 0
                 log.warning("%s: %s", self.client, err)
                 self.conn.send([reject_out(err, ref)])
+            except Exception as err:  # a bug met by this request: tell the client, end the session
+                log.exception("%s: internal error", self.client)
+                self.closed = True
+                self._release()
+                self.conn.send([reject_out(err, ev.ref if isinstance(ev, Frame) else 0)])
+                return
 
     def _handle(self, ev: Frame | Damaged, now: float) -> list[Out]:
         if not self.hs.finished:
@@ -176,6 +183,8 @@ class _RobotSession:
         if isinstance(ev, Damaged):
             return self._to_active(ev, now) if isinstance(self.active, Receiver) else []
         t = ev.type
+        if t not in FrameType._value2member_map_:
+            return []  # an unknown type on a message transport is ignored (spec, section 3)
         if t == FrameType.HELLO:
             return self.hs.handle(ev, now)  # our HELLO_ACK was lost: the same answer again
         if t == FrameType.AUTH:
@@ -248,7 +257,7 @@ class _RobotSession:
         try:
             dest = self.node.folder.begin_write(offer)
         except StoreError as err:
-            if err.status != Status.BUSY or not self.node.take_over(self, offer.name, now):
+            if err.status != Status.BUSY or not self.node.take_over(self, offer, now):
                 raise
             dest = self.node.folder.begin_write(offer)
         self.dest = dest
@@ -371,7 +380,10 @@ class RobotNode:
                  secret: bytes | None = None, insecure: bool = False,
                  features: Iterable[str] = FEATURES_SERVE, map_server: str | None = "change_map",
                  idle_timeout: float = 30.0, window: int = DEFAULT_WINDOW, rto: float = 1.0,
-                 on_received: Callable[[dict[str, Any]], None] | None = None) -> None:
+                 on_received: Callable[[dict[str, Any]], None] | None = None,
+                 handshake_timeout: float = 5.0, max_sessions: int = 64, max_pending: int = 32,
+                 per_node: int = 8, partial_ttl: float = DEFAULT_PARTIAL_TTL,
+                 sweep_interval: float = 60.0) -> None:
         if secret is None and not insecure:
             raise LocalTransferError("no shared secret: give --secret-file or MAPKIT_SECRET, or "
                                      "--insecure to accept anyone")
@@ -388,6 +400,15 @@ class RobotNode:
         self.on_received = on_received
         self.sessions: dict[int, _RobotSession] = {}
         self.received_count = 0
+        # sessions still in their handshake are bounded per sending node and in all, and end
+        # at their deadline: a flood of HELLOs cannot fill the robot's memory or its slots
+        self.handshake_timeout = handshake_timeout
+        self.admission = Admission(max_sessions=max_sessions, max_pending=max_pending,
+                                   per_address=per_node, handshake_timeout=handshake_timeout)
+        # interrupted transfers nobody resumed for partial_ttl seconds are deleted
+        self.partial_ttl = partial_ttl
+        self.sweep_interval = sweep_interval
+        self._next_sweep = 0.0
 
     # announcement ----------------------------------------------------------------------------
     def announcement(self) -> dict[str, Any]:
@@ -434,13 +455,16 @@ class RobotNode:
             log.warning("the map server (%s) failed: %s", self.map_server, err)
             return 255
 
-    def take_over(self, new: _RobotSession, name: str, now: float) -> bool:
+    def take_over(self, new: _RobotSession, offer: Offer, now: float) -> bool:
         """Let ``new`` take a name another session is still writing, when that one is stale
-        (its sender restarted: same client name, or silent for a few seconds)."""
+        (its sender restarted: the same file offered again, the same client name, or silent
+        for a few seconds)."""
+        name = offer.name
         for s in self.sessions.values():
             if s is new or s.dest is None or s.dest.name != name:
                 continue
-            if s.client == new.client or now - s.last >= STALE:
+            if same_transfer(s.dest.offer, offer) or s.client == new.client \
+                    or now - s.last >= STALE:
                 log.info("%s: taking over %s from a silent session of %s", new.client, name,
                          s.client)
                 s.abort(f"taken over by a new session of {new.client}")
@@ -455,14 +479,56 @@ class RobotNode:
         wait = max(0.0, min([timeout, *(d - now for d in dls)]))
         item = self.link.receive(wait)
         while item is not None:
-            self._dispatch(*item)
+            try:
+                self._dispatch(*item)
+            except Exception:  # no message may end the node: drop its session, go on
+                self._failed(_session_id(item[1]), "a message")
             item = self.link.receive(0)
         now = time.monotonic()
+        if now >= self._next_sweep:
+            self._next_sweep = now + self.sweep_interval
+            try:
+                for name in self.folder.expire_partials(self.partial_ttl):
+                    log.info("deleted the abandoned partial file of %s", name)
+            except OSError as err:
+                log.warning("cannot sweep %s for abandoned partial files: %s", self.folder.root,
+                            err)
+        for sid in self.admission.expired(now):
+            self._forget(sid, f"no handshake within {self.handshake_timeout:g} s")
         for sid, s in list(self.sessions.items()):
-            s.poll(now)
+            try:
+                s.poll(now)
+            except Exception:
+                self._failed(sid, "a timer")
+                continue
             if s.closed or now - s.last > max(LINGER, self.idle_timeout):
                 s._release()
                 del self.sessions[sid]
+                self.admission.release(sid)
+
+    def _forget(self, sid: Any, why: str) -> None:
+        s = self.sessions.pop(sid, None)
+        self.admission.release(sid)
+        if s is not None:
+            log.info("%s: session %016x dropped: %s", s.conn.peer, sid, why)
+            s.closed = True
+            s._release()
+
+    def _failed(self, sid: int | None, what: str) -> None:
+        """Log an unexpected error met while handling ``what`` of session ``sid``, tell the
+        client (REJECT ``internal``, untagged) and forget the session (its partial file stays)."""
+        log.exception("internal error while handling %s of session %s", what,
+                      "?" if sid is None else f"{sid:016x}")
+        s = self.sessions.pop(sid, None) if sid is not None else None
+        if sid is not None:
+            self.admission.release(sid)
+        if s is not None:
+            s.closed = True
+            with contextlib.suppress(Exception):
+                s._release()
+            with contextlib.suppress(Exception):
+                s.conn.send([reject_out(LocalTransferError("internal error on the robot"),
+                                        plain=True)])
 
     def _dispatch(self, src: str, data: bytes) -> None:
         sid = _session_id(data)
@@ -476,9 +542,19 @@ class RobotNode:
             conn = _Conn(self.link, src, Channel(initiator=False, ordered=False))
             s = _RobotSession(self, conn, now)
             self.sessions[sid] = s
+            for old in self.admission.admit(sid, src, now):
+                self._forget(old, "evicted: too many sessions in their handshake")
         elif s.conn.peer != src:
             return  # another node using this session id
+        was_open = s.hs.finished and s.hs.error is None
         s.feed(data, now)
+        if not was_open and s.hs.finished and s.hs.error is None \
+                and not self.admission.authenticated(sid):
+            log.warning("%s: refused: %d sessions already", s.conn.peer,
+                        self.admission.max_sessions)
+            s.conn.send([reject_out(StoreError(f"this robot serves {self.admission.max_sessions} "
+                                               "sessions already; try again later", Status.BUSY))])
+            self._forget(sid, "too many sessions")
 
     def run(self, until: Callable[[], bool] | None = None) -> None:
         """Serve until rospy shuts down (Ctrl-C, SIGTERM) or ``until()`` is true."""

@@ -211,15 +211,14 @@ class RosLink:
             self._announce_pub = rp.Publisher(self.topics["announce"], std.String, latch=True,
                                               queue_size=2)
         elif on_announce is not None:
-            import json
+            from mapkit.transfer.wirejson import WireJSONError, decode_object
 
             def _on_announce(msg: Any) -> None:
-                try:
-                    doc = json.loads(msg.data)
-                except ValueError:
+                try:  # any node may publish here: the bounded decoder, never json.loads
+                    doc = decode_object(str(msg.data).encode("utf-8", "surrogatepass"))
+                except WireJSONError:
                     return
-                if isinstance(doc, dict):
-                    on_announce(doc)
+                on_announce(doc)
 
             self._announce_sub = rp.Subscriber(self.topics["announce"], std.String, _on_announce,
                                                queue_size=None, tcp_nodelay=True)

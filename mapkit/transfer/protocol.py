@@ -92,6 +92,7 @@ from dataclasses import dataclass
 from typing import Any, Union
 
 from mapkit.errors import ChecksumError, LocalTransferError, RemoteTransferError, TransferError
+from mapkit.transfer.wirejson import SCHEMAS, WireJSONError, check_fields, decode_object
 
 __all__ = [
     "AUTH_METHODS",
@@ -143,6 +144,8 @@ TAG_SIZE = 16
 DEFAULT_CHUNK_SIZE = 256 * 1024
 MAX_CHUNK_SIZE = 4 * 1024 * 1024
 MAX_CONTROL_PAYLOAD = 1024 * 1024
+MAX_HANDSHAKE_PAYLOAD = 16 * 1024  # HELLO ... AUTH_OK: a few hundred bytes; read before any proof
+MAX_REFUSAL_PAYLOAD = 64 * 1024  # REJECT / CANCEL: may arrive untagged
 DEFAULT_MAX_PAYLOAD = MAX_CHUNK_SIZE
 MAX_CHUNKS = 1 << 24
 NONCE_SIZE = 32
@@ -317,7 +320,8 @@ class Frame:
         Raises:
             ProtocolError: When the payload is not a UTF-8 JSON object.
         """
-        return parse_json(self.payload, _type_name(self.type))
+        return parse_json(self.payload, _type_name(self.type), SCHEMAS.get(self.type),
+                          max_size=_SMALL_PAYLOADS.get(self.type, MAX_CONTROL_PAYLOAD))
 
 
 @dataclass(frozen=True, slots=True)
@@ -355,6 +359,13 @@ class Out:
 
 Event = Union[Frame, Damaged]
 
+# payloads that a peer can send before it proved anything are small: decoding them costs little
+_SMALL_PAYLOADS: dict[int, int] = {
+    FrameType.HELLO: MAX_HANDSHAKE_PAYLOAD, FrameType.HELLO_ACK: MAX_HANDSHAKE_PAYLOAD,
+    FrameType.AUTH: MAX_HANDSHAKE_PAYLOAD, FrameType.AUTH_OK: MAX_HANDSHAKE_PAYLOAD,
+    FrameType.REJECT: MAX_REFUSAL_PAYLOAD, FrameType.CANCEL: MAX_REFUSAL_PAYLOAD,
+}
+
 
 def _type_name(t: int) -> str:
     try:
@@ -368,18 +379,30 @@ def dump_json(obj: dict[str, Any]) -> bytes:
     return json.dumps(obj, separators=(",", ":"), ensure_ascii=False).encode("utf-8")
 
 
-def parse_json(payload: bytes | bytearray, what: str = "frame") -> dict[str, Any]:
-    """Parse a control payload.
+def parse_json(payload: bytes | bytearray, what: str = "frame",
+               schema: Mapping[str, Any] | None = None, *,
+               max_size: int = MAX_CONTROL_PAYLOAD) -> dict[str, Any]:
+    """Parse a control payload with the bounded decoder (:mod:`mapkit.transfer.wirejson`):
+    at most ``max_size`` bytes, 16 levels deep, 20-digit integers, finite numbers, valid
+    Unicode, and the field types of ``schema`` (see :data:`~mapkit.transfer.wirejson.SCHEMAS`).
 
     Raises:
-        ProtocolError: When it is not a JSON object.
+        ProtocolError: When it is not a JSON object within those limits.
+
+    Examples:
+        >>> parse_json(b'{"name":"a.map"}', "GET")
+        {'name': 'a.map'}
+        >>> parse_json(b'[' * 100000, "HELLO")
+        Traceback (most recent call last):
+        ...
+        mapkit.transfer.protocol.ProtocolError: HELLO payload refused: nested deeper than 16 levels
     """
     try:
-        obj = json.loads(bytes(payload).decode("utf-8")) if payload else {}
-    except (UnicodeDecodeError, ValueError) as err:
-        raise ProtocolError(f"{what} payload is not UTF-8 JSON: {err}") from err
-    if not isinstance(obj, dict):
-        raise ProtocolError(f"{what} payload is not a JSON object")
+        obj = decode_object(payload, max_size=max_size)
+        if schema is not None:
+            check_fields(obj, schema, what)
+    except WireJSONError as err:
+        raise ProtocolError(f"{what} payload refused: {err}") from err
     return obj
 
 
@@ -1145,12 +1168,19 @@ class Offer:
         if not isinstance(cs, int) or isinstance(cs, bool) or not 1 <= cs <= max_chunk:
             raise ProtocolError(f"OFFER chunk size {cs!r} is outside 1..{max_chunk}", Status.TOO_LARGE)
         _unhex(sha, 32, "OFFER sha256")
+        kind = d.get("kind", kind_of(name))
+        if kind != kind_of(name):
+            raise ProtocolError(f"OFFER kind {kind!r} does not match the name {name!r} "
+                                f"(a {kind_of(name)!r} by its suffix)")
         md5 = d.get("md5")
         if md5 is not None:
             _unhex(md5, 16, "OFFER md5")
-        offer = cls(name, size, str(sha).lower(), cs, str(md5).lower() if md5 else None,
-                    str(d.get("kind", kind_of(name))),
-                    d["mtime"] if isinstance(d.get("mtime"), (int, float)) else None)
+        elif kind == "map":
+            raise ProtocolError(f"OFFER of the map {name!r} has no md5 (required for maps: "
+                                "ARIA's map id)")
+        mtime = d.get("mtime")
+        offer = cls(name, size, str(sha).lower(), cs, str(md5).lower() if md5 else None, kind,
+                    mtime if isinstance(mtime, (int, float)) else None)
         if d.get("chunks", offer.chunks) != offer.chunks:
             raise ProtocolError(f"OFFER says {d.get('chunks')} chunks, size/chunk_size gives {offer.chunks}")
         if offer.chunks > MAX_CHUNKS:
@@ -1410,6 +1440,9 @@ class ServerHandshake(_Machine):
         idle_timeout: Give up after this long without a frame.
         auth_methods: Tag algorithms this server accepts; it picks the client's most preferred
             one among them.
+        timeout: Give up when the handshake is not done this many seconds after :meth:`start`,
+            however often the client sends (a peer that trickles frames or repeats HELLO
+            cannot hold the session open); None for no limit but ``idle_timeout``.
 
     Attributes:
         client: The client's HELLO payload.
@@ -1418,8 +1451,11 @@ class ServerHandshake(_Machine):
 
     def __init__(self, channel: Channel, secret: bytes | None, *, insecure: bool = False,
                  peer: str = "", info: dict[str, Any] | None = None, nonce: bytes | None = None,
-                 idle_timeout: float = 30.0, auth_methods: Sequence[str] = AUTH_METHODS) -> None:
+                 idle_timeout: float = 30.0, auth_methods: Sequence[str] = AUTH_METHODS,
+                 timeout: float | None = None) -> None:
         super().__init__(rto=1.0, max_tries=1, idle_timeout=idle_timeout)
+        self.timeout = timeout
+        self._until: float | None = None
         self.channel = channel
         self.secret = secret
         self.insecure = insecure
@@ -1436,13 +1472,25 @@ class ServerHandshake(_Machine):
         self._expect = ""
 
     def start(self, now: float) -> list[Out]:
-        """Nothing: the client speaks first."""
+        """Nothing: the client speaks first (the handshake deadline starts now)."""
         self._heard(now)
+        if self.timeout is not None:
+            self._until = now + self.timeout
         return []
 
+    def deadline(self) -> float | None:
+        """The idle deadline, or the handshake's own deadline when that comes first."""
+        dl = super().deadline()
+        if dl is None or self._until is None:
+            return dl
+        return min(dl, self._until)
+
     def poll(self, now: float) -> list[Out]:
-        """Check the idle timeout."""
-        self._idle(now, "waiting for the client's handshake")
+        """Check the idle timeout and the handshake deadline."""
+        if self._idle(now, "waiting for the client's handshake"):
+            return []
+        if not self.finished and self._until is not None and now >= self._until:
+            self._fail(TimeoutTransferError(f"handshake not completed within {self.timeout:g} s"))
         return []
 
     def handle(self, ev: Event, now: float) -> list[Out]:

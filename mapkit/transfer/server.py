@@ -19,6 +19,7 @@ import hashlib
 import json
 import logging
 import os
+import select
 import socket
 import ssl
 import threading
@@ -30,6 +31,7 @@ from typing import Any
 from mapkit._atomic import atomic_write, fsync_dir
 from mapkit.errors import LocalTransferError, MapFormatError, TransferError
 from mapkit.formats.map import parse_map
+from mapkit.transfer.admission import Admission
 from mapkit.transfer.protocol import (
     AUTH_METHODS,
     DEFAULT_CHUNK_SIZE,
@@ -55,11 +57,13 @@ from mapkit.transfer.store import (
     StoreError,
     check_name,
     chunk_reader,
+    expire_partials,
     file_digests,
 )
-from mapkit.transfer.tcp import FrameLink, listen, run
+from mapkit.transfer.tcp import FrameLink, listen, run, tune_socket
 
-__all__ = ["ACTIVE_NAME", "PREVIOUS_NAME", "MapFolder", "MapServer", "validate_map_file"]
+__all__ = ["ACTIVE_NAME", "PREVIOUS_NAME", "MapFolder", "MapServer", "same_transfer",
+           "validate_map_file"]
 
 log = logging.getLogger(__name__)
 
@@ -67,6 +71,7 @@ ACTIVE_NAME = "active.map"
 PREVIOUS_NAME = "previous.map"
 STATE_NAME = ".mapkit-active.json"
 DEFAULT_MAX_SIZE = 1 << 30
+DEFAULT_PARTIAL_TTL = 24 * 3600.0  # an interrupted transfer not resumed for a day is abandoned
 
 
 def validate_map_file(path: str) -> dict[str, Any]:
@@ -85,6 +90,12 @@ def validate_map_file(path: str) -> dict[str, Any]:
     except MapFormatError as err:
         raise StoreError(f"not a valid map: {err}", Status.PARSE_ERROR) from err
     return {"md5": hashlib.md5(data).hexdigest(), "kind": "map"}
+
+
+def same_transfer(a: Offer, b: Offer) -> bool:
+    """True when two offers are the same transfer: same name, SHA-256, size and chunk size
+    (the resume journal and every chunk offset then mean the same bytes)."""
+    return (a.name, a.sha256, a.size, a.chunk_size) == (b.name, b.sha256, b.size, b.chunk_size)
 
 
 def _validator(name: str) -> Callable[[str], dict[str, Any]] | None:
@@ -122,6 +133,7 @@ class MapFolder:
         self._valid: dict[str, None] = {}  # SHA-256 of map contents that parsed (recent first)
         self._lock = threading.Lock()
         self._load_lock = threading.Lock()
+        self._partials: list[PartialFile] = []  # destinations being written (disk ledger)
 
     # names and digests ----------------------------------------------------------------------------
     def check_name(self, name: object) -> str:
@@ -210,8 +222,20 @@ class MapFolder:
             self._parsed(offer.sha256)
             return info
 
-        return PartialFile.open(self.root, name, offer, checkpoint_interval=checkpoint_interval,
-                                validate=validate if check else None, reserve=self.reserve)
+        with self._lock:  # the disk other transfers in progress may still take
+            self._partials = [p for p in self._partials if p.is_open]
+            pending = sum(p.outstanding for p in self._partials if p.name != name)
+        dest = PartialFile.open(self.root, name, offer, checkpoint_interval=checkpoint_interval,
+                                validate=validate if check else None,
+                                reserve=self.reserve + pending)
+        with self._lock:
+            self._partials.append(dest)
+        return dest
+
+    def expire_partials(self, max_age: float) -> list[str]:
+        """Delete partial files no session holds and nothing touched for ``max_age`` seconds
+        (see :func:`~mapkit.transfer.store.expire_partials`); returns their names."""
+        return expire_partials(self.root, max_age)
 
     def _parsed(self, sha256: str) -> None:
         with self._lock:
@@ -269,10 +293,14 @@ class MapFolder:
                 src_name = self.check_name(name)
                 src = self.path(src_name)
             try:
-                with open(src, "rb") as fh:
+                fd = os.open(src, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0))
+                with os.fdopen(fd, "rb") as fh:
                     data = fh.read()
             except FileNotFoundError as err:
                 raise StoreError(f"{src_name}: no such map on this robot", Status.NOT_FOUND) from err
+            except OSError as err:
+                raise StoreError(f"{src_name}: cannot read it: {err.strerror or err}",
+                                 Status.IO_ERROR) from err
             got = hashlib.md5(data).hexdigest()
             if md5 and got != md5.lower():
                 raise StoreError(f"{src_name} on the robot has MD5 {got}, expected {md5.lower()}",
@@ -325,16 +353,27 @@ class MapServer:
         insecure: Accept clients without authentication (required when ``secret`` is None).
         tls: Server TLS context (see :func:`~mapkit.transfer.tcp.server_tls_context`).
         push_only: Only accept pushes (``mapkit receive``): no pull, list or load.
-        max_clients: Concurrent connections; more are refused with ``BUSY``.
+        max_clients: Authenticated sessions at once; a client that authenticates when all are
+            taken is refused with ``BUSY``.
         idle_timeout: Seconds without a frame before a session is dropped.
         max_chunk: Largest chunk size accepted.
         name: This server's name in HELLO_ACK.
         takeover_after: A push of a name whose current writer has sent nothing for this many
             seconds ends that stale session and resumes its partial file (a terminal that lost
-            its Wi-Fi and reconnects); a writer active more recently makes the push ``busy``.
+            its Wi-Fi and reconnects); a writer active more recently makes the push ``busy``,
+            unless the new offer is of the very same file (same SHA-256, size and chunk size):
+            then it is the same transfer resumed, and it takes over at once.
         on_received: Called with each VERIFIED info dict after a push was published.
         auth_methods: Per-frame tag algorithms accepted (see
             :data:`~mapkit.transfer.protocol.AUTH_METHODS`); each client gets its most preferred.
+        handshake_timeout: Seconds from connecting (TLS included) to the end of the MKT
+            handshake; a peer that has not authenticated by then is disconnected.
+        max_pending: Connections still in their handshake at once (apart from the sessions);
+            a new one evicts the least useful (see :class:`~mapkit.transfer.admission.Admission`).
+        per_address: Connections in their handshake per peer address.
+        partial_ttl: Seconds after which an abandoned partial file (an interrupted transfer no
+            session is resuming) is deleted; checked at start and every ``sweep_interval``.
+        sweep_interval: Seconds between two sweeps for abandoned partial files.
 
     Examples:
         >>> import tempfile
@@ -349,7 +388,9 @@ class MapServer:
                  idle_timeout: float = 30.0, max_chunk: int = 1 << 20, name: str = "",
                  rto: float = 2.0, window: int = 16, takeover_after: float = 5.0,
                  on_received: Callable[[dict[str, Any]], None] | None = None,
-                 auth_methods: Sequence[str] = AUTH_METHODS) -> None:
+                 auth_methods: Sequence[str] = AUTH_METHODS, handshake_timeout: float = 5.0,
+                 max_pending: int = 32, per_address: int = 8,
+                 partial_ttl: float = DEFAULT_PARTIAL_TTL, sweep_interval: float = 60.0) -> None:
         if secret is None and not insecure:
             raise LocalTransferError("no shared secret: give --secret-file or MAPKIT_SECRET, or "
                                      "--insecure to accept anyone")
@@ -367,25 +408,37 @@ class MapServer:
         self.on_received = on_received
         self.takeover_after = takeover_after
         self.auth_methods = tuple(auth_methods)
+        self.handshake_timeout = handshake_timeout
+        self.partial_ttl = partial_ttl
+        self.sweep_interval = sweep_interval
+        self.admission = Admission(max_sessions=max_clients, max_pending=max_pending,
+                                   per_address=per_address, handshake_timeout=handshake_timeout)
         self._writers: dict[str, tuple[FrameLink, Receiver]] = {}
-        self._sock = listen(host, port)
+        self._sock = listen(host, port, backlog=max(128, max_pending + max_clients))
         self.address: tuple[str, int] = self._sock.getsockname()[:2]
         self._threads: set[threading.Thread] = set()
-        self._conns: set[socket.socket] = set()
+        self._conns: dict[int, _Connection] = {}
         self._lock = threading.Lock()
         self._stop = threading.Event()
+        self._wake = threading.Event()
         self._acceptor: threading.Thread | None = None
+        self._reaper: threading.Thread | None = None
+        self._next_id = 0
         self.sessions = 0
 
     # lifecycle ----------------------------------------------------------------------------------------
     def start(self) -> MapServer:
-        """Accept clients in a background thread."""
+        """Accept clients in a background thread (and watch deadlines in another)."""
+        self.sweep()
+        self._reaper = threading.Thread(target=self._reap_forever, name="mapkit-reaper",
+                                        daemon=True)
+        self._reaper.start()
         self._acceptor = threading.Thread(target=self.serve_forever, name="mapkit-accept", daemon=True)
         self._acceptor.start()
         return self
 
     def serve_forever(self) -> None:
-        """Accept clients until :meth:`close`."""
+        """Accept clients until :meth:`close`. Nothing a client does ends this loop."""
         while not self._stop.is_set():
             try:
                 conn, addr = self._sock.accept()
@@ -394,34 +447,101 @@ class MapServer:
                     return
                 time.sleep(0.05)
                 continue
-            with self._lock:
-                busy = len(self._threads) >= self.max_clients
-            if busy:
-                log.warning("refusing %s: %d clients already", addr, self.max_clients)
-                conn.close()
-                continue
-            t = threading.Thread(target=self._connection, args=(conn, addr), daemon=True,
-                                 name=f"mapkit-{addr[0]}:{addr[1]}")
-            with self._lock:
-                self._threads.add(t)
-                self._conns.add(conn)
+            try:
+                self._admit(conn, addr)
+            except Exception:  # e.g. no thread could be started: drop this one, keep serving
+                log.exception("%s: could not start a session", addr)
+                with contextlib.suppress(OSError):
+                    conn.close()
+                time.sleep(0.05)
+
+    def _admit(self, conn: socket.socket, addr: Any) -> None:
+        with self._lock:
+            self._next_id += 1
+            c = _Connection(self._next_id, conn, f"{addr[0]}:{addr[1]}", str(addr[0]))
+            self._conns[c.id] = c
+        for key in self.admission.admit(c.id, c.address, time.monotonic(), self._waiting):
+            self._drop(key, "evicted: too many connections in their handshake")
+        t = threading.Thread(target=self._connection, args=(c,), daemon=True,
+                             name=f"mapkit-{c.peer}")
+        with self._lock:
+            self._threads.add(t)
+        try:
             t.start()
+        except BaseException:
+            with self._lock:
+                self._threads.discard(t)
+                self._conns.pop(c.id, None)
+            self.admission.release(c.id)
+            raise
+        self._wake.set()
+
+    def _waiting(self, key: Any) -> bool:
+        """True when a connection has bytes waiting to be read (its peer is not silent)."""
+        c = self._conns.get(key)
+        if c is None:
+            return False
+        try:
+            poller = select.poll()
+            poller.register(c.sock, select.POLLIN)
+            return any(ev & select.POLLIN for _, ev in poller.poll(0))
+        except (OSError, ValueError):
+            return False
+
+    def _drop(self, key: Any, why: str) -> None:
+        """Disconnect a connection (its thread ends and cleans up)."""
+        with self._lock:
+            c = self._conns.get(key)
+        if c is not None:
+            log.info("%s: %s", c.peer, why)
+            c.shutdown()
+
+    def _reap_forever(self) -> None:
+        """Disconnect peers whose handshake deadline passed; sweep abandoned partial files."""
+        next_sweep = time.monotonic() + self.sweep_interval
+        while not self._stop.is_set():
+            try:
+                now = time.monotonic()
+                for key in self.admission.expired(now):
+                    self._drop(key, f"no handshake within {self.handshake_timeout:g} s, closing")
+                if now >= next_sweep:
+                    next_sweep = now + self.sweep_interval
+                    self.sweep()
+                dl = self.admission.next_deadline()
+                wait = min(next_sweep, dl if dl is not None else next_sweep) - time.monotonic()
+            except Exception:  # pragma: no cover - keep watching whatever happens
+                log.exception("connection reaper")
+                wait = 1.0
+            self._wake.wait(max(0.01, min(wait, 1.0)))
+            self._wake.clear()
+
+    def sweep(self) -> list[str]:
+        """Delete abandoned partial files older than ``partial_ttl``; returns their names."""
+        try:
+            gone = self.folder.expire_partials(self.partial_ttl)
+        except OSError as err:
+            log.warning("cannot sweep %s for abandoned partial files: %s", self.folder.root, err)
+            return []
+        for name in gone:
+            log.info("deleted the abandoned partial file of %s", name)
+        return gone
 
     def close(self, timeout: float = 5.0) -> None:
         """Stop accepting, end open sessions, wait for their threads."""
         self._stop.set()
+        self._wake.set()
         with contextlib.suppress(OSError):
             self._sock.shutdown(socket.SHUT_RDWR)
         self._sock.close()
         with self._lock:
-            conns, threads = list(self._conns), list(self._threads)
+            conns, threads = list(self._conns.values()), list(self._threads)
         for c in conns:
-            with contextlib.suppress(OSError):
-                c.shutdown(socket.SHUT_RDWR)
+            c.shutdown()
         for t in threads:
             t.join(timeout)
-        if self._acceptor is not None:
-            self._acceptor.join(timeout)
+        for helper in (self._acceptor, self._reaper):
+            if helper is not None:
+                helper.join(timeout)
 
     def __enter__(self) -> MapServer:
         return self.start()
@@ -430,16 +550,20 @@ class MapServer:
         self.close()
 
     # one connection ---------------------------------------------------------------------------------------
-    def _connection(self, conn: socket.socket, addr: Any) -> None:
-        peer = f"{addr[0]}:{addr[1]}"
+    def _connection(self, c: _Connection) -> None:
+        peer = c.peer
         link: FrameLink | None = None
         try:
-            conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+            tune_socket(c.sock, keepalive=True)
             if self.tls is not None:
-                conn.settimeout(self.idle_timeout)
-                conn = self.tls.wrap_socket(conn, server_side=True)
-            link = FrameLink(conn, Channel(initiator=False), peer=peer)
-            self._session(link, peer)
+                c.sock.settimeout(self.handshake_timeout)
+                tls = self.tls.wrap_socket(c.sock, server_side=True, do_handshake_on_connect=False)
+                c.sock = tls  # from now on the reaper shuts this one down at the deadline
+                if c.closing:  # evicted meanwhile
+                    return
+                tls.do_handshake()
+            link = FrameLink(c.sock, Channel(initiator=False), peer=peer)
+            self._session(link, c)
         except (TransferError, OSError, ssl.SSLError) as err:
             log.info("%s: session ended: %s", peer, err)
         except Exception:  # never let one client kill the server
@@ -448,24 +572,37 @@ class MapServer:
             if link is not None:
                 link.close()
             else:
-                conn.close()
+                c.shutdown()
+                with contextlib.suppress(OSError):
+                    c.sock.close()
+            self.admission.release(c.id)
             with self._lock:
                 self._threads.discard(threading.current_thread())
-                self._conns.discard(conn)
+                self._conns.pop(c.id, None)
 
-    def _session(self, link: FrameLink, peer: str) -> None:
+    def _session(self, link: FrameLink, c: _Connection) -> None:
+        peer = c.peer
         features = ["push"] if self.push_only else ["push", "pull", "list", "load"]
         hs = ServerHandshake(link.channel, self.secret, insecure=self.insecure, peer=self.name,
                              auth_methods=self.auth_methods,
                              info={"max_chunk": self.max_chunk, "max_size": self.folder.max_size,
-                                   "features": features}, idle_timeout=self.idle_timeout)
+                                   "features": features}, idle_timeout=self.idle_timeout,
+                             timeout=self.handshake_timeout)
         try:
-            run(link, hs)
+            run(link, hs, tick=lambda: self.admission.progressed(c.id))
         except (AuthenticationError, ProtocolError) as err:
             if hs.error is None:  # the channel refused a frame; the machine has not answered
                 with contextlib.suppress(TransferError):
                     link.send([reject_out(err, plain=True)])
             log.warning("%s: refused: %s", peer, err)
+            return
+        if not self.admission.authenticated(c.id):
+            if not c.closing:
+                log.warning("%s: refused: %d sessions already", peer, self.max_clients)
+                with contextlib.suppress(TransferError):
+                    link.send([reject_out(StoreError(
+                        f"this robot serves {self.max_clients} sessions already; try again "
+                        "later", Status.BUSY))])
             return
         with self._lock:
             self.sessions += 1
@@ -495,16 +632,27 @@ class MapServer:
                     FrameType.DONE, FrameType.ACK, FrameType.OFFER))):
                 link.send(last.handle(ev, time.monotonic()))  # late frames of the last transfer
                 continue
+            what = FrameType(ev.type).name if ev.type in FrameType._value2member_map_ else ev.type
             try:
                 last = self._request(link, ev, peer, features) or last
             except _Ended as err:  # the peer was told (CANCEL); it may try again in this session
                 last = err.machine
             except (ProtocolError, StoreError) as err:
-                log.warning("%s: %s refused: %s", peer, FrameType(ev.type).name if ev.type in
-                            FrameType._value2member_map_ else ev.type, err)
+                log.warning("%s: %s refused: %s", peer, what, err)
                 link.send([reject_out(err, ev.ref)])
                 if isinstance(err, (AuthenticationError,)) or err.status in (Status.REPLAY,):
                     return
+            except OSError as err:  # the folder failed under a request: say so, go on
+                log.warning("%s: %s failed: %s", peer, what, err)
+                failed = StoreError(f"the robot's file system failed: {err.strerror or err}",
+                                    Status.IO_ERROR)
+                link.send([reject_out(failed, ev.ref)])
+            except TransferError:
+                raise  # the link broke: the session is over
+            except Exception as err:  # a bug met by one request: tell the peer, end this session
+                log.exception("%s: internal error in %s", peer, what)
+                link.send([reject_out(err, ev.ref)])
+                return
 
     def _request(self, link: FrameLink, f: Frame, peer: str, features: list[str]) -> Any:
         t = f.type
@@ -580,11 +728,21 @@ class MapServer:
                 raise
             with self._lock:
                 holder = self._writers.get(offer.name)
-            if holder is None or time.monotonic() - holder[1].last_heard < self.takeover_after:
+            if holder is None:
                 raise
-            log.warning("%s: taking over %s from a session silent for %.1f s", peer, offer.name,
-                        time.monotonic() - holder[1].last_heard)
-            holder[0].close()  # its thread ends, keeps the partial file, releases the lock
+            silent = time.monotonic() - holder[1].last_heard
+            if same_transfer(holder[1].offer, offer):
+                # the same file (SHA-256, size, chunk size): the sender resuming after a cut
+                # the robot did not notice (no FIN); whoever sends, the same bytes land
+                log.warning("%s: resuming %s, taking it over from a session silent for %.1f s",
+                            peer, offer.name, silent)
+            elif silent < self.takeover_after:
+                raise
+            else:
+                log.warning("%s: taking over %s from a session silent for %.1f s", peer,
+                            offer.name, silent)
+            with contextlib.suppress(OSError):  # its thread ends, keeps the partial, unlocks
+                holder[0].sock.shutdown(socket.SHUT_RDWR)
             end = time.monotonic() + 5.0
             while True:
                 time.sleep(0.02)
@@ -626,6 +784,23 @@ class MapServer:
             return tx
         finally:
             os.close(fd)
+
+
+class _Connection:
+    """One accepted TCP connection: its socket (replaced by the TLS one once wrapped)."""
+
+    def __init__(self, id: int, sock: socket.socket, peer: str, address: str) -> None:
+        self.id = id
+        self.sock = sock
+        self.peer = peer
+        self.address = address
+        self.closing = False
+
+    def shutdown(self) -> None:
+        """Wake and end whatever reads or writes the socket (idempotent, any thread)."""
+        self.closing = True
+        with contextlib.suppress(OSError, ValueError):
+            self.sock.shutdown(socket.SHUT_RDWR)
 
 
 class _Ended(TransferError):

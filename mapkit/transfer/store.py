@@ -48,7 +48,7 @@ from mapkit.transfer.protocol import (
 )
 
 __all__ = ["PartialFile", "PreparedReader", "StoreChecksumError", "StoreError", "check_name",
-           "chunk_reader", "file_digests", "partial_paths"]
+           "chunk_reader", "expire_partials", "file_digests", "partial_paths"]
 
 log = logging.getLogger(__name__)
 
@@ -61,7 +61,6 @@ PREPARE_FROM = 4 << 20  # files from this size are sent with a PreparedReader
 # fsyncs without touching the real os module.
 _pwrite = os.pwrite
 _fsync = os.fsync
-_fallocate = getattr(os, "posix_fallocate", None)
 
 
 def _read_umask() -> int:
@@ -372,12 +371,9 @@ class PartialFile:
             if size + reserve > free:
                 raise StoreError(f"{self.name}: no space: {size} bytes needed, {free} free",
                                  Status.NO_SPACE)
-            if size and _fallocate is not None:
-                try:
-                    _fallocate(self._fd, 0, size)
-                except OSError as err:
-                    if err.errno not in (errno.EOPNOTSUPP, errno.EINVAL, errno.ENOSYS):
-                        raise
+            # sparse: blocks are allocated as chunks arrive, so an offer cut after 1 MiB holds
+            # 1 MiB of disk, not its whole size (the check above, with the caller's ledger of
+            # other transfers in `reserve`, keeps concurrent offers from overcommitting)
             os.ftruncate(self._fd, size)
         except OSError as err:
             self._discard()
@@ -404,6 +400,22 @@ class PartialFile:
         if dropped:
             log.warning("%s: %d chunks of the partial file failed their CRC and will be fetched again",
                         self.name, dropped)
+
+    @property
+    def outstanding(self) -> int:
+        """Bytes of the file not written yet (what it may still take of the disk)."""
+        n = self.have.count(1)
+        if not n:
+            return self.offer.size
+        written = n * self.offer.chunk_size
+        if self.have[-1]:
+            written -= self.offer.chunk_size - self.offer.chunk_len(self.offer.chunks - 1)
+        return max(0, self.offer.size - written)
+
+    @property
+    def is_open(self) -> bool:
+        """True until the file was published, kept or discarded."""
+        return self._fd is not None
 
     # writing -----------------------------------------------------------------------------------
     def start_writer(self, depth: int = 8, *, min_size: int | None = None) -> None:
@@ -670,6 +682,53 @@ class PartialFile:
         self.close(keep=True)
 
 
+def expire_partials(folder: str, max_age: float, *, now: float | None = None) -> list[str]:
+    """Delete abandoned partial files in ``folder``: a ``.NAME.mkpart`` (with its journal) that
+    no session holds (its lock is free) and that nothing touched for ``max_age`` seconds, and a
+    journal as old whose temp file is gone.
+
+    Returns:
+        The names (``NAME``) whose partial files were deleted.
+    """
+    now = time.time() if now is None else now
+    gone = []
+    with os.scandir(folder) as it:
+        entries = [e for e in it if e.name.startswith(".") and e.name.endswith((".mkpart",
+                                                                                 ".mkpart.json"))]
+    names = {e.name for e in entries}
+    for e in [e for e in entries if e.name.endswith(".json")]:  # a journal without its file
+        entries.remove(e)
+        if e.name[:-len(".json")] not in names and e.is_file(follow_symlinks=False):
+            with contextlib.suppress(OSError):
+                if now - e.stat(follow_symlinks=False).st_mtime >= max_age:
+                    os.unlink(e.path)
+    for e in entries:
+        name = e.name[1:-len(".mkpart")]
+        temp, journal = partial_paths(folder, name)
+        try:
+            fd = os.open(temp, os.O_RDWR | getattr(os, "O_NOFOLLOW", 0)
+                         | getattr(os, "O_CLOEXEC", 0))
+        except OSError:
+            continue
+        try:
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError:
+                continue  # a session is writing it
+            newest = os.fstat(fd).st_mtime
+            with contextlib.suppress(OSError):
+                newest = max(newest, os.stat(journal).st_mtime)
+            if now - newest < max_age:
+                continue
+            for p in (journal, temp):  # the journal first: a temp file alone is never resumed
+                with contextlib.suppress(FileNotFoundError):
+                    os.unlink(p)
+            gone.append(name)
+        finally:
+            os.close(fd)
+    return gone
+
+
 # -- names ----------------------------------------------------------------------------------------
 
 _WINDOWS_RESERVED = {"con", "prn", "aux", "nul", *(f"com{i}" for i in range(1, 10)),
@@ -681,7 +740,7 @@ def check_name(name: object, *, suffixes: tuple[str, ...] | None = (".map", ".2d
                reserved: tuple[str, ...] = ()) -> str:
     """Check that a received name is a plain file name, safe to join to a folder.
 
-    Refused: empty or longer than 200 characters; ``/`` or ``\\``; ``..`` anywhere; a leading
+    Refused: empty or longer than 200 bytes in UTF-8; ``/`` or ``\\``; ``..`` anywhere; a leading
     ``.`` (hidden and temp files) or ``-``; control and format characters (C0, C1, DEL, bidi
     overrides); trailing space or dot; Windows device names; a suffix not in ``suffixes``; a name
     in ``reserved``.
@@ -712,8 +771,10 @@ def check_name(name: object, *, suffixes: tuple[str, ...] | None = (".map", ".2d
 
     if not isinstance(name, str) or not name:
         raise bad("empty")
-    if len(name) > MAX_NAME:
-        raise bad(f"longer than {MAX_NAME} characters")
+    if len(name) > MAX_NAME or len(name.encode("utf-8", "surrogatepass")) > MAX_NAME:
+        # bytes, not characters: the file system's limit (255 bytes) is in bytes, and the
+        # temp file and journal names add up to 35 bytes
+        raise bad(f"longer than {MAX_NAME} bytes (UTF-8)")
     if "/" in name or "\\" in name:
         raise bad("no folders allowed, only a plain file name")
     if ".." in name:

@@ -10,6 +10,7 @@ copied once by the kernel) and returns the next frame.
 
 from __future__ import annotations
 
+import contextlib
 import socket
 import ssl
 import time
@@ -27,6 +28,7 @@ __all__ = [
     "parse_address",
     "run",
     "server_tls_context",
+    "tune_socket",
 ]
 
 RECV_BUFFER = 64 * 1024  # largest read outside a large payload
@@ -101,8 +103,34 @@ def server_tls_context(certfile: str, keyfile: str | None = None) -> ssl.SSLCont
     return ctx
 
 
-def _tune(sock: socket.socket) -> None:
+#: TCP keepalive: probe a connection silent for this many seconds, every KEEPALIVE_INTERVAL,
+#: and drop it after KEEPALIVE_COUNT unanswered probes (a peer whose Wi-Fi dropped sends no FIN).
+KEEPALIVE_IDLE = 10
+KEEPALIVE_INTERVAL = 5
+KEEPALIVE_COUNT = 3
+#: Drop a connection whose sent data stays unacknowledged this long (ms; TCP_USER_TIMEOUT), so a
+#: writer blocked on a dead peer does not wait for TCP's 15-minute retransmission limit.
+USER_TIMEOUT_MS = 30_000
+
+
+def tune_socket(sock: socket.socket, *, keepalive: bool = True) -> None:
+    """``TCP_NODELAY``, and keepalive probes plus a send timeout so dead peers are found.
+
+    Options the platform lacks are skipped.
+    """
     sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+    if not keepalive:
+        return
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_KEEPALIVE, 1)
+    for name, value in (("TCP_KEEPIDLE", KEEPALIVE_IDLE), ("TCP_KEEPINTVL", KEEPALIVE_INTERVAL),
+                        ("TCP_KEEPCNT", KEEPALIVE_COUNT), ("TCP_USER_TIMEOUT", USER_TIMEOUT_MS)):
+        opt = getattr(socket, name, None)
+        if opt is not None:
+            with contextlib.suppress(OSError):
+                sock.setsockopt(socket.IPPROTO_TCP, opt, value)
+
+
+_tune = tune_socket
 
 
 def connect(host: str, port: int = DEFAULT_PORT, *, timeout: float = 10.0,

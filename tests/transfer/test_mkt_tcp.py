@@ -567,8 +567,11 @@ def test_a_silent_writer_is_taken_over_and_its_partial_file_resumed(tmp_path, ro
     stale.link.send([Out(FrameType.OFFER, json.dumps(offer.json()).encode(), ref=1)])
     assert stale.link.receive(5).type == FrameType.ACCEPT
     stale.link.send([Out(FrameType.DATA, data[i * 4096:(i + 1) * 4096], ref=i) for i in range(5)])
-    with pytest.raises(Rejected, match=r"busy"):  # still active: refused
-        send_file(src, *srv.address, chunk_size=4096, **client_options())
+    other = tmp_path / "other" / "big.2d"
+    other.parent.mkdir()
+    other.write_bytes(os.urandom(64 * 1024))
+    with pytest.raises(Rejected, match=r"busy"):  # another file, the writer active: refused
+        send_file(other, *srv.address, chunk_size=4096, **client_options())
     time.sleep(0.5)  # now silent for longer than takeover_after
     r = send_file(src, *srv.address, chunk_size=4096, **client_options())
     assert (robot_dir / "big.2d").read_bytes() == data
