@@ -257,7 +257,7 @@ class MapSession:
             from mapkit.raster.ros import read_ros_yaml
 
             image = read_ros_yaml(self.keepout).image_path
-            if Path(image).resolve() not in sibling_paths(self.path, self.keepout):
+            if Path(image).resolve().parent != self.keepout.parent:
                 raise OpenError(f"{self.keepout}: its image {image} is not beside it; "
                                 "the editor writes only the map's own files")
         targets = [self.keepout, Path(image) if image else self.keepout.with_suffix(".pgm"), params]
@@ -265,6 +265,12 @@ class MapSession:
             for t in targets:
                 if t.exists():
                     shutil.copy2(t, f"{t}.bak")
+        default = Path(f"{self.path.with_suffix('')}_keepout.yaml")
+        if self.keepout == default and targets[1] == default.with_suffix(".pgm"):
+            from mapkit.raster.masks import write_filters
+
+            f = write_filters(self.map, self.grid, self.path)  # what `rasterize --keepout` writes
+            return [str(f.keepout_yaml), str(f.keepout_image), str(f.params)]
         files = write_ros_map(keepout_mask(self.map, self.grid), self.keepout, image_path=image)
         atomic_write(params, filter_params_text(files.yaml, source=self.path.name).encode("utf-8"))
         return [str(files.yaml), str(files.image), str(params)]

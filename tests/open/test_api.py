@@ -17,6 +17,7 @@ from click.testing import CliRunner
 
 from mapkit.cli.main import cli
 from mapkit.open.server import Editor
+from mapkit.open.session import OpenError
 
 pytestmark = pytest.mark.network
 
@@ -347,3 +348,85 @@ def test_cli_refuses_a_file_that_is_not_a_map(tmp_path: Path) -> None:
     bad.write_text("hello\n")
     res = CliRunner().invoke(cli, ["open", str(bad), "--no-browser"])
     assert res.exit_code == 1 and "bad.map" in res.output
+
+
+# -- ROS maps: keepout zones -----------------------------------------------------------------------
+
+@pytest.fixture
+def ros_map(tmp_path: Path) -> Path:
+    """office.map rasterised for ROS, with its keepout mask (NAME_keepout.*) beside it."""
+    res = CliRunner().invoke(cli, ["rasterize", str(OFFICE), "-o", str(tmp_path / "office.yaml"),
+                                   "--keepout"])
+    assert res.exit_code == 0, res.output
+    return tmp_path / "office.yaml"
+
+
+def test_ros_keepout_zones_are_edited_and_saved_as_the_mask(ros_map: Path, tmp_path: Path) -> None:
+    from mapkit.raster.masks import write_filters
+
+    folder = ros_map.parent
+    before = {p.name: p.read_bytes() for p in folder.iterdir()}
+    ed = Editor.open(ros_map)
+    ed.start()
+    try:
+        c = Client(ed)
+        doc = c.call("GET", "/api/map")[1]
+        assert doc["kind"] == "ros" and doc["counts"]["points"] > 100
+        assert {o["type"] for o in doc["objects"]} <= {"ForbiddenArea", "ForbiddenLine"}
+        zones = doc["counts"]["objects"]
+        assert zones >= 1  # office.map's forbidden area came back from the mask
+        for refused in ({"add-goal": {"name": "A", "x": 0, "y": 0}},
+                        {"erase": {"box": [0, 0, 1000, 1000]}},
+                        {"draw-line": {"line": [0, 0, 1000, 0]}}):
+            status, err = c.edit(refused)
+            assert status == 400 and "read only" in err["error"]
+        status, out = c.edit({"forbid": {"area": [2000, 2000, 4000, 3000]}},
+                             {"move": {"name": f"#{zones + 1}", "heading": 30}},
+                             {"forbid": {"line": [6000, 1000, 9000, 1000]}})
+        assert status == 200, out
+        status, saved = c.call("POST", "/api/save", {"backup": True})
+        assert status == 200, saved
+        assert [Path(p).name for p in saved["written"]] == [
+            "office_keepout.yaml", "office_keepout.pgm", "office_filters.yaml"]
+        assert (folder / "office.yaml").read_bytes() == before["office.yaml"]
+        assert (folder / "office.pgm").read_bytes() == before["office.pgm"]
+        assert (folder / "office_keepout.pgm.bak").read_bytes() == before["office_keepout.pgm"]
+        # The same writers the CLI uses give the same files for the same zones.
+        other = tmp_path / "lib"
+        other.mkdir()
+        shutil.copyfile(ros_map, other / "office.yaml")
+        write_filters(ed.app.session.map, ed.app.session.grid, other / "office.yaml")
+        for name in ("office_keepout.yaml", "office_keepout.pgm"):
+            assert (folder / name).read_bytes() == (other / name).read_bytes()
+        assert (folder / "office_filters.yaml").read_text().replace(str(folder), "D") == \
+            (other / "office_filters.yaml").read_text().replace(str(other), "D")
+        assert (folder / "office_keepout.pgm").read_bytes() != before["office_keepout.pgm"]
+    finally:
+        ed.stop()
+    again = Editor.open(ros_map)  # the saved mask reads back with the new zones
+    assert again.app.session.describe()["counts"]["objects"] >= zones + 2
+    again.httpd.server_close()
+
+
+def test_ros_keepout_option_and_refusals(ros_map: Path, tmp_path: Path) -> None:
+    mask = ros_map.parent / "office_keepout.yaml"
+    named = ros_map.parent / "zones.yaml"
+    shutil.copyfile(mask, named)
+    named.write_text(named.read_text())
+    ed = Editor.open(ros_map, keepout=named)
+    ed.start()
+    try:
+        assert ed.app.session.keepout == named.resolve()
+        c = Client(ed)
+        assert c.edit({"forbid": {"area": [2000, 2000, 4000, 3000]}})[0] == 200
+        status, saved = c.call("POST", "/api/save", {})
+        assert status == 200, saved
+        assert [Path(p).name for p in saved["written"]] == [
+            "zones.yaml", "office_keepout.pgm", "office_filters.yaml"]  # the image zones.yaml names
+        assert "zones.yaml" in (ros_map.parent / "office_filters.yaml").read_text()
+    finally:
+        ed.stop()
+    with pytest.raises(OpenError, match="no such keepout mask"):
+        Editor.open(ros_map, keepout=tmp_path / "none.yaml")
+    res = CliRunner().invoke(cli, ["open", str(OFFICE), "--keepout", str(mask), "--no-browser"])
+    assert res.exit_code == 1 and "ROS map YAML" in res.output
