@@ -11,7 +11,7 @@ Measures, for the big map and (as the baseline, in the same run) the small bundl
 
 Targets: first paint < 2 s, panning >= 30 fps.
 
-    python benchmarks/bench_open.py [--seconds S] [--keep DIR]
+    python benchmarks/bench_open.py [--seconds S] [--keep DIR] [--screenshot PNG]
 """
 
 from __future__ import annotations
@@ -54,7 +54,7 @@ requestAnimationFrame(step);
 """
 
 
-def measure(path: Path, seconds: float) -> dict[str, Any]:
+def measure(path: Path, seconds: float, screenshot: Path | None = None) -> dict[str, Any]:
     t = time.perf_counter()
     ed = Editor.open(path)
     ed.app.session.describe()
@@ -70,6 +70,8 @@ def measure(path: Path, seconds: float) -> dict[str, Any]:
                     raise SystemExit("the page did not paint within 60 s")
                 time.sleep(0.02)
             paint_ms = d.execute_script("return window.mapkit.firstPaint")
+            if screenshot is not None:
+                d.save_screenshot(str(screenshot))
             d.execute_script("mapkit.map.setZoom(mapkit.map.getZoom() + 2, {animate: false})")
             time.sleep(1.0)
             pan = d.execute_async_script(MOTION, "pan", seconds)
@@ -85,6 +87,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seconds", type=float, default=4.0, help="Length of each motion test.")
     ap.add_argument("--keep", type=Path, help="Write the big map here (default: a temp folder).")
+    ap.add_argument("--screenshot", type=Path, help="Save the big map's first view as this PNG.")
     args = ap.parse_args()
     why = missing()
     if why:
@@ -94,7 +97,7 @@ def main() -> None:
     big = write_big_map(out / "bigmap.map")
     small = ROOT / "mapkit" / "sample_maps" / "office.map"
     base = measure(small, args.seconds)
-    res = measure(big, args.seconds)
+    res = measure(big, args.seconds, args.screenshot)
     print(f"{'':30s} {'office.map':>11s} {'1M points':>11s} {'x office':>9s}  target")
     rows = [("open + index (s)", "open", ""), ("first full paint (s)", "paint", "< 2 s"),
             ("panning (fps)", "pan", ">= 30 fps"), ("zooming (fps)", "zoom", "")]

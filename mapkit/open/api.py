@@ -37,6 +37,9 @@ __all__ = ["STATIC", "App", "Request", "Response"]
 STATIC = Path(__file__).resolve().parent / "static"
 _TILE_CACHE = 4096
 _LOCAL_HOSTS = ("127.0.0.1", "localhost")
+# The page loads nothing from elsewhere (no CDN) and runs no inline script.
+_CSP = ("default-src 'self'; script-src 'self'; style-src 'self' 'unsafe-inline'; "
+        "img-src 'self' data:; connect-src 'self'; frame-ancestors 'none'")
 
 
 @dataclass(frozen=True)
@@ -193,7 +196,8 @@ class App:
         cookie = f"{self._cookie_name()}={self.token}; Path=/; HttpOnly; SameSite=Strict"
         return Response(200, html.replace("{{TOKEN}}", self.token).encode("utf-8"),
                         "text/html; charset=utf-8",
-                        (("Set-Cookie", cookie), ("Cache-Control", "no-store")))
+                        (("Set-Cookie", cookie), ("Cache-Control", "no-store"),
+                         ("Content-Security-Policy", _CSP)))
 
     def _static(self, rel: str) -> Response:
         f = (STATIC / rel).resolve()
