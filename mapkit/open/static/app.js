@@ -94,6 +94,7 @@ function render(doc) {
   renderList();
   renderSelection();
   renderTypes(doc.types);
+  showNames();
   for (const b of document.querySelectorAll('#tools button')) {
     b.hidden = doc.kind === 'ros' && !['select', 'area', 'fline'].includes(b.dataset.tool);
   }
@@ -312,6 +313,10 @@ const Scale = L.Control.extend({
   },
 });
 new Scale({ position: 'bottomleft' }).addTo(map);
+// Names only where they can be read: zoomed in (<= 64 mm per pixel) or on maps with few objects.
+const showNames = () => map.getContainer().classList.toggle('no-names',
+  map.getZoom() < -6 && !!state.doc && state.doc.objects.length > 30);
+map.on('zoomend', showNames);
 const Coords = L.Control.extend({ onAdd: () => Object.assign(L.DomUtil.create('div', 'coords'), { id: 'coords' }) });
 new Coords({ position: 'bottomright' }).addTo(map);
 
