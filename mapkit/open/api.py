@@ -92,7 +92,9 @@ class App:
         self.port = port
         self._lock = threading.Lock()
         self._tiles: OrderedDict[tuple[int, int, int, int], bytes] = OrderedDict()
-        self._source: tuple[int, TileSource] | None = None
+        m = session.map  # index the scan now, not on the first tile the page asks for
+        self._source: tuple[int, TileSource] | None = (
+            session.data_version, TileSource(m.points, m.lines, m.scan.resolution))
 
     # -- checks --------------------------------------------------------------------------------
 

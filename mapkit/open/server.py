@@ -51,7 +51,10 @@ class _Handler(http.server.BaseHTTPRequestHandler):
             self.send_header(k, v)
         self.end_headers()
         if self.command != "HEAD":
-            self.wfile.write(resp.body)
+            try:
+                self.wfile.write(resp.body)
+            except (BrokenPipeError, ConnectionResetError):  # the page dropped a tile it left
+                self.close_connection = True
 
     do_GET = do_POST = do_PUT = do_DELETE = _serve
 

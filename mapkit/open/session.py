@@ -160,6 +160,8 @@ class MapSession:
     @property
     def dirty(self) -> bool:
         """Whether the map differs from the file on disk (as last opened or saved)."""
+        if self._at == self._saved_at:
+            return False
         return not diff(self._history[self._saved_at].m, self.map).equal
 
     def _watched(self) -> list[Path]:

@@ -30,7 +30,7 @@ const map = L.map('map', {
   boxZoom: false, attributionControl: false,
 });
 const tiles = L.tileLayer(q('tiles/{v}/{z}/{x}/{y}.png'), {
-  v: 0, minZoom: -14, maxZoom: 5, maxNativeZoom: 3, noWrap: true, keepBuffer: 4,
+  v: -1, minZoom: -14, maxZoom: 5, maxNativeZoom: 3, noWrap: true, keepBuffer: 4,
 });
 const objectLayer = L.layerGroup().addTo(map);
 const handleLayer = L.layerGroup().addTo(map);
@@ -87,7 +87,12 @@ function render(doc) {
   $('dirty').hidden = !doc.dirty;
   $('undo').disabled = !doc.can_undo;
   $('redo').disabled = !doc.can_redo;
-  if (tiles.options.v !== doc.data_version) { tiles.options.v = doc.data_version; tiles.redraw(); }
+  if (tiles.options.v !== doc.data_version) {
+    const [[x0, y0], [x1, y1]] = doc.bounds;  // ask only for tiles where there is something
+    tiles.options.bounds = L.latLngBounds(ll(x0, y0), ll(x1, y1)).pad(0.05);
+    tiles.options.v = doc.data_version;
+    tiles.redraw();
+  }
   objectLayer.clearLayers();
   for (const o of doc.objects) objectLayer.addLayer(objectShape(o, o.index === state.selected));
   if (state.selected && !doc.objects.some((o) => o.index === state.selected)) state.selected = null;
@@ -372,8 +377,8 @@ document.addEventListener('keydown', (e) => {
 api('GET', 'api/map').then((doc) => {
   const [[x0, y0], [x1, y1]] = doc.bounds;
   map.fitBounds(L.latLngBounds(ll(x0, y0), ll(x1, y1)), { padding: [20, 20], animate: false });
-  tiles.addTo(map);
   render(doc);
+  tiles.addTo(map);
   setTool('select');
   status(`${doc.counts.points} points, ${doc.counts.lines} lines, ${doc.counts.objects} objects`);
   window.mapkit.ready = true;
