@@ -126,7 +126,8 @@ class App:
     def handle(self, req: Request) -> Response:
         """Answer one request (never raises for bad input)."""
         if not self._host_ok(req.header("Host")):
-            return Response.error(403, "forbidden: the editor answers to 127.0.0.1 or localhost only")
+            return Response.error(
+                403, "forbidden: the editor answers to 127.0.0.1 or localhost only")
         if not self._origin_ok(req.header("Origin")):
             return Response.error(403, "forbidden: request from another origin")
         url = urlsplit(req.target)

@@ -34,7 +34,7 @@ _MAX_BODY = 64 * 1024 * 1024
 class _Handler(http.server.BaseHTTPRequestHandler):
     server_version = "mapkit-open"
     protocol_version = "HTTP/1.1"
-    app: App  # set on the subclass made per server
+    editor: Editor  # set on the subclass made per server
 
     def _serve(self) -> None:
         length = int(self.headers.get("Content-Length") or 0)
@@ -42,7 +42,8 @@ class _Handler(http.server.BaseHTTPRequestHandler):
             self.send_error(413)
             return
         body = self.rfile.read(length) if length else b""
-        resp = self.app.handle(Request(self.command, self.path, dict(self.headers.items()), body))
+        req = Request(self.command, self.path, dict(self.headers.items()), body)
+        resp = self.editor.app.handle(req)
         self.send_response(resp.status)
         self.send_header("Content-Type", resp.content_type)
         self.send_header("Content-Length", str(len(resp.body)))
@@ -73,12 +74,11 @@ class Editor:
 
     def __init__(self, session: MapSession, *, port: int = 0, token: str | None = None) -> None:
         self.token = token or secrets.token_urlsafe(24)
-        handler = type("Handler", (_Handler,), {})
+        handler = type("Handler", (_Handler,), {"editor": self})  # one class per server
         self.httpd = http.server.ThreadingHTTPServer((HOST, port), handler)
         self.httpd.daemon_threads = True
         self.port = int(self.httpd.server_address[1])
         self.app = App(session, self.token, self.port)
-        handler.app = self.app
         self._thread: threading.Thread | None = None
 
     @classmethod

@@ -30,7 +30,6 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-import shutil
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -44,7 +43,7 @@ from mapkit.errors import EditError, MapkitError
 from mapkit.formats.map import load, save
 from mapkit.model import MapData
 
-__all__ = ["ROS_OPERATIONS", "ConflictError", "MapSession", "OpenError", "sibling_paths"]
+__all__ = ["ROS_OPERATIONS", "ConflictError", "MapSession", "OpenError"]
 
 #: What a ROS map's session can do: its image is read only, its keepout zones are objects.
 ROS_OPERATIONS = ("forbid", "remove", "rename", "move")
@@ -78,19 +77,6 @@ def _digest(paths: list[Path]) -> str:
         except FileNotFoundError:
             h.update(b"\0missing")
     return h.hexdigest()
-
-
-def sibling_paths(path: PathLike, keepout: PathLike | None = None) -> list[Path]:
-    """The files a session on ``path`` may read or write: the file, its ``.bak``, and for a
-    ROS map the keepout mask (YAML, image, ``.bak``) and the filter parameters file."""
-    p = Path(os.fspath(path)).resolve()
-    out = [p, Path(f"{p}.bak")]
-    if p.suffix.lower() in (".yaml", ".yml"):
-        stem = p.with_suffix("")
-        k = Path(os.fspath(keepout)).resolve() if keepout else Path(f"{stem}_keepout.yaml")
-        for f in (k, k.with_suffix(".pgm"), k.with_suffix(".png"), Path(f"{stem}_filters.yaml")):
-            out += [f, Path(f"{f}.bak")]
-    return out
 
 
 class MapSession:
@@ -130,7 +116,8 @@ class MapSession:
         from mapkit.raster.ros import image_to_grid, read_image, read_ros_map, read_ros_yaml
 
         grid = read_ros_map(p)
-        k = Path(os.fspath(keepout)).resolve() if keepout else Path(f"{p.with_suffix('')}_keepout.yaml")
+        default = Path(f"{p.with_suffix('')}_keepout.yaml")
+        k = Path(os.fspath(keepout)).resolve() if keepout else default
         m = grid_to_map(grid, yaw=read_ros_yaml(p).origin[2])
         if k.exists():
             info = read_ros_yaml(k)
@@ -192,9 +179,11 @@ class MapSession:
         before = self.map
         after = apply_script(before, parsed, base_dir=self.path.parent)
         if self.kind == "ros":
-            bad = [o.type for o in after.objects if o.type not in ("ForbiddenArea", "ForbiddenLine")]
+            bad = [o.type for o in after.objects
+                   if o.type not in ("ForbiddenArea", "ForbiddenLine")]
             if bad:
-                raise EditError(f"edit: a keepout mask holds forbidden areas and lines, not {bad[0]}")
+                raise EditError(
+                    f"edit: a keepout mask holds forbidden areas and lines, not {bad[0]}")
         version = self.data_version
         if after.scans is not before.scans:
             self._versions += 1
@@ -266,7 +255,7 @@ class MapSession:
         if backup:
             for t in targets:
                 if t.exists():
-                    shutil.copy2(t, f"{t}.bak")
+                    atomic_write(f"{t}.bak", t.read_bytes())
         default = Path(f"{self.path.with_suffix('')}_keepout.yaml")
         if self.keepout == default and targets[1] == default.with_suffix(".pgm"):
             from mapkit.raster.masks import write_filters

@@ -60,7 +60,7 @@ def test_undo_all_redo_all_and_save_bytes(tmp_path_factory: object, edits: list[
 @given(st.integers(-12, 2), st.integers(-50, 50), st.integers(-50, 50),
        st.integers(0, TILE - 1), st.integers(0, TILE - 1))
 def test_a_point_lights_its_pixel(z: int, tx: int, ty: int, col: int, row: int) -> None:
-    x0, y0, x1, y1 = tile_bounds(z, tx, ty)
+    x0, _, _, y1 = tile_bounds(z, tx, ty)
     s = 2.0**z
     x = x0 + (col + 0.5) / s
     y = y1 - (row + 0.5) / s
