@@ -51,6 +51,33 @@ def wait_for(d: Any, script: str, timeout: float = 20.0) -> Any:
     raise AssertionError(f"timed out waiting for: {script}")
 
 
+def open_page(d: Any, ed: Editor) -> tuple[int, int]:
+    """Load the page; make the map 800 x 600 px centred on a round (cx, cy) at 4 mm/px, so that
+    pixel (400 + dx, 300 + dy) is (cx + 4 dx, cy - 4 dy) exactly. Returns (cx, cy)."""
+    d.get(ed.url("/"))
+    wait_for(d, "return window.mapkit && window.mapkit.ready && window.mapkit.firstPaint")
+    (x0, y0), (x1, y1) = ed.app.session.bounds()
+    cx, cy = round((x0 + x1) / 200) * 100, round((y0 + y1) / 200) * 100
+    d.execute_script(
+        "const el = document.getElementById('map'); el.style.right = 'auto';"
+        "el.style.bottom = 'auto'; el.style.width = '800px'; el.style.height = '600px';"
+        "mapkit.map.invalidateSize(false);"
+        f"mapkit.map.setView([{cy}, {cx}], {ZOOM}, {{animate: false}});")
+    return cx, cy
+
+
+def cli_edit(src: Path, folder: Path, edits: list[dict[str, Any]]) -> bytes:
+    """The bytes `mapkit edit COPY --script` writes for these edits."""
+    script = folder / "edits.json"
+    script.write_text(json.dumps(edits))
+    copy = folder / "cli" / src.name
+    copy.parent.mkdir()
+    shutil.copyfile(src, copy)
+    res = CliRunner().invoke(cli, ["edit", str(copy), "--script", str(script)])
+    assert res.exit_code == 0, res.output
+    return copy.read_bytes()
+
+
 def test_click_drag_rotate_save_gives_the_clis_bytes(driver: Any, shared_dir: Path,
                                                      tmp_path: Path) -> None:
     from selenium.webdriver.common.action_chains import ActionChains
@@ -63,17 +90,7 @@ def test_click_drag_rotate_save_gives_the_clis_bytes(driver: Any, shared_dir: Pa
     ed.start()
     d = driver
     try:
-        d.get(ed.url("/"))
-        wait_for(d, "return window.mapkit && window.mapkit.ready && window.mapkit.firstPaint")
-        (x0, y0), (x1, y1) = ed.app.session.bounds()
-        cx, cy = round((x0 + x1) / 200) * 100, round((y0 + y1) / 200) * 100
-        # An 800 x 600 map centred on (cx, cy) at 4 mm/px: pixel (400 + dx, 300 + dy) is
-        # (cx + 4 dx, cy - 4 dy) exactly.
-        d.execute_script(
-            "const el = document.getElementById('map'); el.style.right = 'auto';"
-            "el.style.bottom = 'auto'; el.style.width = '800px'; el.style.height = '600px';"
-            "mapkit.map.invalidateSize(false);"
-            f"mapkit.map.setView([{cy}, {cx}], {ZOOM}, {{animate: false}});")
+        cx, cy = open_page(d, ed)
         map_el = d.find_element(By.ID, "map")
 
         def at(dx: int, dy: int) -> tuple[float, float]:
@@ -128,14 +145,7 @@ def test_click_drag_rotate_save_gives_the_clis_bytes(driver: Any, shared_dir: Pa
 
         d.find_element(By.ID, "save").click()
         wait_for(d, "return document.getElementById('status').textContent.startsWith('wrote')")
-        script = tmp_path / "edits.json"
-        script.write_text(json.dumps(expected))
-        cli_copy = tmp_path / "cli" / src.name
-        cli_copy.parent.mkdir()
-        shutil.copyfile(src, cli_copy)
-        res = CliRunner().invoke(cli, ["edit", str(cli_copy), "--script", str(script)])
-        assert res.exit_code == 0, res.output
-        assert path.read_bytes() == cli_copy.read_bytes()
+        assert path.read_bytes() == cli_edit(src, tmp_path, expected)
 
         # The picture for docs/open.md: the whole map, findings shown, the area selected.
         d.execute_script(
@@ -149,6 +159,141 @@ def test_click_drag_rotate_save_gives_the_clis_bytes(driver: Any, shared_dir: Pa
         wait_for(d, "return !mapkit.tiles.isLoading()")
         DOCS_IMG.mkdir(parents=True, exist_ok=True)
         d.save_screenshot(str(DOCS_IMG / "open-editor.png"))
+        assert console_errors(d) == []
+    finally:
+        ed.stop()
+
+
+def test_every_tool_undo_redo_and_the_external_change(driver: Any, shared_dir: Path,
+                                                      tmp_path: Path) -> None:
+    from selenium.webdriver.common.action_chains import ActionChains
+    from selenium.webdriver.common.by import By
+    from selenium.webdriver.support.ui import Select
+
+    src = shared_dir / "real" / "amrisim-AMROffice.map"  # declares Sim.BoxObstacle (a sector)
+    path = tmp_path / src.name
+    shutil.copyfile(src, path)
+    ed = Editor.open(path)
+    ed.start()
+    d = driver
+    try:
+        cx, cy = open_page(d, ed)
+        n0 = len(ed.app.session.map.objects)
+        map_el = d.find_element(By.ID, "map")
+        done = [0]
+
+        def px(dx: int, dy: int) -> list[int]:
+            return [round(cx + MM * dx), round(cy - MM * dy)]
+
+        def tool(name: str) -> None:
+            d.find_element(By.CSS_SELECTOR, f'#tools button[data-tool="{name}"]').click()
+
+        def step(n: int = 1) -> None:
+            done[0] += n
+            wait_for(d, f"return mapkit.state.doc.edits.length === {done[0]}")
+
+        def drag(a: tuple[int, int], b: tuple[int, int]) -> None:
+            mid = ((b[0] - a[0]) // 2, (b[1] - a[1]) // 2)
+            (ActionChains(d).move_to_element_with_offset(map_el, *a).click_and_hold()
+             .move_by_offset(*mid).move_by_offset(b[0] - a[0] - mid[0], b[1] - a[1] - mid[1])
+             .release().perform())
+
+        def button(id_: str) -> None:
+            d.find_element(By.ID, id_).click()
+
+        expected: list[dict[str, Any]] = []
+        tool("goal")
+        ActionChains(d).move_to_element_with_offset(map_el, 0, 0).click().perform()
+        step()
+        expected.append({"add-goal": {"name": "Goal1", "x": cx, "y": cy}})
+        goal = f"#{n0 + 1}"
+        # Select it by a click, move it with the centre handle, rename and turn it in the panel.
+        tool("select")
+        ActionChains(d).move_to_element_with_offset(map_el, 0, 0).click().perform()
+        wait_for(d, "return !document.getElementById('selection').hidden")
+        handle = d.find_element(By.CSS_SELECTOR, ".handle.move")
+        chain = ActionChains(d).click_and_hold(handle)
+        for _ in range(5):
+            chain = chain.move_by_offset(5, 2).pause(0.05)
+        chain.pause(0.2).release().perform()
+        step()
+        expected.append({"move": {"name": goal, "x": px(25, 10)[0], "y": px(25, 10)[1]}})
+        name = d.find_element(By.ID, "sel-name")
+        name.clear()
+        name.send_keys("Coffee")
+        button("sel-rename")
+        step()
+        expected.append({"rename": {"name": goal, "new-name": "Coffee"}})
+        heading = d.find_element(By.ID, "sel-heading")
+        heading.clear()
+        heading.send_keys("90")
+        button("sel-turn")
+        step()
+        expected.append({"move": {"name": goal, "heading": 90}})
+        d.find_element(By.ID, "search").send_keys("coff")
+        rows = d.find_elements(By.CSS_SELECTOR, "#objects li")
+        assert [r.text for r in rows] == [f"{goal} GoalWithHeading Coffee"]
+        # The drawing tools.
+        tool("fline")
+        drag((-150, 100), (-50, 120))
+        step()
+        expected.append({"forbid": {"line": [*px(-150, 100), *px(-50, 120)]}})
+        tool("wall")
+        drag((-150, -100), (150, -100))
+        step()
+        expected.append({"draw-line": {"line": [*px(-150, -100), *px(150, -100)]}})
+        tool("erasebox")
+        drag((-300, -250), (-100, -150))
+        step()
+        expected.append({"erase": {"box": [*px(-300, -250), *px(-100, -150)]}})
+        tool("erasepoly")
+        chain = ActionChains(d)
+        for corner in ((100, 100), (300, 100), (300, 250)):
+            chain = chain.move_to_element_with_offset(map_el, *corner).click().pause(0.1)
+        chain.move_to_element_with_offset(map_el, 102, 101).click().perform()  # the first again
+        step()
+        expected.append({"erase": {"polygon": [px(100, 100), px(300, 100), px(300, 250)]}})
+        tool("object")
+        Select(d.find_element(By.ID, "type")).select_by_value("Sim.BoxObstacle")
+        drag((200, -250), (260, -200))
+        step()
+        expected.append({"add-object": {"type": "Sim.BoxObstacle", "name": "Sim.BoxObstacle1",
+                                        "params": {}, "area": [*px(200, -250), *px(260, -200)]}})
+        # Undo and redo with the buttons, then delete the goal with the Delete button.
+        button("undo")
+        wait_for(d, f"return mapkit.state.doc.edits.length === {done[0] - 1}")
+        button("redo")
+        wait_for(d, f"return mapkit.state.doc.edits.length === {done[0]}")
+        tool("select")
+        d.find_element(By.ID, "search").clear()
+        d.find_element(By.ID, "search").send_keys("Coffee")
+        d.find_element(By.CSS_SELECTOR, "#objects li").click()
+        button("sel-delete")
+        step()
+        expected.append({"remove": {"names": [goal]}})
+        assert ed.app.session.edits == expected
+
+        # Another program changes the file: saving is refused and the page offers a reload.
+        theirs = tmp_path / "theirs" / src.name
+        theirs.parent.mkdir()
+        theirs.write_bytes(src.read_bytes().replace(b"\nDATA\n", b"\nDATA\n0 0\n", 1))
+        shutil.copyfile(theirs, path)
+        button("save")
+        wait_for(d, "return !document.getElementById('reload').hidden")
+        assert "changed on disk" in d.find_element(By.ID, "status").text
+        assert path.read_bytes() == theirs.read_bytes()  # untouched
+        errors = console_errors(d)
+        assert len(errors) == 1 and "409" in errors[0], errors  # the refused save, nothing else
+        button("reload")
+        wait_for(d, "return mapkit.state.doc.edits.length === 0 && !mapkit.state.doc.dirty")
+        assert d.find_element(By.ID, "reload").get_attribute("hidden") is not None
+        # Replay the same edits through the API and save with Ctrl+S: the CLI's bytes.
+        ed.app.session.edit(expected)
+        d.execute_script("mapkit.refresh()")
+        wait_for(d, f"return mapkit.state.doc.edits.length === {len(expected)}")
+        ActionChains(d).key_down("\ue009").send_keys("s").key_up("\ue009").perform()
+        wait_for(d, "return document.getElementById('status').textContent.startsWith('wrote')")
+        assert path.read_bytes() == cli_edit(theirs, tmp_path, expected)
         assert console_errors(d) == []
     finally:
         ed.stop()

@@ -210,6 +210,8 @@ async function send(method, path, body, then) {
 }
 
 const edit = (...edits) => send('POST', 'api/edit', { edits });
+// Read the map again (after a script changed it through the API).
+window.mapkit.refresh = () => send('GET', 'api/map');
 const selectNewest = () => select(state.doc.objects.length);
 
 function freeName(base) {
@@ -274,8 +276,8 @@ map.on('mousemove', (e) => {
   const b = xy(e.latlng);
   draftLayer.clearLayers();
   const A = ll(...drag.a), B = ll(...b);
-  draftLayer.addLayer(DRAGS_BOX.has(state.tool) ? L.rectangle([A, B], { color: '#f80', weight: 1 })
-    : L.polyline([A, B], { color: '#f80', weight: 2 }));
+  draftLayer.addLayer(DRAGS_BOX.has(state.tool) ? L.rectangle([A, B], { color: '#f80', weight: 1, interactive: false })
+    : L.polyline([A, B], { color: '#f80', weight: 2, interactive: false }));
 });
 map.on('mouseup', (e) => {
   if (!drag) return;
@@ -284,21 +286,27 @@ map.on('mouseup', (e) => {
   cancelDraft();
   TOOLS[state.tool](a, b, heading(a, b, p0, e.containerPoint));
 });
-map.on('click', (e) => {
-  if (state.tool === 'select') { state.selected = null; render(state.doc); return; }
-  if (state.tool !== 'erasepoly') return;
-  polygon = polygon || [];
-  polygon.push(xy(e.latlng));
-  draftLayer.clearLayers();
-  draftLayer.addLayer(L.polyline(polygon.map((p) => ll(...p)), { color: '#f80', weight: 2 }));
-});
-map.on('dblclick', () => {
+// An erase polygon: click the corners; finish with a click on the first corner, a double-click
+// or Enter.
+function finishPolygon() {
   if (state.tool !== 'erasepoly' || !polygon) return;
   const pts = polygon.filter((p, i) => i === 0 || p[0] !== polygon[i - 1][0] || p[1] !== polygon[i - 1][1]);
   cancelDraft();
   if (pts.length < 3) return status('an erase polygon needs 3 corners or more', true);
   edit({ erase: { polygon: pts } });
+}
+map.on('click', (e) => {
+  if (state.tool === 'select') { state.selected = null; render(state.doc); return; }
+  if (state.tool !== 'erasepoly') return;
+  polygon = polygon || [];
+  if (polygon.length >= 3 && map.latLngToContainerPoint(ll(...polygon[0])).distanceTo(e.containerPoint) < 8) {
+    return finishPolygon();
+  }
+  polygon.push(xy(e.latlng));
+  draftLayer.clearLayers();
+  draftLayer.addLayer(L.polyline(polygon.map((p) => ll(...p)), { color: '#f80', weight: 2, interactive: false }));
 });
+map.on('dblclick', finishPolygon);
 
 // -- controls: scale bar and cursor coordinates -----------------------------------------------
 const Scale = L.Control.extend({
@@ -370,6 +378,7 @@ document.addEventListener('keydown', (e) => {
   else if ((e.ctrlKey || e.metaKey) && k === 'y') { e.preventDefault(); send('POST', 'api/redo'); }
   else if ((e.ctrlKey || e.metaKey) && k === 's') { e.preventDefault(); $('save').click(); }
   else if (k === 'escape') setTool('select');
+  else if (k === 'enter') finishPolygon();
   else if (k === 'delete' && state.selected) $('sel-delete').click();
 });
 
