@@ -5,9 +5,11 @@ Measures, for the big map and (as the baseline, in the same run) the small bundl
 * open: reading the file and indexing it for tiles (server side);
 * first full paint: from navigation start to the moment every visible tile of the first view
   has loaded (Leaflet's tile layer ``load`` event, ``performance.now()``);
-* frames per second while panning (a 12 px step every frame, ``requestAnimationFrame``
-  counting, new tiles coming from the server as the view moves) and while zooming (one zoom
-  step in or out every 15 frames).
+* frames per second (``requestAnimationFrame`` counting) while the real mouse drags the map
+  about (strokes of 20 steps of 10 px, new tiles coming from the server as the view moves) and
+  while the real wheel zooms in and out (Leaflet's animated zoom);
+* the same, scripted, in the worst case for the page: ``panBy`` every frame (each frame is a
+  whole move, so Leaflet re-lays tiles and vectors every frame) and ``setZoom`` every 15 frames.
 
 Targets: first paint < 2 s, panning >= 30 fps.
 
@@ -17,6 +19,7 @@ Targets: first paint < 2 s, panning >= 30 fps.
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 import tempfile
 import time
@@ -54,6 +57,44 @@ requestAnimationFrame(step);
 """
 
 
+COUNT_START = """
+window.__frames = 0; window.__t0 = performance.now(); window.__counting = true;
+const tick = () => {
+  if (window.__counting) { window.__frames++; requestAnimationFrame(tick); }
+};
+requestAnimationFrame(tick);
+"""
+COUNT_STOP = """
+window.__counting = false;
+return window.__frames / ((performance.now() - window.__t0) / 1000);
+"""
+
+
+def by_hand(d: Any, kind: str, seconds: float) -> float:
+    """Frames per second while the real mouse drags the map, or the real wheel zooms it."""
+    from selenium.webdriver.common.action_chains import ActionChains
+    from selenium.webdriver.common.actions.wheel_input import ScrollOrigin
+    from selenium.webdriver.common.by import By
+
+    map_el = d.find_element(By.ID, "map")
+    d.execute_script(COUNT_START)
+    end = time.monotonic() + seconds
+    k = 0
+    while time.monotonic() < end:
+        if kind == "drag":
+            chain = ActionChains(d, duration=16).move_to_element(map_el).click_and_hold()
+            a = k * 2.0  # a stroke of 20 steps of 10 px from the centre, each in a new direction
+            for _ in range(20):
+                chain = chain.move_by_offset(round(10 * math.cos(a)), round(10 * math.sin(a)))
+            chain.release().perform()
+        else:
+            origin = ScrollOrigin.from_element(map_el)
+            ActionChains(d).scroll_from_origin(origin, 0, -100 if k % 4 < 2 else 100).perform()
+            time.sleep(0.35)  # Leaflet animates each zoom step for 0.25 s
+        k += 1
+    return float(d.execute_script(COUNT_STOP))
+
+
 def measure(path: Path, seconds: float, screenshot: Path | None = None) -> dict[str, Any]:
     t = time.perf_counter()
     ed = Editor.open(path)
@@ -74,13 +115,15 @@ def measure(path: Path, seconds: float, screenshot: Path | None = None) -> dict[
                 d.save_screenshot(str(screenshot))
             d.execute_script("mapkit.map.setZoom(mapkit.map.getZoom() + 2, {animate: false})")
             time.sleep(1.0)
+            drag = by_hand(d, "drag", seconds)
+            wheel = by_hand(d, "wheel", seconds)
             pan = d.execute_async_script(MOTION, "pan", seconds)
             zoom = d.execute_async_script(MOTION, "zoom", seconds)
             errors = console_errors(d)
     finally:
         ed.stop()
-    return {"open": opened, "paint": paint_ms / 1000.0, "pan": pan[0], "zoom": zoom[0],
-            "errors": errors}
+    return {"open": opened, "paint": paint_ms / 1000.0, "drag": drag, "wheel": wheel,
+            "pan": pan[0], "zoom": zoom[0], "errors": errors}
 
 
 def main() -> None:
@@ -100,11 +143,13 @@ def main() -> None:
     res = measure(big, args.seconds, args.screenshot)
     print(f"{'':30s} {'office.map':>11s} {'1M points':>11s} {'x office':>9s}  target")
     rows = [("open + index (s)", "open", ""), ("first full paint (s)", "paint", "< 2 s"),
-            ("panning (fps)", "pan", ">= 30 fps"), ("zooming (fps)", "zoom", "")]
+            ("panning, mouse drag (fps)", "drag", ">= 30 fps"),
+            ("zooming, mouse wheel (fps)", "wheel", ""),
+            ("panBy every frame (fps)", "pan", ""), ("setZoom every 15 (fps)", "zoom", "")]
     for label, key, target in rows:
         ratio = res[key] / base[key]
         print(f"{label:30s} {base[key]:11.3f} {res[key]:11.3f} {ratio:9.2f}  {target}")
-    ok = res["paint"] < 2.0 and res["pan"] >= 30.0
+    ok = res["paint"] < 2.0 and res["drag"] >= 30.0
     print(f"targets {'met' if ok else 'NOT met'}; console errors: {len(res['errors'])}")
     for e in res["errors"][:5]:
         print("  ", e)

@@ -1,4 +1,4 @@
-"""The page ships inside the wheel: its scripts, styles and the vendored Leaflet with its licence."""
+"""The page ships inside the wheel: its scripts, styles, and Leaflet with its licence."""
 
 from __future__ import annotations
 

@@ -45,6 +45,7 @@ function textNode(s) {
   span.textContent = s;
   return span;
 }
+const esc = (s) => s.replace(/[&<>"']/g, (c) => `&#${c.charCodeAt(0)};`);
 
 function status(text, error) {
   $('status').textContent = text;
@@ -60,9 +61,14 @@ function pointIcon(o, selected) {
     ? `<div class="arrow" style="transform: rotate(${-o.theta}deg)"></div>` : '';
   return L.divIcon({
     className: 'obj' + (selected ? ' sel' : ''), iconSize: [22, 22], iconAnchor: [11, 11],
-    html: `${arrow}<div class="badge" style="background:${colour}">${letter}</div>`,
+    html: `${arrow}<div class="badge" style="background:${colour}">${letter}</div>${label(o)}`,
   });
 }
+
+// Names are part of the markers' HTML, not Leaflet tooltips: hundreds of permanent tooltips
+// each measure themselves on every zoom, which made zooming a big map crawl.
+const label = (o) => (o.name ? `<span class="name">${esc(o.name)}</span>` : '');
+const labelIcon = (o) => L.divIcon({ className: 'obj-label', iconSize: [0, 0], html: label(o) });
 
 function objectShape(o, selected) {
   const forbidden = o.type.startsWith('Forbidden');
@@ -76,9 +82,9 @@ function objectShape(o, selected) {
   } else {
     layer = L.marker(ll(o.x, o.y), { icon: pointIcon(o, selected), keyboard: false });
   }
-  if (o.name) layer.bindTooltip(textNode(o.name), { permanent: true, direction: 'right', className: 'name', offset: [8, 0] });
   layer.on('click', (e) => { if (state.tool === 'select') { L.DomEvent.stop(e); select(o.index); } });
-  return layer;
+  if (o.shape === 'point' || !o.name) return layer;
+  return L.layerGroup([layer, L.marker(ll(...o.centre), { icon: labelIcon(o), interactive: false, keyboard: false })]);
 }
 
 function render(doc) {
