@@ -23,7 +23,7 @@ from urllib.parse import quote
 
 from mapkit._typing import PathLike
 from mapkit.open.api import App, Request
-from mapkit.open.session import MapSession
+from mapkit.open.session import MapSession, OpenError
 
 __all__ = ["HOST", "Editor"]
 
@@ -75,7 +75,11 @@ class Editor:
     def __init__(self, session: MapSession, *, port: int = 0, token: str | None = None) -> None:
         self.token = token or secrets.token_urlsafe(24)
         handler = type("Handler", (_Handler,), {"editor": self})  # one class per server
-        self.httpd = http.server.ThreadingHTTPServer((HOST, port), handler)
+        try:
+            self.httpd = http.server.ThreadingHTTPServer((HOST, port), handler)
+        except OSError as err:
+            raise OpenError(f"cannot serve on {HOST}:{port}: {err.strerror or err}; "
+                            "pick another --port (0 picks a free one)") from err
         self.httpd.daemon_threads = True
         self.port = int(self.httpd.server_address[1])
         self.app = App(session, self.token, self.port)

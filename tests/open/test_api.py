@@ -430,3 +430,9 @@ def test_ros_keepout_option_and_refusals(ros_map: Path, tmp_path: Path) -> None:
         Editor.open(ros_map, keepout=tmp_path / "none.yaml")
     res = CliRunner().invoke(cli, ["open", str(OFFICE), "--keepout", str(mask), "--no-browser"])
     assert res.exit_code == 1 and "ROS map YAML" in res.output
+
+
+def test_cli_says_when_the_port_is_taken(office: Path, client: Client) -> None:
+    res = CliRunner().invoke(cli, ["open", str(office), "--no-browser",
+                                   "--port", str(client.editor.port)])
+    assert res.exit_code == 1 and f"cannot serve on 127.0.0.1:{client.editor.port}" in res.output
