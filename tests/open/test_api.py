@@ -436,3 +436,30 @@ def test_cli_says_when_the_port_is_taken(office: Path, client: Client) -> None:
     res = CliRunner().invoke(cli, ["open", str(office), "--no-browser",
                                    "--port", str(client.editor.port)])
     assert res.exit_code == 1 and f"cannot serve on 127.0.0.1:{client.editor.port}" in res.output
+
+
+def test_declared_types_with_their_parameters(tmp_path: Path, shared_dir: Path) -> None:
+    src = shared_dir / "real" / "omron-ld-showroom-ex4.map"
+    ed = Editor.open(_copy(src, tmp_path))
+    ed.start()
+    try:
+        c = Client(ed)
+        types = {t["name"]: t for t in c.call("GET", "/api/map")[1]["types"]}
+        assert {p["name"] for p in types["MovementParametersSector"]["params"]} >= {"TransVelMax"}
+        status, err = c.edit({"add-object": {"type": "DoorGoal", "at": [0, 0], "name": "D",
+                                             "params": {"NoSuchParam": 1}}})
+        assert status == 400 and "NoSuchParam" in err["error"]
+        edits = [
+            {"add-object": {"type": "MovementParametersSector", "area": [0, 0, 3000, 2000],
+                            "name": "Slow zone", "params": {"TransVelMax": "300"}}},
+            {"add-object": {"type": "DoorGoal", "at": [1500, 1000], "heading": 90,
+                            "name": "Door goal", "params": {"CustomDoneDist": 250}}},
+        ]
+        status, doc = c.edit(*edits)
+        assert status == 200, doc
+        rows = {o["name"]: o for o in doc["map"]["objects"]}
+        assert rows["Slow zone"]["params"]["TransVelMax"] == "300"
+        assert c.call("POST", "/api/save", {})[0] == 200
+        assert ed.app.session.path.read_bytes() == cli_bytes(src, tmp_path / "cli", edits)
+    finally:
+        ed.stop()

@@ -296,3 +296,37 @@ def test_every_tool_undo_redo_and_the_external_change(driver: Any, shared_dir: P
         assert console_errors(d) == []
     finally:
         ed.stop()
+
+
+def test_declared_type_with_a_parameter_from_the_form(driver: Any, shared_dir: Path,
+                                                      tmp_path: Path) -> None:
+    from selenium.webdriver.common.action_chains import ActionChains
+    from selenium.webdriver.common.by import By
+    from selenium.webdriver.support.ui import Select
+
+    src = shared_dir / "real" / "omron-ld-showroom-ex4.map"
+    path = tmp_path / src.name
+    shutil.copyfile(src, path)
+    ed = Editor.open(path)
+    ed.start()
+    d = driver
+    try:
+        cx, cy = open_page(d, ed)
+        d.find_element(By.CSS_SELECTOR, '#tools button[data-tool="object"]').click()
+        Select(d.find_element(By.ID, "type")).select_by_value("MovementParametersSector")
+        d.find_element(By.CSS_SELECTOR, '#params input[data-param="TransVelMax"]').send_keys("300")
+        map_el = d.find_element(By.ID, "map")
+        (ActionChains(d).move_to_element_with_offset(map_el, -50, -50).click_and_hold()
+         .move_by_offset(50, 25).move_by_offset(50, 25).release().perform())
+        wait_for(d, "return mapkit.state.doc.edits.length === 1")
+        box = [round(cx - 50 * MM), round(cy + 50 * MM), round(cx + 50 * MM), round(cy)]
+        expected = [{"add-object": {"type": "MovementParametersSector",
+                                    "name": "MovementParametersSector1",
+                                    "params": {"TransVelMax": "300"}, "area": box}}]
+        assert ed.app.session.edits == expected
+        d.find_element(By.ID, "save").click()
+        wait_for(d, "return document.getElementById('status').textContent.startsWith('wrote')")
+        assert path.read_bytes() == cli_edit(src, tmp_path, expected)
+        assert console_errors(d) == []
+    finally:
+        ed.stop()
