@@ -9,6 +9,7 @@ import signal
 import subprocess
 import sys
 from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -60,6 +61,17 @@ def _copy(src: Path, folder: Path) -> Path:
     return dst
 
 
+@contextmanager
+def serving(path: Path, **kw: Any) -> Iterator[Client]:
+    """An editor on ``path`` (a copy the test owns), serving until the block ends."""
+    ed = Editor.open(path, **kw)
+    ed.start()
+    try:
+        yield Client(ed)
+    finally:
+        ed.stop()
+
+
 @pytest.fixture
 def office(tmp_path: Path) -> Path:
     return _copy(OFFICE, tmp_path)
@@ -67,12 +79,8 @@ def office(tmp_path: Path) -> Path:
 
 @pytest.fixture
 def client(office: Path) -> Iterator[Client]:
-    ed = Editor.open(office)
-    ed.start()
-    try:
-        yield Client(ed)
-    finally:
-        ed.stop()
+    with serving(office) as c:
+        yield c
 
 
 def cli_bytes(src: Path, folder: Path, edits: list[dict[str, Any]]) -> bytes:
@@ -188,10 +196,7 @@ def test_every_operation_saves_the_clis_bytes(client: Client, office: Path, tmp_
 
 def test_declared_type_with_parameters(tmp_path: Path, shared_dir: Path) -> None:
     src = shared_dir / "real" / "aria291-columbia.map"
-    ed = Editor.open(_copy(src, tmp_path))
-    ed.start()
-    try:
-        c = Client(ed)
+    with serving(_copy(src, tmp_path)) as c:
         types = {t["name"]: t for t in c.call("GET", "/api/map")[1]["types"]}
         assert types["BadGPSSector"]["shape"] == "rect" and types["Measure"]["shape"] == "line"
         edits = [{"add-object": {"type": "BadGPSSector", "area": [0, 0, 5000, 2000],
@@ -199,9 +204,7 @@ def test_declared_type_with_parameters(tmp_path: Path, shared_dir: Path) -> None
                  {"add-object": {"type": "Measure", "line": [0, 0, 10000, 0], "name": "Stick"}}]
         assert c.edit(*edits)[0] == 200
         assert c.call("POST", "/api/save", {})[0] == 200
-        assert ed.app.session.path.read_bytes() == cli_bytes(src, tmp_path / "cli", edits)
-    finally:
-        ed.stop()
+        assert c.editor.app.session.path.read_bytes() == cli_bytes(src, tmp_path / "cli", edits)
 
 
 @pytest.mark.parametrize("edits, words", [
@@ -289,10 +292,7 @@ def test_save_refuses_a_file_changed_on_disk(client: Client, office: Path) -> No
 
 
 def test_same_edits_same_bytes_on_every_real_sample(real_sample: Path, tmp_path: Path) -> None:
-    ed = Editor.open(_copy(real_sample, tmp_path))
-    ed.start()
-    try:
-        c = Client(ed)
+    with serving(_copy(real_sample, tmp_path)) as c:
         (x0, y0), (x1, y1) = c.call("GET", "/api/map")[1]["bounds"]
         cx, cy = round((x0 + x1) / 2), round((y0 + y1) / 2)
         n = c.call("GET", "/api/map")[1]["counts"]["objects"]
@@ -308,9 +308,8 @@ def test_same_edits_same_bytes_on_every_real_sample(real_sample: Path, tmp_path:
             status, doc = c.edit(e)
             assert status == 200, doc
         assert c.call("POST", "/api/save", {})[0] == 200
-        assert ed.app.session.path.read_bytes() == cli_bytes(real_sample, tmp_path / "cli", edits)
-    finally:
-        ed.stop()
+        saved = c.editor.app.session.path.read_bytes()
+        assert saved == cli_bytes(real_sample, tmp_path / "cli", edits)
 
 
 def test_validate_findings_have_codes_and_places(client: Client) -> None:
@@ -366,10 +365,7 @@ def test_ros_keepout_zones_are_edited_and_saved_as_the_mask(ros_map: Path, tmp_p
 
     folder = ros_map.parent
     before = {p.name: p.read_bytes() for p in folder.iterdir()}
-    ed = Editor.open(ros_map)
-    ed.start()
-    try:
-        c = Client(ed)
+    with serving(ros_map) as c:
         doc = c.call("GET", "/api/map")[1]
         assert doc["kind"] == "ros" and doc["counts"]["points"] > 100
         assert {o["type"] for o in doc["objects"]} <= {"ForbiddenArea", "ForbiddenLine"}
@@ -395,14 +391,12 @@ def test_ros_keepout_zones_are_edited_and_saved_as_the_mask(ros_map: Path, tmp_p
         other = tmp_path / "lib"
         other.mkdir()
         shutil.copyfile(ros_map, other / "office.yaml")
-        write_filters(ed.app.session.map, ed.app.session.grid, other / "office.yaml")
+        write_filters(c.editor.app.session.map, c.editor.app.session.grid, other / "office.yaml")
         for name in ("office_keepout.yaml", "office_keepout.pgm"):
             assert (folder / name).read_bytes() == (other / name).read_bytes()
         assert (folder / "office_filters.yaml").read_text().replace(str(folder), "D") == \
             (other / "office_filters.yaml").read_text().replace(str(other), "D")
         assert (folder / "office_keepout.pgm").read_bytes() != before["office_keepout.pgm"]
-    finally:
-        ed.stop()
     again = Editor.open(ros_map)  # the saved mask reads back with the new zones
     assert again.app.session.describe()["counts"]["objects"] >= zones + 2
     again.httpd.server_close()
@@ -412,20 +406,14 @@ def test_ros_keepout_option_and_refusals(ros_map: Path, tmp_path: Path) -> None:
     mask = ros_map.parent / "office_keepout.yaml"
     named = ros_map.parent / "zones.yaml"
     shutil.copyfile(mask, named)
-    named.write_text(named.read_text())
-    ed = Editor.open(ros_map, keepout=named)
-    ed.start()
-    try:
-        assert ed.app.session.keepout == named.resolve()
-        c = Client(ed)
+    with serving(ros_map, keepout=named) as c:
+        assert c.editor.app.session.keepout == named.resolve()
         assert c.edit({"forbid": {"area": [2000, 2000, 4000, 3000]}})[0] == 200
         status, saved = c.call("POST", "/api/save", {})
         assert status == 200, saved
         assert [Path(p).name for p in saved["written"]] == [
             "zones.yaml", "office_keepout.pgm", "office_filters.yaml"]  # the image zones.yaml names
         assert "zones.yaml" in (ros_map.parent / "office_filters.yaml").read_text()
-    finally:
-        ed.stop()
     with pytest.raises(OpenError, match="no such keepout mask"):
         Editor.open(ros_map, keepout=tmp_path / "none.yaml")
     res = CliRunner().invoke(cli, ["open", str(OFFICE), "--keepout", str(mask), "--no-browser"])
@@ -440,10 +428,7 @@ def test_cli_says_when_the_port_is_taken(office: Path, client: Client) -> None:
 
 def test_declared_types_with_their_parameters(tmp_path: Path, shared_dir: Path) -> None:
     src = shared_dir / "real" / "omron-ld-showroom-ex4.map"
-    ed = Editor.open(_copy(src, tmp_path))
-    ed.start()
-    try:
-        c = Client(ed)
+    with serving(_copy(src, tmp_path)) as c:
         types = {t["name"]: t for t in c.call("GET", "/api/map")[1]["types"]}
         assert {p["name"] for p in types["MovementParametersSector"]["params"]} >= {"TransVelMax"}
         status, err = c.edit({"add-object": {"type": "DoorGoal", "at": [0, 0], "name": "D",
@@ -460,6 +445,4 @@ def test_declared_types_with_their_parameters(tmp_path: Path, shared_dir: Path) 
         rows = {o["name"]: o for o in doc["map"]["objects"]}
         assert rows["Slow zone"]["params"]["TransVelMax"] == "300"
         assert c.call("POST", "/api/save", {})[0] == 200
-        assert ed.app.session.path.read_bytes() == cli_bytes(src, tmp_path / "cli", edits)
-    finally:
-        ed.stop()
+        assert c.editor.app.session.path.read_bytes() == cli_bytes(src, tmp_path / "cli", edits)

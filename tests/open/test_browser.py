@@ -12,6 +12,7 @@ import os
 import shutil
 import time
 from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -66,6 +67,19 @@ def open_page(d: Any, ed: Editor) -> tuple[int, int]:
     return cx, cy
 
 
+@contextmanager
+def serving(src: Path, folder: Path) -> Iterator[tuple[Path, Editor]]:
+    """A copy of ``src`` in ``folder`` and an editor serving it until the block ends."""
+    path = folder / src.name
+    shutil.copyfile(src, path)
+    ed = Editor.open(path)
+    ed.start()
+    try:
+        yield path, ed
+    finally:
+        ed.stop()
+
+
 def cli_edit(src: Path, folder: Path, edits: list[dict[str, Any]]) -> bytes:
     """The bytes `mapkit edit COPY --script` writes for these edits."""
     script = folder / "edits.json"
@@ -84,12 +98,8 @@ def test_click_drag_rotate_save_gives_the_clis_bytes(driver: Any, shared_dir: Pa
     from selenium.webdriver.common.by import By
 
     src = shared_dir / "real" / "aria-office.map"
-    path = tmp_path / src.name
-    shutil.copyfile(src, path)
-    ed = Editor.open(path)
-    ed.start()
     d = driver
-    try:
+    with serving(src, tmp_path) as (path, ed):
         cx, cy = open_page(d, ed)
         map_el = d.find_element(By.ID, "map")
 
@@ -159,8 +169,6 @@ def test_click_drag_rotate_save_gives_the_clis_bytes(driver: Any, shared_dir: Pa
         DOCS_IMG.mkdir(parents=True, exist_ok=True)
         d.save_screenshot(str(DOCS_IMG / "open-editor.png"))
         assert console_errors(d) == []
-    finally:
-        ed.stop()
 
 
 def test_every_tool_undo_redo_and_the_external_change(driver: Any, shared_dir: Path,
@@ -170,12 +178,8 @@ def test_every_tool_undo_redo_and_the_external_change(driver: Any, shared_dir: P
     from selenium.webdriver.support.ui import Select
 
     src = shared_dir / "real" / "amrisim-AMROffice.map"  # declares Sim.BoxObstacle (a sector)
-    path = tmp_path / src.name
-    shutil.copyfile(src, path)
-    ed = Editor.open(path)
-    ed.start()
     d = driver
-    try:
+    with serving(src, tmp_path) as (path, ed):
         cx, cy = open_page(d, ed)
         n0 = len(ed.app.session.map.objects)
         map_el = d.find_element(By.ID, "map")
@@ -294,8 +298,6 @@ def test_every_tool_undo_redo_and_the_external_change(driver: Any, shared_dir: P
         wait_for(d, "return document.getElementById('status').textContent.startsWith('wrote')")
         assert path.read_bytes() == cli_edit(theirs, tmp_path, expected)
         assert console_errors(d) == []
-    finally:
-        ed.stop()
 
 
 def test_declared_type_with_a_parameter_from_the_form(driver: Any, shared_dir: Path,
@@ -305,12 +307,8 @@ def test_declared_type_with_a_parameter_from_the_form(driver: Any, shared_dir: P
     from selenium.webdriver.support.ui import Select
 
     src = shared_dir / "real" / "omron-ld-showroom-ex4.map"
-    path = tmp_path / src.name
-    shutil.copyfile(src, path)
-    ed = Editor.open(path)
-    ed.start()
     d = driver
-    try:
+    with serving(src, tmp_path) as (path, ed):
         cx, cy = open_page(d, ed)
         d.find_element(By.CSS_SELECTOR, '#tools button[data-tool="object"]').click()
         Select(d.find_element(By.ID, "type")).select_by_value("MovementParametersSector")
@@ -328,5 +326,3 @@ def test_declared_type_with_a_parameter_from_the_form(driver: Any, shared_dir: P
         wait_for(d, "return document.getElementById('status').textContent.startsWith('wrote')")
         assert path.read_bytes() == cli_edit(src, tmp_path, expected)
         assert console_errors(d) == []
-    finally:
-        ed.stop()
