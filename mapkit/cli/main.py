@@ -80,6 +80,7 @@ cli.add_command(_ros.ros)
 cli.add_command(_logs.simulate)
 cli.add_command(_logs.build)
 cli.add_command(_logs.log_info)
+cli.add_command(__import__("mapkit.cli.open", fromlist=["open_cmd"]).open_cmd)
 
 
 def main() -> None:
