@@ -80,6 +80,8 @@ cli.add_command(_ros.ros)
 cli.add_command(_logs.simulate)
 cli.add_command(_logs.build)
 cli.add_command(_logs.log_info)
+from mapkit.cli.aria import aria as _aria  # noqa: E402
+cli.add_command(_aria)
 
 
 def main() -> None:
