@@ -99,6 +99,8 @@ class AriaClient:
         self._replies: deque[Data] = deque()
         self._broadcasts: deque[Data] = deque(maxlen=MAX_QUEUED_BROADCASTS)
         self._awaiting = ""
+        self._skip: dict[str, int] = {}
+        self._unfinished = ""
         self._last = time.monotonic()
         self._buf = bytearray(_RECV)
         self.bytes_received = 0
@@ -232,7 +234,10 @@ class AriaClient:
             self._last = time.monotonic()
         for ev in events:
             if isinstance(ev, Data):
-                if ev.name == self._awaiting:
+                if self._skip.get(ev.name):
+                    if not ev.data:  # the end of a reply its reader gave up on
+                        self._skip[ev.name] -= 1
+                elif ev.name == self._awaiting:
                     self._replies.append(ev)
                 elif ev.name in self._conn.standing:
                     self._broadcasts.append(ev)
@@ -257,6 +262,13 @@ class AriaClient:
 
     def send(self, name: str, data: bytes = b"") -> None:
         """Send a request without waiting for its reply."""
+        if self._unfinished:
+            # the last RETURN_UNTIL_EMPTY reply was abandoned (an error code): skip its rest
+            late = self._unfinished
+            if not any(r.name == late and not r.data for r in self._replies):
+                self._skip[late] = self._skip.get(late, 0) + 1
+            self._unfinished = ""
+        self._replies.clear()
         self._conn.request(name, data)
         self._flush()
 
@@ -272,19 +284,19 @@ class AriaClient:
 
     def call(self, name: str, data: bytes = b"") -> Data:
         """Send a request and return its first reply packet."""
-        self._replies.clear()
         self._awaiting = name
         self.send(name, data)
         return self._wait(name, f"waiting for the reply to {name}")
 
     def call_until_empty(self, name: str, data: bytes = b"") -> Iterator[Data]:
         """Send a request and yield its reply packets up to (not including) the empty one."""
-        self._replies.clear()
         self._awaiting = name
         self.send(name, data)
+        self._unfinished = name
         while True:
             reply = self._wait(name, f"receiving the reply to {name}")
             if not reply.data:
+                self._unfinished = ""
                 return
             yield reply
 

@@ -59,6 +59,9 @@ SERVICES = {
     "files": ("getDirListingMultiplePackets", "getFile", "putFile", "deleteFile"),
     "config": ("setConfigBySectionsV2", "setConfig", "configUpdated"),
 }
+#: `mapkit validate` codes for what stops ARIA loading a map: unreadable numbers (MK107), header
+#: lines it rejects (MK110), coordinates beyond 32 bits (MK304), non-finite objects (MK405).
+LOAD_STOPPERS = frozenset({107, 110, 304, 405})
 #: Largest map held in memory, and largest file streamed to disk, by default.
 MAX_MAP_BYTES = 512 << 20
 MAX_FILE_BYTES = 4 << 30
@@ -313,8 +316,12 @@ class Robot:
             if progress is not None:
                 progress(min(sent, len(data)), len(data))
         while True:
-            code = put_result(self.client.expect("putFile", f"uploading '{remote}'").fields(),
-                              remote)
+            reply = self.client.expect("putFile", f"uploading '{remote}'")
+            try:
+                code = put_result(reply.fields(), remote)
+            except AriaError:
+                self.client.close()  # the server answers each later chunk too: start afresh
+                raise
             if code == 0:
                 return
 
@@ -440,13 +447,12 @@ class Robot:
     def _check(data: bytes, src: str) -> None:
         from mapkit.validate import validate
 
-        loads(data, source=src)  # a map at all (raises MapFormatError with file:line)
         report = validate(data, navigation=False, source=src)
-        if report.errors:
-            first = report.errors[0]
-            more = f" (and {len(report.errors) - 1} more)" if len(report.errors) > 1 else ""
-            raise AriaMapRefusedError(f"not sent: {first}"
-                                      f"{more}; `mapkit validate {src}` lists them")
+        stoppers = [i for i in report.errors if int(i.code) in LOAD_STOPPERS]
+        if stoppers:
+            more = f" (and {len(stoppers) - 1} more)" if len(stoppers) > 1 else ""
+            raise AriaMapRefusedError(f"not sent, ARIA would not load it: {stoppers[0]}{more}")
+        loads(data, source=src)  # a map at all (raises MapFormatError with file:line)
 
     # -- watching -------------------------------------------------------------------------------
 
