@@ -122,7 +122,7 @@ def fetch(host: str, name: str | None, output: str | None, via: str, user: str,
         return
     check = ("matches the robot's map id" if got.verified else
              "rebuilt by the robot's map service" if got.source != "file" else
-             "not the active map, no map id to check")
+             "the robot sent no map id to check it against")
     click.echo(f"wrote {out} (MD5 {got.md5}, {_size(len(got.data))}) from {got.name} on "
                f"{robot.address}: {result['points']} points, {result['lines']} lines, "
                f"{result['objects']} objects; {check}")
