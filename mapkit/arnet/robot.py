@@ -114,6 +114,7 @@ class MapChange:
     size: int
     source: str
     map: MapData
+    data: bytes = field(default=b"", repr=False)
     initial: bool = False
     saved: str | None = None
     time: float = field(default_factory=time.time)
@@ -495,7 +496,7 @@ class Robot:
                 saved = os.path.join(save_dir, f"{stem}-{when}-{got.md5[:8]}.map")
                 os.makedirs(save_dir, exist_ok=True)
                 atomic_write(saved, got.data)
-            yield MapChange(got.name, got.md5, len(got.data), got.source, got.map,
+            yield MapChange(got.name, got.md5, len(got.data), got.source, got.map, got.data,
                             was_first, saved)
             if stop is not None and stop():
                 return
