@@ -64,8 +64,12 @@ def parse_host(address: str, default_port: int = DEFAULT_PORT) -> tuple[str, int
         port_text = rest[1:] if rest.startswith(":") else ""
     elif a.count(":") == 1:
         host, port_text = a.split(":")
+        if not port_text:
+            raise ValueError(f"no port after ':' in robot address '{address}'")
     else:
         host, port_text = a, ""
+    if not host:
+        raise ValueError(f"no host in robot address '{address}'")
     if not port_text:
         return host, default_port
     if not port_text.isdigit() or not 0 < int(port_text) < 65536:

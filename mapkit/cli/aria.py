@@ -177,8 +177,9 @@ def ls(host: str, folder: str, user: str, password_file: str | None, timeout: fl
     """
     with open_robot(host, user, password_file, timeout) as robot:
         entries = robot.files(folder)
-    rows = [{"name": e.name, "type": "dir" if e.is_dir else "file", "size": e.size,
-             "mtime": e.mtime} for e in entries]
+    rows: list[dict[str, Any]] = [
+        {"name": e.name, "type": "dir" if e.is_dir else "file", "size": e.size, "mtime": e.mtime}
+        for e in entries]
     if as_json:
         echo_json({"folder": folder, "entries": rows})
         return

@@ -154,7 +154,8 @@ def test_login_state_machine() -> None:
     with pytest.raises(AriaProtocolError, match="cannot send 'getMapName'"):
         conn.request("getMapName")
     ev = conn.receive_data(encode(5) + lists({"getMapName": 300, "mapUpdated": 301}))
-    assert ev[0] == Accepted() and isinstance(ev[1], Ready) and conn.state is State.READY
+    assert ev[0] == Accepted() and isinstance(ev[1], Ready)
+    assert conn.state.name == "READY"
     info = conn.commands["getMapName"]
     assert (info.id, info.group, info.flags, info.arguments) == (300, "Map", ("RETURN_SINGLE", "SLOW_PACKET"), "args")
     conn.request("getMapName")
@@ -239,7 +240,7 @@ def test_arias_capture_decodes(capture: list[tuple[bytes, bytes]]) -> None:
             assert r.pending == 0
     assert total > 200  # the TCP part of the 261 packets (the rest are UDP datagrams)
     # our login answer to each captured challenge is ARIA's own, byte for byte (but the UDP port)
-    names = []
+    names: list[str] = []
     for c2s, s2c in capture[:8]:
         conn = ClientConnection("admin", "secret1")
         events = conn.receive_data(s2c)
