@@ -44,6 +44,7 @@ MAX_LENGTH = 32000  # ArNetPacket::MAX_LENGTH
 MAX_DATA = MAX_LENGTH - MIN_LENGTH
 
 _LITTLE = sys.byteorder == "little"
+_NUMPY_FROM = 256  # byte pairs; longer frames are summed with numpy
 
 
 def checksum(frame: bytes | bytearray | memoryview, length: int | None = None) -> int:
@@ -63,6 +64,11 @@ def checksum(frame: bytes | bytearray | memoryview, length: int | None = None) -
         raise ValueError(f"a packet is at least {MIN_LENGTH} bytes, not {total}")
     pairs = (n - 2) // 2
     end = 3 + 2 * pairs
+    if pairs > _NUMPY_FROM:
+        import numpy as np
+
+        total = int(np.frombuffer(frame, dtype=">u2", count=pairs, offset=3).sum(dtype=np.uint64))
+        return (total & 0xFFFF) ^ frame[end]
     words = array("H")
     words.frombytes(bytes(frame[3:end]))
     if _LITTLE:
