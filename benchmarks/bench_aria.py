@@ -10,7 +10,10 @@ one (every 14th point of it, same objects). For each, with that map active on th
   getFile, write; nothing checked);
 * mapkit: ``mapkit aria fetch HOST -o OUT`` as a whole process (Python start, connect, log in,
   getMapName + getMapId, getFile, MD5 against the robot's map id, parse the whole map, write
-  atomically with fsync).
+  atomically with fsync); and the same command run through the ``aria`` click group alone,
+  which is what it costs once ``mapkit``'s top-level group imports command modules lazily;
+  and ``Robot.save_map`` in this (already running) Python: the protocol, verification and parse
+  without the interpreter's start and imports.
 
 Both log in as a user (the server has a user file). The best of ``--repeat`` runs each, run
 alternately, and the ratio are printed; target: mapkit no slower than 1.2x ARIA's client. Both
@@ -37,11 +40,18 @@ sys.path.insert(0, str(ROOT))
 
 from benchmarks.bigmap import make_big_map  # noqa: E402
 from mapkit import save  # noqa: E402
+from mapkit.aria import connect  # noqa: E402
 
 PEER = Path(os.environ.get("MAPKIT_ARIA_PEER", ROOT.parent / "shared" / "aria-peer"))
 MAPKIT = [sys.executable, "-m", "mapkit"]
 if (Path(sys.executable).parent / "mapkit").exists():
     MAPKIT = [str(Path(sys.executable).parent / "mapkit")]
+
+
+#: The same command loaded through its own click group only (what `mapkit` costs once its
+#: top-level group loads command modules lazily).
+GROUP_ONLY = ("import sys; from mapkit.cli.aria import aria; "
+              "aria(sys.argv[1:], prog_name='mapkit aria')")
 
 
 def free_port() -> int:
@@ -92,6 +102,8 @@ def main() -> int:
             assert f"mapname: '{name}'" in res.stdout, res.stdout
             t_aria: list[float] = []
             t_mapkit: list[float] = []
+            t_group: list[float] = []
+            t_inproc: list[float] = []
             for i in range(args.repeat):
                 out_a, out_m = work / f"a-{i}.map", work / f"m-{i}.map"
                 t = time.perf_counter()
@@ -105,11 +117,27 @@ def main() -> int:
                 t_mapkit.append(time.perf_counter() - t)
                 assert r2.returncode == 0 and "matches the robot's map id" in r2.stdout, r2.stderr
                 assert out_m.read_bytes() == served
+                out_m.unlink()
+                t = time.perf_counter()
+                r3 = subprocess.run([sys.executable, "-c", GROUP_ONLY, "fetch", f"127.0.0.1:{port}",
+                                     "-u", "bench", "-o", str(out_m)], capture_output=True,
+                                    text=True, env=env, cwd=work, timeout=300)
+                t_group.append(time.perf_counter() - t)
+                assert r3.returncode == 0 and out_m.read_bytes() == served, r3.stderr
+                out_m.unlink()
+                t = time.perf_counter()
+                with connect(f"127.0.0.1:{port}", user="bench", password="bench1") as robot:
+                    robot.save_map(out_m)
+                t_inproc.append(time.perf_counter() - t)
+                assert out_m.read_bytes() == served
                 out_a.unlink()
                 out_m.unlink()
-            a, m = min(t_aria), min(t_mapkit)
+            a, m, g, i_ = min(t_aria), min(t_mapkit), min(t_group), min(t_inproc)
             print(f"{name:9s} {len(served) / 1e6:5.1f} MB: ARIA run-probe get {a:6.3f} s, "
-                  f"mapkit aria fetch {m:6.3f} s (verified + parsed): {m / a:4.2f}x")
+                  f"mapkit aria fetch {m:6.3f} s (verified + parsed): {m / a:4.2f}x; "
+                  f"through the aria group alone {g:6.3f} s: {g / a:4.2f}x; "
+                  f"in a running Python (connect, fetch, verify, parse, write) {i_:6.3f} s: "
+                  f"{i_ / a:4.2f}x")
         start = min(_timed([*MAPKIT, "--version"]) for _ in range(args.repeat))
         bare = min(_timed([sys.executable, "-c", "pass"]) for _ in range(args.repeat))
         print(f"(process start alone: `mapkit --version` {start:.3f} s, bare Python {bare:.3f} s)")
