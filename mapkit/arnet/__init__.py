@@ -20,6 +20,7 @@ from mapkit.arnet.errors import (
     AriaProtocolError,
     AriaRemoteError,
     AriaTimeoutError,
+    AriaValueError,
 )
 from mapkit.arnet.robot import FetchedMap, LoadResult, MapChange, Robot, connect
 from mapkit.arnet.services import DirEntry, MapId
@@ -35,6 +36,7 @@ __all__ = [
     "AriaProtocolError",
     "AriaRemoteError",
     "AriaTimeoutError",
+    "AriaValueError",
     "DirEntry",
     "FetchedMap",
     "LoadResult",

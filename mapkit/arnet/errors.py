@@ -18,6 +18,7 @@ __all__ = [
     "AriaProtocolError",
     "AriaRemoteError",
     "AriaTimeoutError",
+    "AriaValueError",
 ]
 
 
@@ -68,3 +69,7 @@ class AriaRemoteError(AriaError):
 
 class AriaMapRefusedError(AriaError):
     """A map was not sent: it has findings that would stop ARIA loading it (nothing was sent)."""
+
+
+class AriaValueError(AriaError, ValueError):
+    """A value cannot be sent to the robot (a name with a NUL byte or that is not text)."""

@@ -22,7 +22,7 @@ import sys
 from array import array
 from dataclasses import dataclass
 
-from mapkit.arnet.errors import AriaProtocolError
+from mapkit.arnet.errors import AriaProtocolError, AriaValueError
 
 __all__ = [
     "HEADER_LENGTH",
@@ -225,9 +225,12 @@ class Payload:
         return self
 
     def string(self, s: str | bytes) -> Payload:
-        b = s if isinstance(s, bytes) else s.encode("utf-8", "surrogateescape")
+        try:
+            b = s if isinstance(s, bytes) else s.encode("utf-8", "surrogateescape")
+        except UnicodeEncodeError:
+            raise AriaValueError(f"{s!r} cannot be sent to the robot: it is not text") from None
         if b"\0" in b:
-            raise ValueError(f"a string sent to the server cannot hold a NUL byte: {b!r}")
+            raise AriaValueError(f"{s!r} cannot be sent to the robot: it holds a NUL byte")
         self._parts.append(b + b"\0")
         return self
 

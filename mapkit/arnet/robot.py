@@ -36,6 +36,7 @@ from mapkit.arnet.errors import (
     AriaProtocolError,
     AriaRemoteError,
 )
+from mapkit.arnet.packet import Payload
 from mapkit.arnet.services import (
     DirEntry,
     MapId,
@@ -264,14 +265,14 @@ class Robot:
     def files(self, folder: str = "") -> list[DirEntry]:
         """The entries of a robot folder ("" is the top of what the robot shares)."""
         out: list[DirEntry] = []
-        data = folder.encode("utf-8", "surrogateescape") + b"\0"
+        data = Payload().string(folder).bytes()
         for reply in self.client.call_until_empty("getDirListingMultiplePackets", data):
             out.extend(dir_listing(reply.fields(), folder)[1])
         return sorted(out, key=lambda e: (not e.is_dir, e.name))
 
     def _file_chunks(self, remote: str, max_size: int,
                      progress: Progress | None) -> Iterator[bytes]:
-        arg = remote.encode("utf-8", "surrogateescape") + b"\0" + b"\0\0"
+        arg = Payload().string(remote).ubyte2(0).bytes()
         total = 0
         ended = False
         for reply in self.client.call_until_empty("getFile", arg):
@@ -328,7 +329,7 @@ class Robot:
 
     def delete_file(self, remote: str) -> None:
         """Delete a robot file."""
-        arg = remote.encode("utf-8", "surrogateescape") + b"\0"
+        arg = Payload().string(remote).bytes()
         delete_result(self.client.call("deleteFile", arg).fields(), remote)
 
     def _exists(self, remote: str) -> bool:

@@ -22,7 +22,7 @@ def test_mapkit_aria_is_lazy() -> None:
 def test_errors_are_mapkit_errors() -> None:
     for cls in (aria.AriaError, aria.AriaLoginError, aria.AriaProtocolError, aria.AriaTimeoutError,
                 aria.AriaConnectionError, aria.AriaPermissionError, aria.AriaRemoteError,
-                aria.AriaMapRefusedError):
+                aria.AriaMapRefusedError, aria.AriaValueError):
         assert issubclass(cls, MapkitError) and issubclass(cls, TransferError)
 
 
