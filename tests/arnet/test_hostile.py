@@ -6,6 +6,7 @@ Every case runs ``mapkit aria fetch`` (and ``get``) in-process with ``--timeout 
 
 from __future__ import annotations
 
+import hashlib
 import re
 import socket
 import threading
@@ -162,3 +163,33 @@ def test_nothing_listening() -> None:
         port = s.getsockname()[1]
     with pytest.raises(aria.AriaConnectionError, match=f"cannot connect to the robot at 127.0.0.1:{port}"):
         aria.connect(f"127.0.0.1:{port}", timeout=1)
+
+
+def test_watch_ends_when_the_robot_goes_away(fake: Any) -> None:
+    served = {"getFile": 0}
+
+    def reply(name: str, args: bytes) -> Any:
+        if name == "getFile":
+            served["getFile"] += 1
+            body = file_packet(TEXT) + file_packet(b"") + frame("getFile")
+
+            def send_then_close(conn: socket.socket) -> None:
+                conn.sendall(body)
+                STOP.wait(0.3)
+                conn.shutdown(socket.SHUT_RDWR)
+            return send_then_close
+        if name == "getMapId":
+            digest = hashlib.md5(TEXT).digest()
+            return frame("getMapId", b"\0x.map\0" + (16).to_bytes(4, "little") + digest + b"\0" * 8)
+        return map_server(lambda: None)(name, args)
+
+    server = fake(reply)
+    server.reply = reply
+    with aria.connect(server.address, timeout=2) as r:
+        changes = r.watch()
+        first = next(changes)
+        assert first.initial and first.name == "x.map" and first.map.points.tolist() == [[1, 1]]
+        assert first.source == "file"
+        with pytest.raises(aria.AriaConnectionError, match="closed the connection while waiting"):
+            next(changes)
+    assert served["getFile"] == 1
