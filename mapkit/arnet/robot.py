@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import hashlib
 import logging
+import mmap
 import os
 import time
 from collections.abc import Callable, Iterator
@@ -308,8 +309,10 @@ class Robot:
                 n += len(part)
         return n
 
-    def put_file(self, data: bytes, remote: str, *, progress: Progress | None = None) -> None:
-        """Upload ``data`` as robot file ``remote`` (the robot stages it and renames it)."""
+    def put_file(self, data: bytes | mmap.mmap | memoryview, remote: str, *,
+                 progress: Progress | None = None) -> None:
+        """Upload ``data`` (bytes, or any buffer such as a mapped file) as robot file ``remote``
+        (the robot stages it and renames it)."""
         self.client.command_check("putFile")
         sent = 0
         for payload in put_payloads(remote, data):

@@ -10,9 +10,13 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from mapkit.arnet.errors import AriaProtocolError, AriaRemoteError
 from mapkit.arnet.packet import MAX_DATA, Fields, Payload
+
+if TYPE_CHECKING:
+    import mmap
 
 __all__ = [
     "DELETE_CODES",
@@ -139,7 +143,7 @@ def file_chunk(f: Fields, remote: str, max_chunk: int = MAX_DATA) -> FileChunk:
     return FileChunk(path, f.rest())
 
 
-def put_payloads(remote: str, data: bytes | memoryview) -> Iterator[bytes]:
+def put_payloads(remote: str, data: bytes | bytearray | memoryview | mmap.mmap) -> Iterator[bytes]:
     """The putFile packets' data for uploading ``data`` as ``remote``: start, chunks, done."""
     name = Payload().string(remote).bytes()
     room = min(PUT_CHUNK, MAX_DATA - 2 - len(name) - 4)

@@ -225,12 +225,19 @@ def put(local: str, host: str, remote: str, user: str, password_file: str | None
     Example:
       mapkit aria put notes.txt robot1 notes.txt --user admin
     """
-    with open(local, "rb") as fh:
-        data = fh.read()
-    with open_robot(host, user, password_file, timeout) as robot, \
+    import mmap
+
+    with open(local, "rb") as fh, open_robot(host, user, password_file, timeout) as robot, \
             _progress(os.path.basename(local), _quiet(False)) as cb:
-        robot.put_file(data, remote, progress=cb)
-    click.echo(f"sent {local} to {host} as {remote} ({_size(len(data))})")
+        size = os.fstat(fh.fileno()).st_size
+        # mapped, not read: a large laser log is sent without holding it all in memory
+        data = mmap.mmap(fh.fileno(), 0, access=mmap.ACCESS_READ) if size else b""
+        try:
+            robot.put_file(data, remote, progress=cb)
+        finally:
+            if isinstance(data, mmap.mmap):
+                data.close()
+    click.echo(f"sent {local} to {host} as {remote} ({_size(size)})")
 
 
 @aria.command()
