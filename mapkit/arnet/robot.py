@@ -374,8 +374,9 @@ class Robot:
             self.client.drain_broadcasts("mapUpdated")
         error = self._set_config("Files", {"Map": name})
         broadcast = False
-        if not error and watching and name != previous:
-            broadcast = self.client.next_broadcast(wait) is not None
+        if not error and watching:
+            # a new file of the active map's name is reloaded too, if it changed: wait less
+            broadcast = self.client.next_broadcast(wait if name != previous else 1.0) is not None
         now = self.map_name
         mid = self.map_id()
         robot_md5 = mid.md5 if mid is not None else ""
