@@ -3,7 +3,8 @@
 The robot is reached over ArNetworking (:mod:`mapkit.arnet`); its active map is fetched
 (byte-exact where the user may read files, else from its map service), served on ROS exactly as
 ``mapkit ros map-server`` serves a file (latched ``map``, ``map_metadata``, ``keepout_mask``,
-``map_goals``/``map_homes``/``map_docks``, ``map_info``, the ``static_map`` service), and
+``map_goals``/``map_homes``/``map_docks``, ``map_info``, the ``static_map`` service; not
+``change_map``: the robot decides which map is active), and
 fetched and republished each time the robot broadcasts that its map changed.
 """
 
@@ -58,7 +59,7 @@ def run_aria_bridge(robot: Robot, *, resolution: float = 0.05, frame_id: str = "
             atomic_write(path, change.data)
             if server is None:
                 server = MapServer(path, resolution=resolution, frame_id=frame_id, **raster)
-                server.start()
+                server.start(change_map=False)  # the robot decides which map is active
             else:
                 server.change(path)
             served += 1

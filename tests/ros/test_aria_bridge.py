@@ -63,6 +63,7 @@ def check_served(ros: Ros, path: Path) -> None:
 
 def test_bridge_serves_the_robots_map_and_follows_changes(ros: Ros, peer: Peer, bridge: Any) -> None:
     check_served(ros, peer.root / FIRST)
+    assert "/change_map" not in ros.services()  # the robot decides which map is active
     assert map_info(ros)["keepout"]  # columbia has forbidden areas and lines
     res = peer.probe("setmap", SECOND, "5")
     assert "save succeeded" in res.stdout, res.stdout
