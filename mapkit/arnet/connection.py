@@ -29,7 +29,7 @@ from mapkit.arnet.events import (
     Rejected,
     ServerClosed,
 )
-from mapkit.arnet.packet import Fields, Packet, Payload, encode
+from mapkit.arnet.packet import Packet, Payload, encode
 from mapkit.arnet.reader import PacketReader
 
 __all__ = ["ClientCommand", "ClientConnection", "ServerCommand", "State", "login_digest"]
@@ -291,8 +291,3 @@ class ClientConnection:
                               str(extra.get("group", "")), flags)
             self._by_id[cid] = new
             self.commands[new.name] = new
-
-    @staticmethod
-    def fields(data: bytes, what: str) -> Fields:
-        """A :class:`~mapkit.arnet.packet.Fields` reader (for callers holding raw data)."""
-        return Fields(data, what)

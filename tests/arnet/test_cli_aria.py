@@ -6,6 +6,7 @@ import json
 import os
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -156,3 +157,33 @@ def test_watch_prints_changes_and_keeps_versions(peer: Peer, pwfile: Path, tmp_p
     assert Path(second["saved"]).read_bytes() == (peer.root / other).read_bytes()
     assert len(list((tmp_path / "v").iterdir())) == 2
     peer.probe("setmap", before, "5")
+
+
+def test_cli_server_killed_mid_download(tmp_path: Path) -> None:
+    """`mapkit aria get` of a 40 MB file; the server is SIGKILLed once 1 MB has arrived."""
+    from tests.arnet.peer import start_peer
+
+    big = tmp_path / "big.bin"
+    big.write_bytes(os.urandom(40_000_000))
+    p = start_peer(tmp_path / "srv", [big], login=None)
+    out = tmp_path / "out"
+    out.mkdir()
+    big.unlink()
+    try:
+        proc = subprocess.Popen([sys.executable, "-m", "mapkit", "aria", "get", p.address,
+                                 "big.bin", "-o", str(out / "big.bin"), "--timeout", "5"],
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline and proc.poll() is None:
+            if sum(f.stat().st_size for f in out.iterdir()) > 1_000_000:
+                p.proc.kill()
+                break
+            time.sleep(0.002)
+        _stdout, stderr = proc.communicate(timeout=60)
+    finally:
+        p.stop()
+    assert proc.returncode == 1, stderr
+    lines = stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("Error: "), stderr
+    assert "closed the connection" in lines[0] or "broke" in lines[0], stderr
+    assert leftovers(out) == []
