@@ -4,7 +4,7 @@
 
 ARIA 2.9.1's own server (``run-mapserver`` from ../shared/aria-peer, or $MAPKIT_ARIA_PEER) serves
 two maps: the 1,000,000-point benchmark map (``benchmarks/bigmap.py``, about 13 MB) and a 1.2 MB
-one (every 14th point of it, same objects). For each, with that map active on the server:
+one (every 17th point of it, same objects). For each, with that map active on the server:
 
 * baseline: ARIA's client ``run-probe get . MAP OUT`` as a whole process (connect, log in,
   getFile, write; nothing checked);
@@ -80,7 +80,7 @@ def main() -> int:
         root.mkdir()
         big = make_big_map()
         save(big, root / "big.map")
-        small = big.with_scan(big.scan.with_data(points=np.ascontiguousarray(big.points[::14])))
+        small = big.with_scan(big.scan.with_data(points=np.ascontiguousarray(big.points[::17])))
         save(small, root / "small.map")
         (work / "users").write_text("UserInfoVersion1\nuser bench bench1 all\n")
         port = free_port()

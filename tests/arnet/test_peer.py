@@ -215,3 +215,19 @@ def test_server_killed_mid_transfer_leaves_nothing(tmp_path: Path) -> None:
     finally:
         p.stop()
     assert leftovers(out) == []
+
+
+def test_server_killed_mid_upload_leaves_no_half_file(tmp_path: Path) -> None:
+    p = start_peer(tmp_path / "srv", [], login=None)
+    try:
+        with aria.connect(p.address, timeout=5) as r:
+            def kill(done: int, _total: int) -> None:
+                if done > 200_000 and p.proc.poll() is None:
+                    os.kill(p.proc.pid, signal.SIGKILL)
+                    p.proc.wait()
+
+            with pytest.raises(aria.AriaConnectionError):
+                r.put_file(os.urandom(3_000_000), "up.bin", progress=kill)
+    finally:
+        p.stop()
+    assert leftovers(p.root) == []  # ARIA stages uploads elsewhere and renames when complete
