@@ -230,8 +230,13 @@ class Robot:
         use_file = via == "file" or (via == "auto" and (self.client.offers("getFile")
                                                         or not is_active))
         if use_file:
-            data = self.read_file(target, max_size=max_size, progress=progress)
-            md5, source = _md5(data), "file"
+            digest = hashlib.md5()
+            parts = []
+            for part in self._file_chunks(target, max_size, progress):
+                digest.update(part)  # while the robot sends the next chunk
+                parts.append(part)
+            data = b"".join(parts)
+            md5, source = digest.hexdigest(), "file"
             if robot_md5 and md5 != robot_md5:
                 if via == "file" or not self.client.offers("getMap"):
                     raise AriaRemoteError(
