@@ -44,6 +44,15 @@ from mapkit.model import MapData, MapObject, Provenance, Scan, ScanHeader
 
 logging.getLogger(__name__).addHandler(logging.NullHandler())
 
+
+def __getattr__(name: str) -> object:
+    """Submodules loaded on first use: ``mapkit.aria`` (ARNL/ARAM robots over ArNetworking)."""
+    if name == "aria":
+        import importlib
+
+        return importlib.import_module("mapkit.aria")
+    raise AttributeError(f"module 'mapkit' has no attribute {name!r}")
+
 __all__ = [
     "BuildResult",
     "MapDiff",

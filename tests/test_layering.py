@@ -18,6 +18,7 @@ LAYERS = {
     "mapkit.edit": 3, "mapkit.raster": 3, "mapkit.mesh": 3, "mapkit.validate": 3,
     "mapkit.build": 3, "mapkit.render": 3, "mapkit.simulate": 3, "mapkit.logs": 3,
     "mapkit.transfer": 4, "mapkit.ros": 4, "mapkit.demo": 4,
+    "mapkit.arnet": 4, "mapkit.aria": 4,
     "mapkit.open": 5,
     "mapkit.cli": 6,
 }
@@ -27,8 +28,11 @@ ALLOWED_SIBLINGS = {
     ("mapkit.mesh", "mapkit.raster"), ("mapkit.render", "mapkit.raster"),
     ("mapkit.simulate", "mapkit.raster"), ("mapkit.raster", "mapkit.logs"),
     ("mapkit.build", "mapkit.logs"), ("mapkit.simulate", "mapkit.logs"),
-    ("mapkit.ros", "mapkit.transfer"),
+    ("mapkit.ros", "mapkit.transfer"), ("mapkit.ros", "mapkit.arnet"),
+    ("mapkit.aria", "mapkit.arnet"),
 }
+# The ArNetworking protocol core is sans-I/O and imports no mapkit layer above errors.
+ARNET_CORE = ("packet", "reader", "events", "connection", "services", "errors")
 
 
 def layer_of(module: str) -> tuple[str, int] | None:
@@ -102,3 +106,23 @@ def test_the_transfer_core_is_stdlib_only(name: str) -> None:
 
             assert top in sys.stdlib_module_names or top == "__future__", \
                 f"{path}:{lineno}: imports {target}, not in the standard library"
+
+
+@pytest.mark.parametrize("name", ARNET_CORE)
+def test_arnet_core_is_sans_io(name: str) -> None:
+    path = PKG / "arnet" / f"{name}.py"
+    for target, lineno in imports(path):
+        assert target.split(".")[0] not in ("socket", "select", "selectors", "asyncio", "threading"), (
+            f"{path}:{lineno}: the ArNetworking core does no I/O ({target})")
+        if target.startswith("mapkit"):
+            assert target.startswith(("mapkit.arnet", "mapkit.errors")), (
+                f"{path}:{lineno}: the ArNetworking core imports only errors and itself ({target})")
+    tree_text = path.read_text(encoding="utf-8")
+    assert "mapkit.cli" not in tree_text
+
+
+def test_arnet_does_not_import_the_cli() -> None:
+    for path in sorted((PKG / "arnet").glob("*.py")):
+        for target, lineno in imports(path):
+            assert not target.startswith(("mapkit.cli", "mapkit.ros", "mapkit.transfer")), (
+                f"{path}:{lineno}: arnet is at the transfer level ({target})")

@@ -81,6 +81,8 @@ cli.add_command(_logs.simulate)
 cli.add_command(_logs.build)
 cli.add_command(_logs.log_info)
 cli.add_command(__import__("mapkit.cli.open", fromlist=["open_cmd"]).open_cmd)
+from mapkit.cli.aria import aria as _aria  # noqa: E402
+cli.add_command(_aria)
 
 
 def main() -> None:

@@ -6,12 +6,14 @@ only when one of them runs.
 
 from __future__ import annotations
 
+import json
 import logging
 import time
 from typing import Any
 
 import click
 
+from mapkit.cli.aria import robot_options as _aria_robot_options
 from mapkit.cli.options import echo_json, err, json_option
 from mapkit.cli.transfer import _auth_text, _progress, _quiet, _secret_options, _size, print_listing
 
@@ -62,6 +64,46 @@ def map_server(map_file: str, resolution: float, frame_id: str, free: str, as_js
                 "Ctrl-C stops.")
 
     run_map_server(map_file, resolution=resolution, frame_id=frame_id, free=free, on_ready=ready)
+
+
+@ros.command("aria-bridge")
+@click.argument("host")
+@click.option("--resolution", type=float, default=0.05, show_default=True, help="Metres per cell.")
+@click.option("--frame-id", default="map", show_default=True,
+              help="Frame of the published messages.")
+@click.option("--free", type=click.Choice(["flood", "hull", "all", "none"]), default="flood",
+              show_default=True, help="How free space is decided (see `mapkit rasterize`).")
+@_aria_robot_options
+@json_option
+def aria_bridge(host: str, resolution: float, frame_id: str, free: str, user: str,
+                password_file: str | None, timeout: float, as_json: bool) -> None:
+    """Publish an ARNL/ARAM robot's active map on ROS; republish when the robot changes it.
+
+    The robot is reached over ArNetworking (HOST is host[:port], port 7272; nothing runs on
+    the robot). Topics and services as `mapkit ros map-server`: latched /map, /map_metadata,
+    /keepout_mask, /map_goals, /map_homes, /map_docks, /map_info, and static_map.
+
+    \b
+    Example:
+      MAPKIT_ARIA_PASSWORD_FILE=~/.robot-pw mapkit ros aria-bridge robot1 -u admin
+    """
+    from mapkit.cli.aria import open_robot
+    from mapkit.ros.aria_bridge import run_aria_bridge
+    from mapkit.ros.map_server import map_info
+
+    def changed(server: Any, change: Any) -> None:
+        info = map_info(server.current)
+        info["robot_map"] = change.name
+        if as_json:
+            click.echo(json.dumps(info), nl=True)
+        else:
+            err(f"serving {change.name} from {host} on /map: {info['width']} x {info['height']} "
+                f"cells of {info['resolution']:g} m (MD5 {change.md5}); "
+                f"{len(info['goals'])} goals. Ctrl-C stops.")
+
+    with open_robot(host, user, password_file, timeout) as robot:
+        run_aria_bridge(robot, resolution=resolution, frame_id=frame_id, free=free,
+                        on_change=changed)
 
 
 # -- transfer ---------------------------------------------------------------------------------

@@ -90,8 +90,13 @@ class MapServer:
 
     # -- ROS side ------------------------------------------------------------------------------
 
-    def start(self) -> None:
-        """Advertise topics and services and publish the first map (the node must be started)."""
+    def start(self, *, change_map: bool = True) -> None:
+        """Advertise topics and services and publish the first map (the node must be started).
+
+        Args:
+            change_map: Also offer the ``change_map`` service (not when another source decides
+                the active map, as in ``mapkit ros aria-bridge``).
+        """
         rp = rospy()
         nav, gm = ros_import("nav_msgs.msg"), ros_import("geometry_msgs.msg")
         std, srv = ros_import("std_msgs.msg"), ros_import("nav_msgs.srv")
@@ -100,8 +105,9 @@ class MapServer:
                    "map_homes": gm.PoseArray, "map_docks": gm.PoseArray, "map_info": std.String}
         for name, cls in latched.items():
             self._pubs[name] = rp.Publisher(name, cls, latch=True, queue_size=1)
-        self._services = [rp.Service("static_map", srv.GetMap, self._on_static_map),
-                          rp.Service("change_map", srv.LoadMap, self._on_change_map)]
+        self._services = [rp.Service("static_map", srv.GetMap, self._on_static_map)]
+        if change_map:
+            self._services.append(rp.Service("change_map", srv.LoadMap, self._on_change_map))
         self.publish()
 
     def stop(self) -> None:
