@@ -5,10 +5,35 @@ from __future__ import annotations
 import os
 import sys
 from pathlib import Path
+from typing import Any
 
 import click
 
 from mapkit.cli.options import echo_json, force_option, json_option, output_option
+
+
+class RowsBar:
+    """A progress bar on stderr whose length is learnt from the first ``update(done, total)``."""
+
+    def __init__(self, label: str) -> None:
+        self.label = label
+        self._bar: Any = None
+        self._done = 0
+
+    def update(self, done: int, total: int) -> None:
+        if self._bar is None:
+            self._bar = click.progressbar(length=total, label=self.label, file=sys.stderr,
+                                          show_eta=True)
+            self._bar.__enter__()
+        self._bar.update(done - self._done)
+        self._done = done
+
+    def __enter__(self) -> RowsBar:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self._bar is not None:
+            self._bar.__exit__(*exc)
 
 
 def _refuse_existing(paths: list[Path], force: bool) -> None:
@@ -60,20 +85,19 @@ def rasterize(map_file: str, output: str | None, resolution: float, mode: str, f
       ros2 run nav2_map_server map_server --ros-args -p yaml_filename:=office.yaml
     """
     from mapkit.formats.map import load
-    from mapkit.raster.export import EXPORT_STEPS, export_ros, planned_outputs
+    from mapkit.raster.export import export_ros, planned_outputs
 
     yaml_path = Path(output) if output else Path(Path(map_file).stem + ".yaml")
     fmt = "png" if png or (mode == "scale") else "pgm"
     _refuse_existing(planned_outputs(yaml_path, image_format=fmt, keepout=keepout,
                                      speed=speed_mask), force)
     m = load(map_file)
-    with click.progressbar(length=len(EXPORT_STEPS), label="rasterising", file=sys.stderr,
-                           show_eta=False) as bar:
+    with RowsBar("rasterising") as bar:
         result = export_ros(
             m, yaml_path, resolution=resolution, margin_m=margin, free=free,  # type: ignore[arg-type]
             inflate_mm=inflate, forbidden_as_walls=forbidden_as_walls, mode=mode,  # type: ignore[arg-type]
             image_format="png" if png else None, keepout=keepout, speed=speed_mask,
-            progress=lambda _step: bar.update(1), log=log_path,
+            progress=bar.update, log=log_path,
         )
     if as_json:
         echo_json(result.to_dict())
