@@ -3,37 +3,11 @@
 from __future__ import annotations
 
 import os
-import sys
 from pathlib import Path
-from typing import Any
 
 import click
 
-from mapkit.cli.options import echo_json, force_option, json_option, output_option
-
-
-class RowsBar:
-    """A progress bar on stderr whose length is learnt from the first ``update(done, total)``."""
-
-    def __init__(self, label: str) -> None:
-        self.label = label
-        self._bar: Any = None
-        self._done = 0
-
-    def update(self, done: int, total: int) -> None:
-        if self._bar is None:
-            self._bar = click.progressbar(length=total, label=self.label, file=sys.stderr,
-                                          show_eta=True)
-            self._bar.__enter__()
-        self._bar.update(done - self._done)
-        self._done = done
-
-    def __enter__(self) -> RowsBar:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        if self._bar is not None:
-            self._bar.__exit__(*exc)
+from mapkit.cli.options import RowsBar, echo_json, force_option, json_option, output_option
 
 
 def _refuse_existing(paths: list[Path], force: bool) -> None:

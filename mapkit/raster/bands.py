@@ -26,7 +26,8 @@ Examples:
     >>> from mapkit.model import MapData, MapObject, Scan
     >>> from mapkit.raster.rasterize import rasterize
     >>> walls = [[0, 0, 1000, 0], [1000, 0, 1000, 1000], [1000, 1000, 0, 1000], [0, 1000, 0, 0]]
-    >>> m = MapData(scans=(Scan.from_arrays(lines=walls),), objects=(MapObject("RobotHome", 500, 500),))
+    >>> m = MapData(scans=(Scan.from_arrays(lines=walls),),
+    ...             objects=(MapObject("RobotHome", 500, 500),))
     >>> br = BandRaster(m, 0.1, margin_m=0.2, band_cells=30)
     >>> br.band_rows, [r0 for r0, _ in br.bands()]
     (2, [13, 11, 9, 7, 5, 3, 1, 0])
@@ -142,7 +143,7 @@ def halo_rows(inflate_mm: float, resolution: float) -> int:
     """Rows beyond a band that can hold a wall within ``inflate_mm`` of one of its cells."""
     if inflate_mm <= 0:
         return 0
-    return int(math.ceil(inflate_mm / (resolution * 1000.0))) + 1
+    return math.ceil(inflate_mm / (resolution * 1000.0)) + 1
 
 
 def count_cells(data: NDArray[np.int8], into: dict[str, int]) -> None:

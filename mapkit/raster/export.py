@@ -4,7 +4,8 @@
 keepout/speed masks and their parameters file); it is what ``mapkit rasterize`` runs. It works
 band by band (:mod:`mapkit.raster.bands`, :mod:`mapkit.raster.image_stream`): a map of any extent
 is written in memory that grows with the band, not with the map, and the cells are those of
-:func:`~mapkit.raster.rasterize.rasterize`. Importing this module registers the ``.yaml``/``.pgm`` writers and the ``.yaml`` reader in
+:func:`~mapkit.raster.rasterize.rasterize`. Importing this module registers the
+``.yaml``/``.pgm`` writers and the ``.yaml`` reader in
 :mod:`mapkit.formats.registry`, so ``mapkit convert office.map office.yaml`` and
 ``mapkit convert office.yaml office.map`` work.
 """

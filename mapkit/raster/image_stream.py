@@ -93,7 +93,7 @@ class ImageSink:
             fh.write(b"\x89PNG\r\n\x1a\n" + _chunk(b"IHDR", ihdr))
 
     def write_rows(self, grey: NDArray[np.uint8], alpha: NDArray[np.uint8] | None = None) -> None:
-        """Append rows (top first): ``grey`` ``(k, width)``; ``alpha`` likewise when the image has it."""
+        """Append rows, top first: ``grey`` ``(k, width)``, and ``alpha`` when the image has it."""
         k = grey.shape[0]
         if grey.shape != (k, self.width) or self.rows_written + k > self.height:
             raise RasterError(f"rows of shape {grey.shape} do not fit a {self.width} x "
@@ -201,7 +201,8 @@ def write_ros_map_bands(
         bands: The cells, north band first (see :data:`Bands`).
         yaml_path: The YAML file.
         mode: ``trinary``, ``scale`` or ``raw``.
-        image_format: ``pgm`` or ``png`` (default from ``mode``/``image_path`` as ``write_ros_map``).
+        image_format: ``pgm`` or ``png`` (default from ``mode`` or ``image_path``, as
+            ``write_ros_map``).
         image_path: The image file (default beside the YAML).
         negate: Inverted grey levels and ``negate: 1``.
         occupied_thresh: The YAML's ``occupied_thresh``.

@@ -29,9 +29,9 @@ from numpy.typing import NDArray
 from mapkit._atomic import atomic_write
 from mapkit._typing import PathLike
 from mapkit.model import MapData
+from mapkit.raster.bands import DEFAULT_BAND_CELLS, Progress, band_spans, halo_rows
 from mapkit.raster.errors import RasterError
 from mapkit.raster.grid import OccupancyGrid
-from mapkit.raster.bands import DEFAULT_BAND_CELLS, Progress, band_spans, halo_rows
 from mapkit.raster.image_stream import Bands, write_ros_map_bands
 from mapkit.raster.rasterize import burn_polygons, burn_segments, inflate, object_polygons
 
@@ -82,7 +82,9 @@ def keepout_mask(
     return like.with_data(data)
 
 
-def _keepout_shapes(m: MapData, lines: bool) -> tuple[list[NDArray[np.float64]], NDArray[np.float64]]:
+def _keepout_shapes(
+    m: MapData, lines: bool
+) -> tuple[list[NDArray[np.float64]], NDArray[np.float64]]:
     areas = [o for o in m.objects if o.type == "ForbiddenArea" and o.from_to is not None]
     segs = [o.from_to for o in m.objects if o.type == "ForbiddenLine" and o.from_to is not None] \
         if lines else []

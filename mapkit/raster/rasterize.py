@@ -44,12 +44,12 @@ from mapkit.raster.grid import FREE, OCCUPIED, UNKNOWN, OccupancyGrid
 
 __all__ = [
     "MAX_CELLS",
-    "FreeMode",
     "MAX_SIDE",
+    "FreeMode",
     "burn_points",
     "burn_polygons",
-    "check_options",
     "burn_segments",
+    "check_options",
     "flood_fill",
     "free_from_rays",
     "grid_for",

@@ -1,4 +1,4 @@
-"""Band-by-band rasterising and writing: the same cells as the whole-grid rasteriser, bounded memory."""
+"""Band-by-band rasterising and writing: the whole-grid rasteriser's cells, in bounded memory."""
 
 from __future__ import annotations
 
@@ -45,7 +45,7 @@ def _same_cells(m: MapData, rows: int = 5, **opts: object) -> None:
     br = BandRaster(m, band_cells=whole.width * rows, **opts)  # type: ignore[arg-type]
     assert br.band_rows == min(rows, whole.height)
     banded = br.to_grid()
-    if not banded == whole:
+    if banded != whole:
         diff = np.argwhere(banded.data != whole.data)
         pytest.fail(f"{len(diff)} cells differ with {opts}, first at {diff[:5].tolist()}")
     assert br.counts() == whole.counts()
@@ -169,8 +169,8 @@ def test_bands_out_of_order_are_refused(tmp_path: Path) -> None:
     assert list(tmp_path.iterdir()) == []
     with pytest.raises(RasterError, match="incomplete"):
         write_ros_map_bands(g, [(10, g.data[10:])], tmp_path / "x.yaml")
-    with pytest.raises(RasterError, match="alpha"):
-        ImageSink(open(os.devnull, "wb"), 3, 3, image_format="pgm", alpha=True)
+    with open(os.devnull, "wb") as fh, pytest.raises(RasterError, match="alpha"):
+        ImageSink(fh, 3, 3, image_format="pgm", alpha=True)
 
 
 _BIG = """
