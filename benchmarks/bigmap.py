@@ -126,9 +126,14 @@ def make_site_map(size_mm: tuple[int, int] = SITE_MM, seed: int = 1) -> MapData:
             objects.append(MapObject("GoalWithHeading", cx, cy, (i * 37) % 360 - 179,
                                      name=f"Station {i} west"))
         elif kind == 2:
+            # ARIA turns a rectangle about the map origin: start from the centre turned back,
+            # so the area lands, turned, in its room.
             angle = 0.0 if i % 8 == 2 else 30.0
+            th = np.radians(angle)
+            ux = round(cx * np.cos(th) + cy * np.sin(th))
+            uy = round(-cx * np.sin(th) + cy * np.cos(th))
             objects.append(MapObject("ForbiddenArea", 0, 0, angle, name=f"Keep out {i}",
-                                     from_to=(cx - 600, cy - 400, cx + 600, cy + 400)))
+                                     from_to=(ux - 600, uy - 400, ux + 600, uy + 400)))
         else:
             objects.append(MapObject("ForbiddenLine", cx - 1000, cy + 1500, 0,
                                      from_to=(cx - 1000, cy + 1500, cx + 1000, cy + 1500)))
