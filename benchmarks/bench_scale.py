@@ -101,15 +101,20 @@ def main() -> None:
     yaml_pgm, yaml_png = folder / "site.yaml", folder / "site_png.yaml"
     steps = [
         ("mapkit info site.map", [*MAPKIT, "info", str(site)], None),
-        ("rasterize 2 cm -> PGM+YAML", [*MAPKIT, "rasterize", str(site), "-o", str(yaml_pgm), "--resolution", "0.02", "--force"], None),
+        ("rasterize 2 cm -> PGM+YAML",
+         [*MAPKIT, "rasterize", str(site), "-o", str(yaml_pgm), "--resolution", "0.02",
+          "--force"], None),
         ("rasterize 2 cm -> PNG+YAML, keepout+speed masks",
-         [*MAPKIT, "rasterize", str(site), "-o", str(yaml_png), "--resolution", "0.02", "--png", "--keepout", "--speed-mask", "--force"], None),
-        ("render -> 1600 px PNG", [*MAPKIT, "render", str(site), "-o", str(folder / "site-pic.png"), "--force"], None),
+         [*MAPKIT, "rasterize", str(site), "-o", str(yaml_png), "--resolution", "0.02", "--png",
+          "--keepout", "--speed-mask", "--force"], None),
+        ("render -> 1600 px PNG",
+         [*MAPKIT, "render", str(site), "-o", str(folder / "site-pic.png"), "--force"], None),
     ]
     if not args.skip_import:
         cap = int(args.import_cap_gb * 2**30)
         steps.append((f"import-ros of the PGM (cap {args.import_cap_gb:g} GB)",
-                      [*MAPKIT, "import-ros", str(yaml_pgm), "-o", str(folder / "back.map"), "--force"], cap))
+                      [*MAPKIT, "import-ros", str(yaml_pgm), "-o", str(folder / "back.map"),
+                       "--force"], cap))
     for label, cmd, cap in steps:
         t, peak, rc, last = measure(cmd, cap_bytes=cap)
         note = "" if rc == 0 else f"  FAILED (exit {rc}): {last[:90]}"
