@@ -52,9 +52,20 @@ def make_big_map(seed: int = 1) -> MapData:
     lines = np.stack([x1, y1, x2, y2], axis=1)
     objects = [MapObject("RobotHome", -47500, -47500, 0, name="Home"),
                MapObject("Dock", -47500, -45000, 90, name="Dock 1")]
-    for i in range(N_OBJECTS - 2):
-        cx = (i % 19) * room - side // 2 + room // 2
-        cy = (i // 19) * room - side // 2 + room // 2
+    centres = [((i % 19) * room - side // 2 + room // 2, (i // 19) * room - side // 2 + room // 2)
+               for i in range(N_OBJECTS - 2)]
+    return _with_objects(points, lines, objects, centres, turn_back=False)
+
+
+def _with_objects(points: np.ndarray, lines: np.ndarray, objects: list[MapObject],
+                  centres: list[tuple[int, int]], *, turn_back: bool) -> MapData:
+    """The map of these points and lines, with ``objects`` and one object per room centre.
+
+    Goals, goals with heading, forbidden areas (some turned 30 degrees) and forbidden lines in
+    turn. ARIA turns a rectangle about the map origin: with ``turn_back`` the area's corners are
+    given turned back, so the turned area lands in its room.
+    """
+    for i, (cx, cy) in enumerate(centres):
         kind = i % 4
         if kind == 0:
             objects.append(MapObject("Goal", cx, cy, 0, name=f"Goal room {i}"))
@@ -63,8 +74,13 @@ def make_big_map(seed: int = 1) -> MapData:
                                      name=f"Station {i} west"))
         elif kind == 2:
             angle = 0.0 if i % 8 == 2 else 30.0
+            ux, uy = cx, cy
+            if turn_back:
+                th = np.radians(angle)
+                ux = round(cx * np.cos(th) + cy * np.sin(th))
+                uy = round(-cx * np.sin(th) + cy * np.cos(th))
             objects.append(MapObject("ForbiddenArea", 0, 0, angle, name=f"Keep out {i}",
-                                     from_to=(cx - 600, cy - 400, cx + 600, cy + 400)))
+                                     from_to=(ux - 600, uy - 400, ux + 600, uy + 400)))
         else:
             objects.append(MapObject("ForbiddenLine", cx - 1000, cy + 1500, 0,
                                      from_to=(cx - 1000, cy + 1500, cx + 1000, cy + 1500)))
@@ -114,33 +130,11 @@ def make_site_map(size_mm: tuple[int, int] = SITE_MM, seed: int = 1) -> MapData:
     lines = np.stack([x1, y1, x2, y2], axis=1)
     objects = [MapObject("RobotHome", 2500, 2500, 0, name="Home"),
                MapObject("Dock", 2500, 5000 + 2500, 90, name="Dock 1")]
-    rooms_x = sx // room
+    rooms_x, rooms_y = sx // room, sy // room
     n_obj = int((N_OBJECTS - 2) * (sx * sy) / (100_000 * 100_000))
-    for i in range(n_obj):
-        cx = (i % rooms_x) * room + room // 2
-        cy = (i // rooms_x) % (sy // room) * room + room // 2
-        kind = i % 4
-        if kind == 0:
-            objects.append(MapObject("Goal", cx, cy, 0, name=f"Goal room {i}"))
-        elif kind == 1:
-            objects.append(MapObject("GoalWithHeading", cx, cy, (i * 37) % 360 - 179,
-                                     name=f"Station {i} west"))
-        elif kind == 2:
-            # ARIA turns a rectangle about the map origin: start from the centre turned back,
-            # so the area lands, turned, in its room.
-            angle = 0.0 if i % 8 == 2 else 30.0
-            th = np.radians(angle)
-            ux = round(cx * np.cos(th) + cy * np.sin(th))
-            uy = round(-cx * np.sin(th) + cy * np.cos(th))
-            objects.append(MapObject("ForbiddenArea", 0, 0, angle, name=f"Keep out {i}",
-                                     from_to=(ux - 600, uy - 400, ux + 600, uy + 400)))
-        else:
-            objects.append(MapObject("ForbiddenLine", cx - 1000, cy + 1500, 0,
-                                     from_to=(cx - 1000, cy + 1500, cx + 1000, cy + 1500)))
-    scan = Scan.from_arrays(points, lines, resolution=20)
-    return MapData(scans=(scan,), objects=tuple(objects),
-                   info={"MapInfo": [("GoalType", "Name=Goal"), ("GoalType", "Name=GoalWithHeading"),
-                                     ("DockType", "Name=Dock")]})
+    centres = [((i % rooms_x) * room + room // 2, (i // rooms_x) % rooms_y * room + room // 2)
+               for i in range(n_obj)]
+    return _with_objects(points, lines, objects, centres, turn_back=True)
 
 
 def write_site_map(path: Path) -> Path:
