@@ -227,3 +227,21 @@ def test_a_map_above_the_old_limit_is_written_in_bounded_memory(tmp_path: Path) 
                      shape=(h, w))
     zone = sum(int(np.count_nonzero(np.asarray(keep[i:i + 1000]) == 0)) for i in range(0, h, 1000))
     assert 500_000 <= zone <= 505_000  # the 10 x 5 m forbidden area at 1 cm, and its outline
+
+
+def test_rasterize_makes_grids_over_max_cells_by_bands(monkeypatch: pytest.MonkeyPatch) -> None:
+    rasterize_module = sys.modules["mapkit.raster.rasterize"]  # the package names the function
+    m = mapkit.load(ROOT / "mapkit" / "sample_maps" / "office.map")
+    whole = rasterize(m, 0.05, inflate_mm=100)
+    calls: list[int] = []
+    real = BandRaster.to_grid
+
+    def spy(self: BandRaster, progress: object = None) -> object:
+        calls.append(self.grid.width * self.grid.height)
+        return real(self, progress)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(rasterize_module, "MAX_CELLS", 10_000)
+    monkeypatch.setattr(BandRaster, "to_grid", spy)
+    banded = rasterize(m, 0.05, inflate_mm=100)
+    assert calls == [whole.width * whole.height] and banded == whole
+    assert not banded.data.flags.writeable
