@@ -7,7 +7,14 @@ from pathlib import Path
 
 import click
 
-from mapkit.cli.options import RowsBar, echo_json, force_option, json_option, output_option
+from mapkit.cli.options import (
+    RowsBar,
+    echo_json,
+    err,
+    force_option,
+    json_option,
+    output_option,
+)
 
 
 def _refuse_existing(paths: list[Path], force: bool) -> None:
@@ -72,6 +79,7 @@ def rasterize(map_file: str, output: str | None, resolution: float, mode: str, f
             inflate_mm=inflate, forbidden_as_walls=forbidden_as_walls, mode=mode,  # type: ignore[arg-type]
             image_format="png" if png else None, keepout=keepout, speed=speed_mask,
             progress=bar.update, log=log_path,
+            warn=lambda text: err(f"mapkit: warning: {text}"),
         )
     if as_json:
         echo_json(result.to_dict())

@@ -28,7 +28,40 @@ from mapkit.raster.masks import FilterFiles, write_filters
 from mapkit.raster.rasterize import FreeMode
 from mapkit.raster.ros import Mode, RosMapFiles
 
-__all__ = ["EXPORT_STEPS", "ExportProgress", "RosExport", "export_ros", "planned_outputs"]
+__all__ = [
+    "EXPORT_STEPS",
+    "ROS1_MAX_CELLS",
+    "ROS1_MAX_MESSAGE_BYTES",
+    "ExportProgress",
+    "RosExport",
+    "consumer_warnings",
+    "export_ros",
+    "planned_outputs",
+]
+
+#: roscpp drops any message longer than this (bytes; ros_comm's ``TransportPublisherLink::
+#: onMessageLength`` and ``ServiceServerLink``: "a message of over a gigabyte was predicted").
+ROS1_MAX_MESSAGE_BYTES = 1_000_000_000
+#: The most cells a ``nav_msgs/OccupancyGrid`` can carry to a roscpp node (one byte a cell; 1 KiB
+#: left for its header, frame id and ``MapMetaData``).
+ROS1_MAX_CELLS = ROS1_MAX_MESSAGE_BYTES - 1024
+
+
+def consumer_warnings(width: int, height: int) -> list[str]:
+    """What cannot take a ``width`` x ``height`` map_server map (empty when everything can).
+
+    ROS 1's map_server loads any image but publishes it as one ``nav_msgs/OccupancyGrid``, which
+    every roscpp node drops when it is over :data:`ROS1_MAX_MESSAGE_BYTES`.
+    """
+    cells = int(width) * int(height)
+    if cells <= ROS1_MAX_CELLS:
+        return []
+    return [f"a {width} x {height} map ({cells:,} cells) is too large for ROS 1: map_server "
+            f"publishes it as one nav_msgs/OccupancyGrid of about {cells / 1e9:.2f} GB, and every "
+            f"roscpp node (rviz, move_base, amcl) drops messages over "
+            f"{ROS1_MAX_MESSAGE_BYTES:,} bytes (at most {ROS1_MAX_CELLS:,} cells); the files are "
+            f"written all the same"]
+
 
 #: The stages of :func:`export_ros`, in order.
 EXPORT_STEPS = ("rasterise", "write map", "write masks")
@@ -118,6 +151,7 @@ def export_ros(
     progress: ExportProgress | None = None,
     log: Any = None,
     band_cells: int = DEFAULT_BAND_CELLS,
+    warn: Callable[[str], None] | None = None,
 ) -> RosExport:
     """Rasterise a map and write it as a map_server map (plus Nav2 masks on request).
 
@@ -139,6 +173,8 @@ def export_ros(
         log: A ``.2d`` laser log whose beams give the free space.
         band_cells: About how many cells are worked on at once (see
             :class:`~mapkit.raster.bands.BandRaster`).
+        warn: Called, before any work, with each of :func:`consumer_warnings` (a map too large
+            for a ROS 1 message).
 
     Returns:
         The grid's geometry and counts and the files written.
@@ -149,6 +185,9 @@ def export_ros(
     raster = BandRaster(m, resolution, margin_m=margin_m, free=free, inflate_mm=inflate_mm,
                         log=log, forbidden_as_walls=forbidden_as_walls, band_cells=band_cells)
     geometry = raster.grid
+    if warn is not None:
+        for message in consumer_warnings(geometry.width, geometry.height):
+            warn(message)
     total = raster.work_rows + geometry.height * (int(keepout) + int(speed))
     done = 0
 

@@ -40,6 +40,7 @@ import numpy as np
 
 from mapkit.errors import FormatError, MapkitError
 from mapkit.model import MapData
+from mapkit.raster.export import ROS1_MAX_CELLS, ROS1_MAX_MESSAGE_BYTES
 from mapkit.raster.grid import OccupancyGrid
 from mapkit.ros.node import ros_import
 
@@ -70,13 +71,6 @@ LOAD_INVALID_DATA = 2
 LOAD_INVALID_METADATA = 3
 LOAD_UNDEFINED = 255
 
-#: roscpp drops any message longer than this (bytes; ros_comm's ``TransportPublisherLink::
-#: onMessageLength`` and ``ServiceServerLink``: "a message of over a gigabyte was predicted").
-ROS1_MAX_MESSAGE_BYTES = 1_000_000_000
-#: Room for an OccupancyGrid's header, frame id and MapMetaData (bytes).
-_GRID_OVERHEAD = 1024
-#: The most cells a ``nav_msgs/OccupancyGrid`` can carry to a roscpp node.
-ROS1_MAX_CELLS = ROS1_MAX_MESSAGE_BYTES - _GRID_OVERHEAD
 
 
 class MapLoadError(MapkitError):

@@ -245,3 +245,19 @@ def test_rasterize_makes_grids_over_max_cells_by_bands(monkeypatch: pytest.Monke
     banded = rasterize(m, 0.05, inflate_mm=100)
     assert calls == [whole.width * whole.height] and banded == whole
     assert not banded.data.flags.writeable
+
+
+def test_a_map_too_large_for_ros1_is_said_before_the_work(tmp_path: Path,
+                                                          monkeypatch: pytest.MonkeyPatch) -> None:
+    from mapkit.raster import export
+    from mapkit.raster.export import consumer_warnings
+
+    assert consumer_warnings(20_805, 13_555) == []  # the 282 M-cell site fits a ROS 1 message
+    [text] = consumer_warnings(41_609, 27_109)  # the same site at 1 cm does not
+    assert "1,127,978,381 cells" in text and "1,000,000,000 bytes" in text
+    monkeypatch.setattr(export, "ROS1_MAX_CELLS", 1000)
+    events: list[str] = []
+    export_ros(_speed_map(), tmp_path / "s.yaml", warn=lambda t: events.append("warn: " + t),
+               progress=lambda d, t: events.append("progress"))
+    assert events[0].startswith("warn: a 221 x 181 map (40,001 cells) is too large for ROS 1")
+    assert events[1:] and set(events[1:]) == {"progress"}
