@@ -20,7 +20,7 @@ from mapkit.raster.bands import BandRaster, band_spans
 from mapkit.raster.export import export_ros
 from mapkit.raster.image_stream import ImageSink, write_ros_map_bands
 from mapkit.raster.masks import keepout_bands, keepout_mask, speed_bands, speed_mask
-from mapkit.raster.rasterize import MAX_CELLS
+from mapkit.raster.rasterize import MAX_CELLS, rays_from_log
 from mapkit.raster.ros import read_ros_map, write_ros_map
 
 from .test_masks import _speed_map
@@ -68,8 +68,8 @@ def test_bands_match_the_whole_grid_on_the_bundled_samples(path: Path) -> None:
 
 def test_bands_match_with_laser_rays_and_a_given_geometry() -> None:
     m = mapkit.load(ROOT / "mapkit" / "sample_maps" / "office.map")
-    log = ROOT / "mapkit" / "sample_maps" / "office-loop.2d"
-    _same_cells(m, rows=40, log=log, resolution=0.05)
+    rays = rays_from_log(ROOT / "mapkit" / "sample_maps" / "office-loop.2d")
+    _same_cells(m, rows=40, free="rays", rays_mm=rays, resolution=0.05)
     like = rasterize(m, 0.1, margin_m=2.0)
     _same_cells(m, rows=4, like=like, free="hull", inflate_mm=250)
 
