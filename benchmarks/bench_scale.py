@@ -13,6 +13,8 @@ measurement runs in its own process; the figures are its wall time and its peak 
 * ``mapkit.load`` of the site (baseline for the rest), ``mapkit info`` of the site;
 * ``mapkit rasterize`` at 2 cm to PGM + YAML, and to PNG + YAML with the keepout and speed masks;
 * ``mapkit render`` of the site to a 1600 px PNG;
+* the map server's load of the site (``served_map``: grid and keepout mask at 2 cm) and the
+  serialisation of its ``/map`` message and ``static_map`` answer (no ROS master needed);
 * ``mapkit import-ros`` of the site's PGM (run under an address-space cap of ``--import-cap-gb``,
   so a whole-image reader fails with MemoryError instead of taking the machine).
 
@@ -34,6 +36,20 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 PY = sys.executable
 MAPKIT = [PY, "-m", "mapkit"]
+
+
+#: The map server's work for one map, without a ROS master: what ``mapkit ros map-server`` does
+#: before it publishes (rasterise, keepout mask) and what publishing costs (serialisation).
+SERVE = """
+import io, sys
+from mapkit.ros.grids import grid_message, packed_response, served_map
+served = served_map(sys.argv[1], 0.02)
+msg = grid_message(served.grid)
+for m in (msg, packed_response("GetMap", msg)):
+    buf = io.BytesIO()
+    m.serialize(buf)
+    assert len(buf.getvalue()) > served.grid.width * served.grid.height
+"""
 
 
 def measure(cmd: list[str], *, cap_bytes: int | None = None, cwd: Path | None = None
@@ -69,6 +85,8 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=5, help="runs of each start-up figure")
     ap.add_argument("--import-cap-gb", type=float, default=8.0)
     ap.add_argument("--skip-import", action="store_true")
+    ap.add_argument("--only", default=None, metavar="WORD",
+                    help="run only the site steps whose label contains WORD (start-up is skipped)")
     args = ap.parse_args()
     folder = args.dir or Path(tempfile.mkdtemp(prefix="mapkit-scale-"))
     folder.mkdir(parents=True, exist_ok=True)
@@ -81,15 +99,16 @@ def main() -> None:
     office = ROOT / "mapkit" / "sample_maps" / "office.map"
     rows: list[tuple[str, float, float, str]] = []
 
-    t_np, m_np = best([PY, "-c", "import numpy"], args.repeat)
-    t_help, m_help = best([*MAPKIT, "--help"], args.repeat)
-    t_info, m_info = best([*MAPKIT, "info", str(office)], args.repeat)
-    print(f"start-up (best of {args.repeat}):")
-    print(f"  python -c 'import numpy'   {t_np:7.3f} s  {m_np:7.0f} MB   (baseline)")
-    print(f"  mapkit --help              {t_help:7.3f} s  {m_help:7.0f} MB   "
-          f"= {t_help / t_np:.2f} x numpy import")
-    print(f"  mapkit info office.map     {t_info:7.3f} s  {m_info:7.0f} MB   "
-          f"= {t_info / t_np:.2f} x numpy import")
+    if args.only is None:
+        t_np, m_np = best([PY, "-c", "import numpy"], args.repeat)
+        t_help, m_help = best([*MAPKIT, "--help"], args.repeat)
+        t_info, m_info = best([*MAPKIT, "info", str(office)], args.repeat)
+        print(f"start-up (best of {args.repeat}):")
+        print(f"  python -c 'import numpy'   {t_np:7.3f} s  {m_np:7.0f} MB   (baseline)")
+        print(f"  mapkit --help              {t_help:7.3f} s  {m_help:7.0f} MB   "
+              f"= {t_help / t_np:.2f} x numpy import")
+        print(f"  mapkit info office.map     {t_info:7.3f} s  {m_info:7.0f} MB   "
+              f"= {t_info / t_np:.2f} x numpy import")
 
     load = f"import mapkit; m = mapkit.load({str(site)!r}); print(m.scan.num_points)"
     t_load, m_load, rc, last = measure([PY, "-c", load])
@@ -109,12 +128,14 @@ def main() -> None:
           "--keepout", "--speed-mask", "--force"], None),
         ("render -> 1600 px PNG",
          [*MAPKIT, "render", str(site), "-o", str(folder / "site-pic.png"), "--force"], None),
+        ("map server: load 2 cm + serialise /map, static_map", [PY, "-c", SERVE, str(site)], None),
     ]
     if not args.skip_import:
         cap = int(args.import_cap_gb * 2**30)
         steps.append((f"import-ros of the PGM (cap {args.import_cap_gb:g} GB)",
                       [*MAPKIT, "import-ros", str(yaml_pgm), "-o", str(folder / "back.map"),
                        "--force"], cap))
+    steps = [s for s in steps if args.only is None or args.only in s[0]]
     for label, cmd, cap in steps:
         t, peak, rc, last = measure(cmd, cap_bytes=cap)
         note = "" if rc == 0 else f"  FAILED (exit {rc}): {last[:90]}"
