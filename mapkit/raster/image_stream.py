@@ -26,7 +26,8 @@ from __future__ import annotations
 import os
 import struct
 import zlib
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
+from dataclasses import dataclass
 from pathlib import Path
 from typing import BinaryIO
 
@@ -35,20 +36,25 @@ from numpy.typing import NDArray
 
 from mapkit._atomic import atomic_open
 from mapkit._typing import PathLike
-from mapkit.raster.errors import RasterError
+from mapkit.raster.errors import RasterError, RosMapError
 from mapkit.raster.grid import OccupancyGrid
 from mapkit.raster.ros import (
+    _PNM_TOKEN,
     DEFAULT_FREE_THRESH,
     DEFAULT_OCCUPIED_THRESH,
+    Flavor,
     Mode,
     RosMapFiles,
+    RosMapInfo,
     image_target,
+    load_pixel_values,
     pgm_comment,
     pixel_table,
     write_map_yaml,
 )
 
-__all__ = ["IDAT_BYTES", "ImageSink", "write_image_bands", "write_ros_map_bands"]
+__all__ = ["IDAT_BYTES", "ImageSink", "PgmBands", "pgm_bands", "write_image_bands",
+           "write_ros_map_bands"]
 
 #: About how many compressed bytes go in one PNG ``IDAT`` chunk.
 IDAT_BYTES = 1 << 20
@@ -219,3 +225,91 @@ def write_ros_map_bands(
     write_map_yaml(yaml_p, img_p, geometry, mode=mode, negate=negate,
                    occupied_thresh=occupied_thresh, free_thresh=free_thresh)
     return RosMapFiles(yaml_p, img_p)
+
+
+@dataclass(frozen=True, slots=True)
+class PgmBands:
+    """An 8-bit binary PGM map image read band by band (see :func:`pgm_bands`)."""
+
+    info: RosMapInfo
+    width: int
+    height: int
+    offset: int  # where the pixels start
+    lut: NDArray[np.int8]  # cell value of each grey level
+
+    def geometry(self) -> OccupancyGrid:
+        """The grid's geometry (its cells are not read)."""
+        cells = np.broadcast_to(np.array(-1, dtype=np.int8), (self.height, self.width))
+        return OccupancyGrid(cells, self.info.resolution, self.info.origin[:2])
+
+    def bands(self, band_cells: int = 4_000_000) -> Iterator[tuple[int, NDArray[np.int8]]]:
+        """The cells, north band first: ``(row0, data)`` as :meth:`BandRaster.bands` gives."""
+        w, h = self.width, self.height
+        rows = max(1, min(h, band_cells // w))
+        with open(self.info.image_path, "rb") as fh:
+            r1 = h
+            while r1 > 0:
+                r0 = max(0, r1 - rows)
+                fh.seek(self.offset + (h - r1) * w)
+                raw = fh.read((r1 - r0) * w)
+                if len(raw) < (r1 - r0) * w:
+                    raise RosMapError(f"image data truncated: expected {w * h} samples of "
+                                      f"{w}x{h}", source=str(self.info.image_path))
+                pixels = np.frombuffer(raw, dtype=np.uint8).reshape(r1 - r0, w)
+                yield r0, np.ascontiguousarray(self.lut[pixels][::-1])
+                r1 = r0
+
+    def to_grid(self, band_cells: int = 4_000_000) -> OccupancyGrid:
+        """The whole grid (one byte a cell), read a band at a time."""
+        data = np.empty((self.height, self.width), dtype=np.int8)
+        for r0, band in self.bands(band_cells):
+            data[r0:r0 + len(band)] = band
+        data.flags.writeable = False
+        return OccupancyGrid(data, self.info.resolution, self.info.origin[:2])
+
+
+def pgm_bands(info: RosMapInfo, *, flavor: Flavor = "ros1") -> PgmBands | None:
+    """A map YAML's image as bands of cells, when it is an 8-bit binary PGM (``P5``, maxval 255).
+
+    Each grey level goes through the loaders' own rules
+    (:func:`~mapkit.raster.ros.load_pixel_values`, as
+    :func:`~mapkit.raster.ros.read_ros_map` applies them to a one-channel 8-bit image), so the
+    cells are ``read_ros_map``'s; only a band of the image is in memory at a time. ``None`` for
+    any other image (read it whole with ``read_ros_map``).
+
+    Raises:
+        RosMapError: For a file that is missing or whose header is broken.
+    """
+    src = str(info.image_path)
+    try:
+        with open(info.image_path, "rb") as fh:
+            head = fh.read(4096)
+            size = os.fstat(fh.fileno()).st_size
+    except FileNotFoundError as err:
+        raise RosMapError("image file not found", source=src) from err
+    except IsADirectoryError as err:
+        raise RosMapError("image path is a folder", source=src) from err
+    if head[:2] != b"P5":
+        return None
+    fields: list[bytes] = []
+    pos = 2
+    while len(fields) < 3:
+        m = _PNM_TOKEN.match(head, pos)
+        if not m:
+            return None  # a header longer than 4 KB: let the whole-image reader judge it
+        fields.append(m.group(1))
+        pos = m.end()
+    try:
+        w, h, maxval = (int(f) for f in fields)
+    except ValueError:
+        return None
+    if maxval != 255 or w <= 0 or h <= 0:
+        return None
+    offset = pos + 1  # the single whitespace after maxval
+    if size < offset + w * h:
+        raise RosMapError(f"image data truncated: expected {w * h} samples of {w}x{h}",
+                          source=src)
+    lut = load_pixel_values(np.arange(256), info.mode, negate=bool(info.negate),
+                            occupied_thresh=info.occupied_thresh, free_thresh=info.free_thresh,
+                            flavor=flavor)
+    return PgmBands(info, w, h, offset, lut)

@@ -11,8 +11,9 @@ Failures are :class:`MapLoadError` values carrying the ``nav_msgs/LoadMap`` resu
 ``change_map`` answers with (1 map does not exist, 2 invalid map data, 3 invalid map metadata,
 255 undefined failure).
 
-Big maps. A ``.map`` is rasterised band by band (:class:`~mapkit.raster.bands.BandRaster`): only
-the grid itself (one byte a cell) and its keepout mask are kept, as the messages need them. The
+Big maps. A ``.map`` is rasterised band by band (:class:`~mapkit.raster.bands.BandRaster`), and
+a YAML's 8-bit PGM read band by band (:func:`~mapkit.raster.image_stream.pgm_bands`): only the
+grid itself (one byte a cell) and its keepout mask are kept, as the messages need them. The
 messages are serialised from the grid's bytes (:func:`grid_message`), not through rospy's own
 ``int8[]`` code, which packs a Python list of one object a cell (8 bytes a cell, twice over).
 
@@ -265,6 +266,7 @@ def served_map(path: str | os.PathLike[str], resolution: float = 0.05, *, progre
 
 
 def _read_yaml_grid(p: Path, progress: Any = None) -> OccupancyGrid:
+    from mapkit.raster.image_stream import pgm_bands
     from mapkit.raster.ros import read_ros_map, read_ros_yaml
 
     try:
@@ -272,7 +274,8 @@ def _read_yaml_grid(p: Path, progress: Any = None) -> OccupancyGrid:
         size = _image_size(info.image_path)
         if size is not None:
             check_ros1_size(*size, source=str(info.image_path))
-        grid = read_ros_map(p)
+        pgm = pgm_bands(info)  # an 8-bit PGM is read a band at a time
+        grid = pgm.to_grid() if pgm is not None else read_ros_map(p)
         if progress is not None:
             progress(grid.height, grid.height)
         return grid

@@ -16,7 +16,7 @@ from hypothesis import strategies as st
 
 import mapkit
 from mapkit.model import MapData, MapObject, Scan
-from mapkit.raster import OccupancyGrid, RasterError, rasterize
+from mapkit.raster import OccupancyGrid, RasterError, RosMapError, rasterize
 from mapkit.raster.bands import BandRaster, band_spans
 from mapkit.raster.export import export_ros
 from mapkit.raster.image_stream import ImageSink, write_ros_map_bands
@@ -320,3 +320,44 @@ def test_a_png_in_many_idat_chunks_reads_back(tmp_path: Path,
     kinds = _png_chunks(files.image.read_bytes())
     assert kinds.count(b"IDAT") > 2 and kinds[-1] == b"IEND"
     assert read_ros_map(files.yaml) == g and read_ros_map(files.yaml, flavor="nav2") == g
+
+
+@pytest.mark.parametrize("mode,negate,occ,free", [("trinary", False, 0.65, 0.196),
+                                                  ("trinary", True, 0.65, 0.196),
+                                                  ("trinary", False, 0.9, 0.1),
+                                                  ("raw", False, 0.65, 0.196),
+                                                  ("scale", False, 0.65, 0.196)])
+def test_pgm_read_by_bands_is_read_ros_map(tmp_path: Path, mode: str, negate: bool, occ: float,
+                                           free: float) -> None:
+    from mapkit.raster.image_stream import pgm_bands
+    from mapkit.raster.ros import read_ros_yaml
+
+    g = rasterize(_speed_map(), 0.05, inflate_mm=80)
+    if mode == "scale":  # a scale PGM holds no unknown cells; use in-between values instead
+        g = g.with_data(np.where(g.data < 0, 40, g.data))
+    elif mode == "raw":
+        g = g.with_data(np.where(g.data == 0, 17, g.data))
+    files = write_ros_map(g, tmp_path / "m.yaml", mode=mode, image_format="pgm",  # type: ignore[arg-type]
+                          negate=negate, occupied_thresh=occ, free_thresh=free)
+    for flavor in ("ros1", "nav2"):
+        pgm = pgm_bands(read_ros_yaml(files.yaml, flavor=flavor), flavor=flavor)  # type: ignore[arg-type]
+        assert pgm is not None
+        whole = read_ros_map(files.yaml, flavor=flavor)  # type: ignore[arg-type]
+        assert pgm.to_grid(band_cells=pgm.width * 3) == whole
+        assert pgm.geometry().same_geometry(whole)
+
+
+def test_pgm_bands_leaves_other_images_to_the_whole_reader(tmp_path: Path) -> None:
+    from mapkit.raster.image_stream import pgm_bands
+    from mapkit.raster.ros import read_ros_yaml
+
+    g = rasterize(_speed_map(), 0.1)
+    png = write_ros_map(g, tmp_path / "p.yaml", image_format="png")
+    assert pgm_bands(read_ros_yaml(png.yaml)) is None
+    pgm = write_ros_map(g, tmp_path / "q.yaml")
+    data = pgm.image.read_bytes()
+    pgm.image.write_bytes(data[:-10])  # truncated
+    with pytest.raises(RosMapError, match=r"q\.pgm: image data truncated"):
+        pgm_bands(read_ros_yaml(pgm.yaml))
+    pgm.image.write_bytes(data.replace(b"\n255\n", b"\n254\n", 1))  # not maxval 255
+    assert pgm_bands(read_ros_yaml(pgm.yaml)) is None

@@ -114,3 +114,17 @@ def test_a_100m_cell_map_is_served_in_about_its_own_size(ros_msgs: None, tmp_pat
     # grid + keepout + the serialised copy: about 3 bytes a cell. rospy's own int8[] path holds a
     # Python list (8 bytes a cell) and the tuple struct.pack(*list) makes (8 more): over 1.6 GB.
     assert r["peak_kb"] < 600_000, r
+
+
+def test_a_map_server_pgm_is_read_by_bands(tmp_path: Path) -> None:
+    from mapkit.raster.ros import read_ros_map, write_ros_map
+
+    grid = rasterize(mapkit.load(ROOT / "mapkit" / "sample_maps" / "office.map"), 0.05)
+    files = write_ros_map(grid, tmp_path / "office.yaml")
+    served = served_map(files.yaml)
+    assert served.grid == read_ros_map(files.yaml) == grid and served.keepout is None
+    assert not served.grid.data.flags.writeable
+    files.image.write_bytes(files.image.read_bytes()[:-100])
+    with pytest.raises(MapLoadError, match="truncated") as e:
+        served_map(files.yaml)
+    assert e.value.code == LOAD_INVALID_DATA
