@@ -361,3 +361,19 @@ def test_pgm_bands_leaves_other_images_to_the_whole_reader(tmp_path: Path) -> No
         pgm_bands(read_ros_yaml(pgm.yaml))
     pgm.image.write_bytes(data.replace(b"\n255\n", b"\n254\n", 1))  # not maxval 255
     assert pgm_bands(read_ros_yaml(pgm.yaml)) is None
+
+
+@pytest.mark.parametrize("mode,fmt", [("trinary", "pgm"), ("scale", "png")])
+def test_streamed_files_equal_on_every_real_sample(real_sample: Path, tmp_path: Path, mode: str,
+                                                   fmt: str) -> None:
+    m = mapkit.load(real_sample)
+    opts = {"resolution": 0.05, "free": "flood", "inflate_mm": 100.0}
+    ref = _reference_export(m, tmp_path, mode, fmt, **opts)
+    export_ros(m, tmp_path / "out.yaml", mode=mode, image_format=fmt,  # type: ignore[arg-type]
+               keepout=True, speed=True, band_cells=20_000, **opts)  # type: ignore[arg-type]
+    for stem in ("", "_keepout", "_speed"):
+        a, b = tmp_path / f"ref{stem}.yaml", tmp_path / f"out{stem}.yaml"
+        if fmt == "pgm":
+            assert a.with_suffix(".pgm").read_bytes() == b.with_suffix(".pgm").read_bytes(), stem
+        assert read_ros_map(a) == read_ros_map(b), stem
+    assert ref.exists()
