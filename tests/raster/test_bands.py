@@ -213,8 +213,9 @@ def test_a_map_above_the_old_limit_is_written_in_bounded_memory(tmp_path: Path) 
     assert w * h > MAX_CELLS
     assert r["band_rows"] * w <= 1_000_000 and r["band_bytes"] < 25_000_000
     # The whole-grid path would hold a 100 MB int8 grid plus bool and int32 masks of the same
-    # shape (over 700 MB); banded, the process stays far below the grid's own size.
-    assert r["maxrss_kb"] < 300_000, r
+    # shape (over 700 MB); banded, the process holds one band at a time: about 100 MB measured,
+    # most of it Python, numpy and scipy themselves.
+    assert r["maxrss_kb"] < 200_000, r
     assert r["counts"]["free"] > 99_000_000 and r["counts"]["occupied"] > 40_000
     pgm = tmp_path / "big.pgm"
     header = f"P5\n# CREATOR: mapkit 0.010 m/pix\n{w} {h}\n255\n".encode()

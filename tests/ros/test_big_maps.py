@@ -113,7 +113,7 @@ def test_a_100m_cell_map_is_served_in_about_its_own_size(ros_msgs: None, tmp_pat
     assert 500_000 <= r["keepout"] <= 505_000
     # grid + keepout + the serialised copy: about 3 bytes a cell. rospy's own int8[] path holds a
     # Python list (8 bytes a cell) and the tuple struct.pack(*list) makes (8 more): over 1.6 GB.
-    assert r["peak_kb"] < 600_000, r
+    assert r["peak_kb"] < 700_000, r  # measured: about 510 MB
 
 
 def test_a_map_server_pgm_is_read_by_bands(tmp_path: Path) -> None:
