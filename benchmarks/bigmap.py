@@ -52,9 +52,20 @@ def make_big_map(seed: int = 1) -> MapData:
     lines = np.stack([x1, y1, x2, y2], axis=1)
     objects = [MapObject("RobotHome", -47500, -47500, 0, name="Home"),
                MapObject("Dock", -47500, -45000, 90, name="Dock 1")]
-    for i in range(N_OBJECTS - 2):
-        cx = (i % 19) * room - side // 2 + room // 2
-        cy = (i // 19) * room - side // 2 + room // 2
+    centres = [((i % 19) * room - side // 2 + room // 2, (i // 19) * room - side // 2 + room // 2)
+               for i in range(N_OBJECTS - 2)]
+    return _with_objects(points, lines, objects, centres, turn_back=False)
+
+
+def _with_objects(points: np.ndarray, lines: np.ndarray, objects: list[MapObject],
+                  centres: list[tuple[int, int]], *, turn_back: bool) -> MapData:
+    """The map of these points and lines, with ``objects`` and one object per room centre.
+
+    Goals, goals with heading, forbidden areas (some turned 30 degrees) and forbidden lines in
+    turn. ARIA turns a rectangle about the map origin: with ``turn_back`` the area's corners are
+    given turned back, so the turned area lands in its room.
+    """
+    for i, (cx, cy) in enumerate(centres):
         kind = i % 4
         if kind == 0:
             objects.append(MapObject("Goal", cx, cy, 0, name=f"Goal room {i}"))
@@ -63,8 +74,13 @@ def make_big_map(seed: int = 1) -> MapData:
                                      name=f"Station {i} west"))
         elif kind == 2:
             angle = 0.0 if i % 8 == 2 else 30.0
+            ux, uy = cx, cy
+            if turn_back:
+                th = np.radians(angle)
+                ux = round(cx * np.cos(th) + cy * np.sin(th))
+                uy = round(-cx * np.sin(th) + cy * np.cos(th))
             objects.append(MapObject("ForbiddenArea", 0, 0, angle, name=f"Keep out {i}",
-                                     from_to=(cx - 600, cy - 400, cx + 600, cy + 400)))
+                                     from_to=(ux - 600, uy - 400, ux + 600, uy + 400)))
         else:
             objects.append(MapObject("ForbiddenLine", cx - 1000, cy + 1500, 0,
                                      from_to=(cx - 1000, cy + 1500, cx + 1000, cy + 1500)))
@@ -72,6 +88,60 @@ def make_big_map(seed: int = 1) -> MapData:
     return MapData(scans=(scan,), objects=tuple(objects),
                    info={"MapInfo": [("GoalType", "Name=Goal"), ("GoalType", "Name=GoalWithHeading"),
                                      ("DockType", "Name=Dock")]})
+
+
+#: The big site of issue 16: a 415 x 270 m warehouse (at 2 cm: a 20,768 x 13,612 grid).
+SITE_MM = (415_000, 270_000)
+
+
+def make_site_map(size_mm: tuple[int, int] = SITE_MM, seed: int = 1) -> MapData:
+    """The benchmark map scaled out to a site of ``size_mm``, at the same density.
+
+    The same building of 5 m rooms, with as many points and lines per metre of wall and as many
+    objects per square metre as :func:`make_big_map` (the 415 x 270 m site has 10.8 M points,
+    216,000 lines and 2,241 objects). The site's lower-left corner is at (0, 0).
+    """
+    rng = np.random.default_rng(seed)
+    room = 5_000
+    sx, sy = size_mm
+    nx, ny = sx // room + 1, sy // room + 1  # walls across x (vertical) and across y
+    wall_mm = nx * sy + ny * sx
+    per_mm = N_POINTS / (2 * (100_000 // room + 1) * 100_000)  # the 1M map's density
+    pts = []
+    for k in range(nx):  # vertical walls at x = k * room
+        n = int(per_mm * sy)
+        t = rng.integers(0, sy // 20, n) * 20
+        pts.append(np.stack([k * room + rng.integers(-2, 3, n) * 20, t], axis=1))
+    for k in range(ny):  # horizontal walls at y = k * room
+        n = int(per_mm * sx)
+        t = rng.integers(0, sx // 20, n) * 20
+        pts.append(np.stack([t, k * room + rng.integers(-2, 3, n) * 20], axis=1))
+    points = np.concatenate(pts)
+    n_lines = int(N_LINES * wall_mm / (2 * 21 * 100_000))
+    horizontal = rng.random(n_lines) < 0.5
+    starts = np.where(horizontal, rng.integers(0, sx // 20, n_lines),
+                      rng.integers(0, sy // 20, n_lines)) * 20
+    walls = np.where(horizontal, rng.integers(0, ny, n_lines), rng.integers(0, nx, n_lines)) * room
+    length = rng.integers(5, 100, n_lines) * 20
+    x1 = np.where(horizontal, starts, walls)
+    y1 = np.where(horizontal, walls, starts)
+    x2 = np.where(horizontal, np.minimum(starts + length, sx), walls)
+    y2 = np.where(horizontal, walls, np.minimum(starts + length, sy))
+    lines = np.stack([x1, y1, x2, y2], axis=1)
+    objects = [MapObject("RobotHome", 2500, 2500, 0, name="Home"),
+               MapObject("Dock", 2500, 5000 + 2500, 90, name="Dock 1")]
+    rooms_x, rooms_y = sx // room, sy // room
+    n_obj = int((N_OBJECTS - 2) * (sx * sy) / (100_000 * 100_000))
+    centres = [((i % rooms_x) * room + room // 2, (i // rooms_x) % rooms_y * room + room // 2)
+               for i in range(n_obj)]
+    return _with_objects(points, lines, objects, centres, turn_back=True)
+
+
+def write_site_map(path: Path) -> Path:
+    """Write the site map to ``path`` (if it is not there already) and return the path."""
+    if not path.exists():
+        save(make_site_map(), path)
+    return path
 
 
 def write_big_map(path: Path) -> Path:

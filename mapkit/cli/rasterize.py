@@ -3,12 +3,18 @@
 from __future__ import annotations
 
 import os
-import sys
 from pathlib import Path
 
 import click
 
-from mapkit.cli.options import echo_json, force_option, json_option, output_option
+from mapkit.cli.options import (
+    RowsBar,
+    echo_json,
+    err,
+    force_option,
+    json_option,
+    output_option,
+)
 
 
 def _refuse_existing(paths: list[Path], force: bool) -> None:
@@ -60,20 +66,20 @@ def rasterize(map_file: str, output: str | None, resolution: float, mode: str, f
       ros2 run nav2_map_server map_server --ros-args -p yaml_filename:=office.yaml
     """
     from mapkit.formats.map import load
-    from mapkit.raster.export import EXPORT_STEPS, export_ros, planned_outputs
+    from mapkit.raster.export import export_ros, planned_outputs
 
     yaml_path = Path(output) if output else Path(Path(map_file).stem + ".yaml")
     fmt = "png" if png or (mode == "scale") else "pgm"
     _refuse_existing(planned_outputs(yaml_path, image_format=fmt, keepout=keepout,
                                      speed=speed_mask), force)
     m = load(map_file)
-    with click.progressbar(length=len(EXPORT_STEPS), label="rasterising", file=sys.stderr,
-                           show_eta=False) as bar:
+    with RowsBar("rasterising") as bar:
         result = export_ros(
             m, yaml_path, resolution=resolution, margin_m=margin, free=free,  # type: ignore[arg-type]
             inflate_mm=inflate, forbidden_as_walls=forbidden_as_walls, mode=mode,  # type: ignore[arg-type]
             image_format="png" if png else None, keepout=keepout, speed=speed_mask,
-            progress=lambda _step: bar.update(1), log=log_path,
+            progress=bar.update, log=log_path,
+            warn=lambda text: err(f"mapkit: warning: {text}"),
         )
     if as_json:
         echo_json(result.to_dict())

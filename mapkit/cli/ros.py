@@ -14,7 +14,7 @@ from typing import Any
 import click
 
 from mapkit.cli.aria import robot_options as _aria_robot_options
-from mapkit.cli.options import echo_json, err, json_option
+from mapkit.cli.options import RowsBar, echo_json, err, json_option
 from mapkit.cli.transfer import _auth_text, _progress, _quiet, _secret_options, _size, print_listing
 
 
@@ -63,7 +63,15 @@ def map_server(map_file: str, resolution: float, frame_id: str, free: str, as_js
                 f"{len(info['docks'])} docks. "
                 "Ctrl-C stops.")
 
-    run_map_server(map_file, resolution=resolution, frame_id=frame_id, free=free, on_ready=ready)
+    bar = RowsBar("loading map")
+
+    def ready_after_bar(server: Any) -> None:
+        bar.__exit__(None, None, None)
+        ready(server)
+
+    with bar:
+        run_map_server(map_file, resolution=resolution, frame_id=frame_id, free=free,
+                       on_ready=ready_after_bar, progress=bar.advance)
 
 
 @ros.command("aria-bridge")

@@ -11,6 +11,8 @@ The stable API other packages use:
 * ``mapkit.raster.ros`` (map_server YAML + image, both ways), ``mapkit.raster.masks`` (Nav2
   keepout/speed masks), ``mapkit.raster.import_ros`` (ROS map → ARIA map),
   ``mapkit.raster.export`` (one call for ``mapkit rasterize``; registers ``.yaml``/``.pgm``).
+* ``mapkit.raster.bands`` (:class:`~mapkit.raster.bands.BandRaster`: the same grid made band by
+  band, for maps of any size) and ``mapkit.raster.image_stream`` (PGM/PNG written band by band).
 
 Note: ``mapkit.raster.rasterize`` names the function (re-exported here), not the module; import
 the module's names with ``from mapkit.raster.rasterize import ...``.

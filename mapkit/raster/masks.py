@@ -29,17 +29,20 @@ from numpy.typing import NDArray
 from mapkit._atomic import atomic_write
 from mapkit._typing import PathLike
 from mapkit.model import MapData
+from mapkit.raster.bands import DEFAULT_BAND_CELLS, Progress, band_spans, halo_rows
 from mapkit.raster.errors import RasterError
 from mapkit.raster.grid import OccupancyGrid
+from mapkit.raster.image_stream import Bands, write_ros_map_bands
 from mapkit.raster.rasterize import burn_polygons, burn_segments, inflate, object_polygons
-from mapkit.raster.ros import write_ros_map
 
 __all__ = [
     "SPEED_PARAMS",
     "FilterFiles",
     "SpeedZone",
     "filter_params_text",
+    "keepout_bands",
     "keepout_mask",
+    "speed_bands",
     "speed_mask",
     "speed_zones",
     "write_filters",
@@ -69,15 +72,50 @@ def keepout_mask(
     Returns:
         The mask grid.
     """
-    areas = [o for o in m.objects if o.type == "ForbiddenArea" and o.from_to is not None]
-    mask = burn_polygons(like, object_polygons(areas))
+    polys, segs = _keepout_shapes(m, lines)
+    mask = burn_polygons(like, polys)
     if lines:
-        segs = [o.from_to for o in m.objects if o.type == "ForbiddenLine" and o.from_to is not None]
-        burn_segments(like, np.array(segs, dtype=np.float64).reshape(-1, 4), out=mask)
+        burn_segments(like, segs, out=mask)
     if inflate_mm > 0:
         mask = inflate(mask, inflate_mm, like.resolution)
     data = np.where(mask, 100, -1).astype(np.int8)
     return like.with_data(data)
+
+
+def _keepout_shapes(
+    m: MapData, lines: bool
+) -> tuple[list[NDArray[np.float64]], NDArray[np.float64]]:
+    areas = [o for o in m.objects if o.type == "ForbiddenArea" and o.from_to is not None]
+    segs = [o.from_to for o in m.objects if o.type == "ForbiddenLine" and o.from_to is not None] \
+        if lines else []
+    return object_polygons(areas), np.array(segs, dtype=np.float64).reshape(-1, 4)
+
+
+def _band_rows(like: OccupancyGrid, band_cells: int) -> int:
+    return max(1, min(like.height, int(band_cells) // like.width))
+
+
+def keepout_bands(
+    m: MapData, like: OccupancyGrid, *, lines: bool = True, inflate_mm: float = 0.0,
+    band_cells: int = DEFAULT_BAND_CELLS, progress: Progress | None = None,
+) -> Bands:
+    """:func:`keepout_mask` band by band, north first: ``(row0, data)`` (the same cells).
+
+    Inflation reads a halo of rows around each band (see :mod:`mapkit.raster.bands`).
+    """
+    polys, segs = _keepout_shapes(m, lines)
+    h, w = like.height, like.width
+    halo = halo_rows(inflate_mm, like.resolution)
+    for r0, r1 in band_spans(h, _band_rows(like, band_cells)):
+        a, b = max(0, r0 - halo), min(h, r1 + halo)
+        mask = np.zeros((b - a, w), dtype=bool)
+        burn_polygons(like, polys, out=mask, row0=a)
+        burn_segments(like, segs, out=mask, row0=a)
+        if inflate_mm > 0:
+            mask = inflate(mask, inflate_mm, like.resolution)
+        if progress is not None:
+            progress(r1 - r0)
+        yield r0, np.where(mask[r0 - a:r1 - a], 100, -1).astype(np.int8)
 
 
 @dataclass(frozen=True, slots=True)
@@ -192,11 +230,7 @@ def speed_mask(
     Raises:
         RasterError: For a multiplier that is not positive.
     """
-    zs = speed_zones(m, param=param) if zones is None else zones
-    if multiplier is None:
-        multiplier = _multiplier_for(max((z.speed_mm_s for z in zs), default=0.0))
-    if not (multiplier > 0 and np.isfinite(multiplier)):
-        raise RasterError(f"speed multiplier must be a positive number of m/s, got {multiplier!r}")
+    zs, multiplier = _speed_setup(m, multiplier, param, zones)
     units = np.full(like.data.shape, 127, dtype=np.int16)  # 127: no zone
     for z in zs:  # one pass per zone (a handful), vectorised over cells
         cells = burn_polygons(like, [z.polygon])
@@ -204,6 +238,49 @@ def speed_mask(
         units[cells] = np.minimum(units[cells], v)
     data = np.where(units == 127, 0, units).astype(np.int8)
     return like.with_data(data), float(multiplier)
+
+
+def _speed_setup(
+    m: MapData, multiplier: float | None, param: str | None, zones: list[SpeedZone] | None
+) -> tuple[list[SpeedZone], float]:
+    zs = speed_zones(m, param=param) if zones is None else zones
+    if multiplier is None:
+        multiplier = _multiplier_for(max((z.speed_mm_s for z in zs), default=0.0))
+    if not (multiplier > 0 and np.isfinite(multiplier)):
+        raise RasterError(f"speed multiplier must be a positive number of m/s, got {multiplier!r}")
+    return zs, float(multiplier)
+
+
+def speed_bands(
+    m: MapData,
+    like: OccupancyGrid,
+    *,
+    multiplier: float | None = None,
+    param: str | None = None,
+    zones: list[SpeedZone] | None = None,
+    band_cells: int = DEFAULT_BAND_CELLS,
+    progress: Progress | None = None,
+) -> tuple[Bands, float]:
+    """:func:`speed_mask` band by band, north first, and its multiplier (the same cells).
+
+    Raises:
+        RasterError: For a multiplier that is not positive (before any band is made).
+    """
+    zs, mult = _speed_setup(m, multiplier, param, zones)
+    values = [int(np.clip(round(z.speed_mm_s / (mult * 1000.0)), 1, 100)) for z in zs]
+
+    def bands() -> Bands:
+        for r0, r1 in band_spans(like.height, _band_rows(like, band_cells)):
+            units = np.full((r1 - r0, like.width), 127, dtype=np.int16)
+            for z, v in zip(zs, values, strict=True):
+                cells = burn_polygons(like, [z.polygon], out=np.zeros(units.shape, dtype=bool),
+                                      row0=r0)
+                units[cells] = np.minimum(units[cells], v)
+            if progress is not None:
+                progress(r1 - r0)
+            yield r0, np.where(units == 127, 0, units).astype(np.int8)
+
+    return bands(), mult
 
 
 def _q(s: str) -> str:
@@ -339,6 +416,8 @@ def write_filters(
     inflate_mm: float = 0.0,
     speed_param: str | None = None,
     speed_multiplier: float | None = None,
+    band_cells: int = DEFAULT_BAND_CELLS,
+    progress: Progress | None = None,
 ) -> FilterFiles:
     """Write the masks and the filter parameters file beside a map's YAML.
 
@@ -355,6 +434,9 @@ def write_filters(
         inflate_mm: Grow keepout zones by this radius.
         speed_param: The sectors' speed parameter (see :func:`speed_zones`).
         speed_multiplier: m/s per speed-mask unit (see :func:`speed_mask`).
+        band_cells: Cells per band: the masks are made and written band by band
+            (:func:`keepout_bands`, :func:`speed_bands`), so a map of any size fits in memory.
+        progress: Called with the rows finished (``grid.height`` per mask).
 
     Returns:
         The files written and the zone counts.
@@ -368,8 +450,10 @@ def write_filters(
     fields: dict[str, object] = {}
     k_yaml = s_yaml = None
     if keepout:
-        mask = keepout_mask(m, grid, inflate_mm=inflate_mm)
-        k = write_ros_map(mask, Path(f"{stem}_keepout.yaml"), image_format=image_format)
+        kbands = keepout_bands(m, grid, inflate_mm=inflate_mm, band_cells=band_cells,
+                               progress=progress)
+        k = write_ros_map_bands(grid, kbands, Path(f"{stem}_keepout.yaml"),
+                                image_format=image_format)
         k_yaml = k.yaml
         zones = sum(1 for o in m.objects if o.type in ("ForbiddenArea", "ForbiddenLine")
                     and o.from_to is not None)
@@ -377,8 +461,10 @@ def write_filters(
     mult = 0.01
     if speed:
         zs = speed_zones(m, param=speed_param)
-        smask, mult = speed_mask(m, grid, multiplier=speed_multiplier, zones=zs)
-        s = write_ros_map(smask, Path(f"{stem}_speed.yaml"), mode="raw", image_format=image_format)
+        sbands, mult = speed_bands(m, grid, multiplier=speed_multiplier, zones=zs,
+                                   band_cells=band_cells, progress=progress)
+        s = write_ros_map_bands(grid, sbands, Path(f"{stem}_speed.yaml"), mode="raw",
+                                image_format=image_format)
         s_yaml = s.yaml
         fields.update(speed_yaml=s.yaml, speed_image=s.image, speed_zones=len(zs),
                       speed_multiplier=mult)

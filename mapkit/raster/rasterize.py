@@ -44,10 +44,12 @@ from mapkit.raster.grid import FREE, OCCUPIED, UNKNOWN, OccupancyGrid
 
 __all__ = [
     "MAX_CELLS",
+    "MAX_SIDE",
     "FreeMode",
     "burn_points",
     "burn_polygons",
     "burn_segments",
+    "check_options",
     "flood_fill",
     "free_from_rays",
     "grid_for",
@@ -65,10 +67,14 @@ __all__ = [
 
 log_ = logging.getLogger(__name__)
 
+#: The longest side of a grid (cells): PNG's limit (2**31 - 1), below ROS's uint32 width/height.
+MAX_SIDE = 2**31 - 1
+
 #: How to decide which cells are free (see :func:`rasterize`).
 FreeMode = Literal["flood", "hull", "all", "none", "rays"]
 
-#: The largest grid mapkit makes (cells); a larger one is refused with a clear error.
+#: The largest grid :func:`rasterize` makes as one whole-grid computation (cells); a larger one is
+#: made band by band (:mod:`mapkit.raster.bands`, the same cells in bounded working memory).
 MAX_CELLS = 100_000_000
 
 _EPS = 1e-9
@@ -116,11 +122,12 @@ def grid_for_bounds(
         margin_m: Metres added on every side.
 
     Returns:
-        A grid filled with -1.
+        A grid filled with -1. Its ``data`` is a read-only broadcast view that takes no memory,
+        so the geometry of a grid of any size can be made (see :mod:`mapkit.raster.bands`).
 
     Raises:
-        RasterError: For a resolution that is not positive, a negative margin or a grid of more
-            than :data:`MAX_CELLS` cells.
+        RasterError: For a resolution that is not positive, a negative margin, or a grid wider or
+            taller than a map_server image can be (2**31 - 1 pixels).
 
     Examples:
         >>> g = grid_for_bounds(((0, 0), (1000, 500)), 0.1, 0)
@@ -138,13 +145,18 @@ def grid_for_bounds(
     cy0 = math.floor((y0 - mm) / r + _EPS)
     width = math.floor((x1 + mm) / r + _EPS) - cx0 + 1
     height = math.floor((y1 + mm) / r + _EPS) - cy0 + 1
-    if width * height > MAX_CELLS:
+    if max(width, height) > MAX_SIDE:
         raise RasterError(
-            f"a {width} x {height} grid at {resolution:g} m is too large ({width * height:,} cells, "
-            f"limit {MAX_CELLS:,}); use a coarser --resolution"
+            f"a {width} x {height} grid at {resolution:g} m is too large: an image side is at most "
+            f"{MAX_SIDE:,} pixels (PNG, and ROS's uint32 sizes); use a coarser --resolution"
         )
     origin = (round(cx0 * r / 1000.0, 9), round(cy0 * r / 1000.0, 9))
-    return OccupancyGrid(np.full((height, width), UNKNOWN, dtype=np.int8), resolution, origin)
+    return OccupancyGrid(_unknown_cells(height, width), resolution, origin)
+
+
+def _unknown_cells(height: int, width: int) -> NDArray[np.int8]:
+    """A read-only ``(height, width)`` view of -1 that takes no memory (one shared byte)."""
+    return np.broadcast_to(np.array(UNKNOWN, dtype=np.int8), (height, width))
 
 
 def grid_for(m: MapData, resolution: float = 0.05, margin_m: float = 0.5) -> OccupancyGrid:
@@ -164,18 +176,30 @@ def _cell_units(grid: OccupancyGrid, xy: NDArray[Any]) -> NDArray[np.float64]:
     return out
 
 
-def _mask_for(grid: OccupancyGrid, out: NDArray[np.bool_] | None) -> NDArray[np.bool_]:
+def _mask_for(
+    grid: OccupancyGrid, out: NDArray[np.bool_] | None, row0: int = 0
+) -> NDArray[np.bool_]:
+    """The mask to draw into: ``out`` checked, or a new one (rows ``row0`` up of the grid)."""
     if out is None:
-        return np.zeros(grid.data.shape, dtype=bool)
-    if out.shape != grid.data.shape or out.dtype != np.bool_:
-        raise ValueError(f"out must be a bool array of shape {grid.data.shape}")
+        return np.zeros((grid.height - row0, grid.width) if row0 else grid.data.shape, dtype=bool)
+    if row0 == 0 and out.shape == grid.data.shape and out.dtype == np.bool_:
+        return out
+    if not (out.dtype == np.bool_ and out.ndim == 2 and out.shape[1] == grid.width
+            and 0 <= row0 and row0 + out.shape[0] <= grid.height):
+        raise ValueError(f"out must be a bool array of shape {grid.data.shape}, or a band of its "
+                         f"rows from row0 ({row0}) with {grid.width} columns")
     return out
 
 
-def _set(mask: NDArray[np.bool_], rows: NDArray[np.int64], cols: NDArray[np.int64]) -> None:
+def _set(
+    mask: NDArray[np.bool_], rows: NDArray[np.int64], cols: NDArray[np.int64], row0: int = 0
+) -> None:
+    """Set cells ``(rows, cols)`` of the grid in ``mask``, the band of rows from ``row0``."""
     h, w = mask.shape
     if not len(rows):
         return
+    if row0:
+        rows = rows - row0
     if rows.min() < 0 or rows.max() >= h or cols.min() < 0 or cols.max() >= w:
         ok = (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
         rows, cols = rows[ok], cols[ok]
@@ -186,7 +210,8 @@ def _set(mask: NDArray[np.bool_], rows: NDArray[np.int64], cols: NDArray[np.int6
 
 
 def burn_points(
-    grid: OccupancyGrid, points_mm: ArrayLike, out: NDArray[np.bool_] | None = None
+    grid: OccupancyGrid, points_mm: ArrayLike, out: NDArray[np.bool_] | None = None, *,
+    row0: int = 0,
 ) -> NDArray[np.bool_]:
     """Mark the cell under each point.
 
@@ -194,6 +219,8 @@ def burn_points(
         grid: Gives the geometry (its values are not used).
         points_mm: ``(N, 2)`` x, y in mm. Points off the grid are ignored.
         out: A bool mask of the grid's shape to draw into (in place); a new one when ``None``.
+        row0: Draw only the band of the grid's rows from ``row0`` (``out`` holds those rows,
+            ``out[0]`` is row ``row0``); the cells are the same as on the whole grid.
 
     Returns:
         The mask.
@@ -203,7 +230,7 @@ def burn_points(
         >>> burn_points(g, [[0, 0], [250, 100], [5000, 0]]).astype(int).tolist()
         [[1, 0, 0, 0], [0, 0, 1, 0]]
     """
-    mask = _mask_for(grid, out)
+    mask = _mask_for(grid, out, row0)
     pts = np.asarray(points_mm).reshape(-1, 2)
     if not len(pts):
         return mask
@@ -212,10 +239,10 @@ def burn_points(
         # Integer millimetres on an integer grid: exact floor division, no floats.
         col = (pts[:, 0] - int(ox)) // int(r)
         row = (pts[:, 1] - int(oy)) // int(r)
-        _set(mask, row.astype(np.int64), col.astype(np.int64))
+        _set(mask, row.astype(np.int64), col.astype(np.int64), row0)
     else:
         uv = np.floor(_cell_units(grid, pts.astype(np.float64)))
-        _set(mask, uv[:, 1].astype(np.int64), uv[:, 0].astype(np.int64))
+        _set(mask, uv[:, 1].astype(np.int64), uv[:, 0].astype(np.int64), row0)
     return mask
 
 
@@ -315,7 +342,8 @@ def _crossing_cells(
 
 
 def burn_segments(
-    grid: OccupancyGrid, segments_mm: ArrayLike, out: NDArray[np.bool_] | None = None
+    grid: OccupancyGrid, segments_mm: ArrayLike, out: NDArray[np.bool_] | None = None, *,
+    row0: int = 0,
 ) -> NDArray[np.bool_]:
     """Mark every cell a segment passes through (no gaps at any angle).
 
@@ -323,6 +351,7 @@ def burn_segments(
         grid: Gives the geometry.
         segments_mm: ``(M, 4)`` x1, y1, x2, y2 in mm. Parts off the grid are ignored.
         out: A bool mask of the grid's shape to draw into (in place); a new one when ``None``.
+        row0: Draw only the band of rows from ``row0`` (see :func:`burn_points`).
 
     Returns:
         The mask.
@@ -332,10 +361,10 @@ def burn_segments(
         >>> burn_segments(g, [[0, 0, 300, 200]]).astype(int)[::-1].tolist()
         [[0, 0, 0, 1], [0, 1, 1, 0], [1, 1, 0, 0]]
     """
-    mask = _mask_for(grid, out)
+    mask = _mask_for(grid, out, row0)
     cells = segment_cells(grid, segments_mm)
     if len(cells):
-        _set(mask, cells[:, 0], cells[:, 1])
+        _set(mask, cells[:, 0], cells[:, 1], row0)
     return mask
 
 
@@ -345,16 +374,20 @@ def object_polygons(objects: Iterable[MapObject]) -> list[NDArray[np.float64]]:
 
 
 def _convex_fill(
-    mask: NDArray[np.bool_], polys_uv: NDArray[np.float64]
+    mask: NDArray[np.bool_], polys_uv: NDArray[np.float64], row0: int = 0
 ) -> None:
-    """Set cells whose centre lies in (or on) a convex polygon; ``polys_uv`` is ``(P, K, 2)``."""
+    """Set cells whose centre lies in (or on) a convex polygon; ``polys_uv`` is ``(P, K, 2)``.
+
+    ``mask`` holds the grid's rows from ``row0`` (all of them when 0); the rows are computed in
+    the whole grid's coordinates, so a band gets exactly the cells of the whole grid.
+    """
     h, w = mask.shape
     if not len(polys_uv):
         return
     vmin = polys_uv[..., 1].min(axis=1)
     vmax = polys_uv[..., 1].max(axis=1)
-    r0 = np.clip(np.ceil(vmin - 0.5 - _EPS), 0, h).astype(np.int64)
-    r1 = np.clip(np.floor(vmax - 0.5 + _EPS), -1, h - 1).astype(np.int64)
+    r0 = np.clip(np.ceil(vmin - 0.5 - _EPS), row0, row0 + h).astype(np.int64)
+    r1 = np.clip(np.floor(vmax - 0.5 + _EPS), row0 - 1, row0 + h - 1).astype(np.int64)
     cnt = np.maximum(r1 - r0 + 1, 0)
     total = int(cnt.sum())
     if not total:
@@ -385,12 +418,12 @@ def _convex_fill(
     r0, r1 = int(rows.min()), int(rows.max()) + 1
     cols = np.arange(w)
     if len(np.unique(rows)) == len(rows):  # one span per row (e.g. a hull): compare directly
-        mask[rows] |= (cols >= c0[:, None]) & (cols <= c1[:, None])
+        mask[rows - row0] |= (cols >= c0[:, None]) & (cols <= c1[:, None])
         return
     diff = np.zeros((r1 - r0, w + 1), dtype=np.int32)
     np.add.at(diff, (rows - r0, c0), 1)
     np.add.at(diff, (rows - r0, c1 + 1), -1)
-    mask[r0:r1] |= np.cumsum(diff[:, :w], axis=1) > 0
+    mask[r0 - row0:r1 - row0] |= np.cumsum(diff[:, :w], axis=1) > 0
 
 
 def burn_polygons(
@@ -399,6 +432,7 @@ def burn_polygons(
     out: NDArray[np.bool_] | None = None,
     *,
     outline: bool = True,
+    row0: int = 0,
 ) -> NDArray[np.bool_]:
     """Mark every cell whose centre lies in a convex polygon, and (``outline``) every cell its edges cross.
 
@@ -411,6 +445,7 @@ def burn_polygons(
             e.g. :func:`object_polygons` of forbidden areas.
         out: A bool mask of the grid's shape to draw into (in place); a new one when ``None``.
         outline: Also mark the cells the edges cross.
+        row0: Draw only the band of rows from ``row0`` (see :func:`burn_points`).
 
     Returns:
         The mask.
@@ -421,17 +456,17 @@ def burn_polygons(
         ...               outline=False).astype(int)[::-1].tolist()
         [[0, 0, 0, 0, 0, 0], [0, 0, 0, 0, 0, 0], [0, 0, 0, 0, 0, 0], [0, 1, 1, 1, 0, 0], [0, 1, 1, 1, 0, 0], [0, 0, 0, 0, 0, 0]]
     """
-    mask = _mask_for(grid, out)
+    mask = _mask_for(grid, out, row0)
     polys = [np.asarray(p, dtype=np.float64).reshape(-1, 2) for p in polygons_mm]
     polys = [p for p in polys if len(p)]
     if not polys:
         return mask
     k = max(len(p) for p in polys)
     padded = np.stack([np.concatenate([p, np.repeat(p[-1:], k - len(p), axis=0)]) for p in polys])
-    _convex_fill(mask, _cell_units(grid, padded))
+    _convex_fill(mask, _cell_units(grid, padded), row0)
     if outline:
         edges = np.concatenate([padded, np.roll(padded, -1, axis=1)], axis=2).reshape(-1, 4)
-        burn_segments(grid, edges, out=mask)
+        burn_segments(grid, edges, out=mask, row0=row0)
     return mask
 
 
@@ -475,6 +510,7 @@ def free_from_rays(
     out: NDArray[np.bool_] | None = None,
     *,
     chunk: int = 20_000,
+    row0: int = 0,
 ) -> NDArray[np.bool_]:
     """Cells laser beams pass through: every cell a ray crosses, except the cells it hit.
 
@@ -485,6 +521,8 @@ def free_from_rays(
             cell of a hit is not free, the end of a max-range reading is.
         out: A bool mask to draw into (in place); a new one when ``None``.
         chunk: Rays per vectorised batch (bounds the memory: a batch holds every crossed cell).
+        row0: Draw only the band of rows from ``row0`` (see :func:`burn_points`); only the rays
+            that reach the band are traced.
 
     Returns:
         The mask of cells some beam passed through.
@@ -494,17 +532,23 @@ def free_from_rays(
         >>> free_from_rays(g, [[50, 50, 450, 50]]).astype(int).tolist()
         [[1, 1, 1, 1, 0, 0]]
     """
-    mask = _mask_for(grid, out)
+    mask = _mask_for(grid, out, row0)
     rays = np.asarray(rays_mm, dtype=np.float64).reshape(-1, 4)
     hit = np.ones(len(rays), dtype=bool) if hits is None else np.asarray(hits, dtype=bool)
     if hit.shape != (len(rays),):
         raise RasterError(f"hits must have one flag per ray ({len(rays)}), got shape {hit.shape}")
+    if row0 or len(mask) != grid.height:  # a band: only the rays whose rows reach it
+        (_, oy), r = grid.origin_mm, grid.resolution_mm
+        lo = (np.minimum(rays[:, 1], rays[:, 3]) - oy) / r
+        hi = (np.maximum(rays[:, 1], rays[:, 3]) - oy) / r
+        near = (hi >= row0 - 1) & (lo < row0 + len(mask) + 1)
+        rays, hit = rays[near], hit[near]
     ended = np.zeros_like(mask)
     for i in range(0, len(rays), max(1, chunk)):  # one step per batch of rays
         part = rays[i:i + chunk]
         cells = segment_cells(grid, part)
-        _set(mask, cells[:, 0], cells[:, 1])
-        burn_points(grid, part[hit[i:i + chunk], 2:4], out=ended)
+        _set(mask, cells[:, 0], cells[:, 1], row0)
+        burn_points(grid, part[hit[i:i + chunk], 2:4], out=ended, row0=row0)
     mask &= ~ended
     return mask
 
@@ -553,20 +597,38 @@ def hull_mask(mask: NDArray[np.bool_], extra_rc: ArrayLike | None = None) -> NDA
         >>> hull_mask(m).astype(int).tolist()
         [[1, 1, 1, 1], [0, 1, 1, 1], [0, 0, 1, 1], [0, 0, 0, 1]]
     """
+    out = np.zeros(mask.shape, dtype=bool)
+    poly = _hull_polygon([_row_extremes(mask)], extra_rc)
+    if poly is not None:
+        _convex_fill(out, poly[None])
+    return out
+
+
+def _row_extremes(mask: NDArray[np.bool_], row0: int = 0) -> NDArray[np.int64]:
+    """``(col, row)`` of the first and last marked cell of every row with one (rows from ``row0``)."""
     rows = np.flatnonzero(mask.any(axis=1))
-    pts = []
-    if len(rows):
-        sub = mask[rows]
-        first = sub.argmax(axis=1)
-        last = mask.shape[1] - 1 - sub[:, ::-1].argmax(axis=1)
-        pts += [np.stack([first, rows], axis=1), np.stack([last, rows], axis=1)]
+    if not len(rows):
+        return np.zeros((0, 2), dtype=np.int64)
+    sub = mask[rows]
+    first = sub.argmax(axis=1)
+    last = mask.shape[1] - 1 - sub[:, ::-1].argmax(axis=1)
+    rows = rows + row0
+    return np.concatenate([np.stack([first, rows], axis=1), np.stack([last, rows], axis=1)])
+
+
+def _hull_polygon(
+    extremes: list[NDArray[np.int64]], extra_rc: ArrayLike | None = None
+) -> NDArray[np.float64] | None:
+    """The convex hull (cell units) of the centres of ``(col, row)`` cells and ``extra_rc``."""
+    pts = [e for e in extremes if len(e)]
     if extra_rc is not None:
         e = np.asarray(extra_rc, dtype=np.int64).reshape(-1, 2)
         pts.append(e[:, ::-1])
-    out = np.zeros(mask.shape, dtype=bool)
     if not pts:
-        return out
+        return None
     uv = np.unique(np.concatenate(pts), axis=0).astype(np.float64) + 0.5  # (col, row) centres
+    if not len(uv):
+        return None
     poly = uv
     if len(uv) >= 3:
         from scipy.spatial import ConvexHull, QhullError
@@ -576,8 +638,7 @@ def hull_mask(mask: NDArray[np.bool_], extra_rc: ArrayLike | None = None) -> NDA
         except QhullError:  # all collinear: the segment between the extremes
             order = np.lexsort((uv[:, 1], uv[:, 0]))
             poly = uv[[order[0], order[-1]]]
-    _convex_fill(out, poly[None])
-    return out
+    return poly
 
 
 # -- the map -----------------------------------------------------------------------------------
@@ -669,6 +730,30 @@ def rays_from_log(log: Any, *, max_range: float = 16000.0) -> NDArray[np.float64
     return np.concatenate(out) if out else np.zeros((0, 4))
 
 
+def check_options(
+    free: str, inflate_mm: float, *, log: Any = None, rays_mm: ArrayLike | None = None
+) -> tuple[FreeMode, NDArray[np.float64] | None]:
+    """Check :func:`rasterize`'s free-space options; returns the free mode and the rays.
+
+    A ``.2d`` ``log`` is read into rays (the mode is then ``"rays"``).
+
+    Raises:
+        RasterError: For a bad or inconsistent option.
+    """
+    if free not in ("flood", "hull", "all", "none", "rays"):
+        raise RasterError(f"free must be one of flood, hull, all, none, rays; got {free!r}")
+    if log is None and (free == "rays") != (rays_mm is not None):
+        raise RasterError('free="rays" and rays_mm go together: give both or neither')
+    if log is not None:
+        if rays_mm is not None:
+            raise RasterError("give a .2d log or rays_mm, not both")
+        rays_mm, free = rays_from_log(log), "rays"
+    if not (math.isfinite(inflate_mm) and inflate_mm >= 0):
+        raise RasterError(f"inflation must be zero or more millimetres, got {inflate_mm!r}")
+    rays = None if rays_mm is None else np.asarray(rays_mm, dtype=np.float64).reshape(-1, 4)
+    return free, rays  # type: ignore[return-value]
+
+
 def rasterize(
     m: MapData,
     resolution: float = 0.05,
@@ -712,25 +797,23 @@ def rasterize(
             cell by cell, or to draw a mask on the same grid as a map.
 
     Returns:
-        The grid (see :func:`grid_for` for its geometry).
+        The grid (see :func:`grid_for` for its geometry). A grid of more than :data:`MAX_CELLS`
+        cells is made band by band (:class:`mapkit.raster.bands.BandRaster`, the same cells):
+        then only the result (one byte a cell) grows with the map.
 
     Raises:
         RasterError: For a bad option or a grid too large.
     """
-    if free not in ("flood", "hull", "all", "none", "rays"):
-        raise RasterError(f"free must be one of flood, hull, all, none, rays; got {free!r}")
-    if log is None and (free == "rays") != (rays_mm is not None):
-        raise RasterError('free="rays" and rays_mm go together: give both or neither')
-    if log is not None:
-        if rays_mm is not None:
-            raise RasterError("give a .2d log or rays_mm, not both")
-        rays_mm, free = rays_from_log(log), "rays"
-    if not (math.isfinite(inflate_mm) and inflate_mm >= 0):
-        raise RasterError(f"inflation must be zero or more millimetres, got {inflate_mm!r}")
+    free, rays_mm = check_options(free, inflate_mm, log=log, rays_mm=rays_mm)
     if like is not None:
-        grid = like.with_data(np.full(like.data.shape, UNKNOWN, dtype=np.int8))
+        grid = like.with_data(_unknown_cells(like.height, like.width))
     else:
         grid = grid_for(m, resolution, margin_m)
+    if grid.width * grid.height > MAX_CELLS:
+        from mapkit.raster.bands import BandRaster
+
+        return BandRaster(m, free=free, inflate_mm=inflate_mm, rays_mm=rays_mm, like=grid,
+                          forbidden_as_walls=forbidden_as_walls).to_grid()
     walls = wall_mask(m, grid, forbidden_as_walls=forbidden_as_walls)
     open_ = ~walls
     if free == "flood":

@@ -66,15 +66,20 @@ __all__ = [
     "Mode",
     "RosMapFiles",
     "RosMapInfo",
+    "check_scale",
     "grid_to_image",
+    "image_target",
     "image_to_grid",
     "load_pixel_values",
     "open_map_image",
+    "pgm_comment",
+    "pixel_table",
     "pixel_values",
     "read_image",
     "read_ros_map",
     "read_ros_yaml",
     "write_image",
+    "write_map_yaml",
     "write_ros_map",
     "yaml_text",
 ]
@@ -248,9 +253,31 @@ def _pixel_lut(
     return lut, opaque
 
 
-def _check_scale(grid: OccupancyGrid, lut: NDArray[np.uint8], negate: bool,
+def pixel_table(
+    mode: str, negate: bool = False, occupied_thresh: float = DEFAULT_OCCUPIED_THRESH,
+    free_thresh: float = DEFAULT_FREE_THRESH,
+) -> tuple[NDArray[np.uint8], NDArray[np.bool_]]:
+    """Grey level and opacity written for each cell value (index ``value & 0xFF``), checked.
+
+    The table :func:`grid_to_image` applies; the streamed writer applies it band by band.
+
+    Raises:
+        RasterError: For a bad mode or thresholds, or ``negate`` in raw mode.
+    """
+    if mode not in MODES:
+        raise RasterError(f"mode must be one of {', '.join(MODES)}, got {mode!r}")
+    _check_thresholds(occupied_thresh, free_thresh)
+    if mode == "raw" and negate:
+        raise RasterError("negate is not supported in raw mode (Nav2 ignores it, ROS 1 applies it)")
+    return _pixel_lut(mode, negate, occupied_thresh, free_thresh)
+
+
+def check_scale(counts: NDArray[np.int64], lut: NDArray[np.uint8], negate: bool,
                  occupied_thresh: float, free_thresh: float) -> None:
     """Refuse unknown cells no grey level keeps unknown; warn for values the thresholds squash.
+
+    ``counts`` is the number of cells of each value, indexed by ``value & 0xFF`` (256 entries):
+    the whole grid at once, or summed band by band.
 
     Raises:
         RasterError: When the grid has unknown cells and no grey level lies between the
@@ -258,7 +285,6 @@ def _check_scale(grid: OccupancyGrid, lut: NDArray[np.uint8], negate: bool,
     """
     kw: dict[str, Any] = {"negate": negate, "occupied_thresh": occupied_thresh,
                           "free_thresh": free_thresh}
-    counts = np.bincount(grid.data.view(np.uint8).ravel(), minlength=256)
     values = np.arange(256).astype(np.uint8).view(np.int8).astype(np.int64)
     unknown = int(counts[(values < 0) | (values > 100)].sum())
     pending = f"thresholds free {free_thresh!r} / occupied {occupied_thresh!r}"
@@ -270,7 +296,7 @@ def _check_scale(grid: OccupancyGrid, lut: NDArray[np.uint8], negate: bool,
                 f"scale mode with {pending} leaves no grey level between them: ROS 1 map_server "
                 f"would read the {unknown:,} unknown cells as free or occupied; widen the "
                 "thresholds or use trinary mode")
-    present = np.flatnonzero(counts[:101]) if grid.data.size else np.zeros(0, dtype=np.int64)
+    present = np.flatnonzero(counts[:101])
     back = load_pixel_values(lut[present].astype(np.int64), "scale", flavor="ros1",
                              **kw).astype(np.int64)
     off = np.abs(back - present)
@@ -310,14 +336,10 @@ def grid_to_image(
         >>> grid_to_image(g)[0].tolist()   # north (row 1) first
         [[205, 254], [254, 0]]
     """
-    if mode not in MODES:
-        raise RasterError(f"mode must be one of {', '.join(MODES)}, got {mode!r}")
-    _check_thresholds(occupied_thresh, free_thresh)
-    if mode == "raw" and negate:
-        raise RasterError("negate is not supported in raw mode (Nav2 ignores it, ROS 1 applies it)")
-    lut, opaque = _pixel_lut(mode, negate, occupied_thresh, free_thresh)
+    lut, opaque = pixel_table(mode, negate, occupied_thresh, free_thresh)
     if mode == "scale":
-        _check_scale(grid, lut, negate, occupied_thresh, free_thresh)
+        check_scale(np.bincount(grid.data.view(np.uint8).ravel(), minlength=256), lut, negate,
+                    occupied_thresh, free_thresh)
     idx = grid.data[::-1].view(np.uint8)
     grey = lut[idx]
     alpha = None
@@ -482,6 +504,28 @@ def write_ros_map(
     yaml_p = Path(os.fspath(yaml_path))
     grey, alpha = grid_to_image(grid, mode, negate=negate, occupied_thresh=occupied_thresh,
                                 free_thresh=free_thresh)
+    img_p, fmt = image_target(yaml_p, mode, image_format, image_path)
+    if alpha is not None and fmt == "pgm":
+        raise RasterError("scale mode with unknown cells needs transparency: write PNG, not PGM")
+    write_image(img_p, grey, alpha, image_format=fmt, comment=pgm_comment(grid))
+    write_map_yaml(yaml_p, img_p, grid, mode=mode, negate=negate,
+                   occupied_thresh=occupied_thresh, free_thresh=free_thresh)
+    return RosMapFiles(yaml_p, img_p)
+
+
+def pgm_comment(grid: OccupancyGrid) -> str:
+    """The PGM header comment mapkit writes (map_saver's, with mapkit as creator)."""
+    return f"CREATOR: mapkit {grid.resolution:.3f} m/pix"
+
+
+def image_target(
+    yaml_p: Path, mode: str, image_format: str | None, image_path: PathLike | None
+) -> tuple[Path, str]:
+    """The image file and format :func:`write_ros_map` writes for these options.
+
+    Raises:
+        RasterError: For a format other than PGM or PNG, or an image path that is the YAML's.
+    """
     if image_path is not None:
         img_p = Path(os.fspath(image_path))
         fmt = image_format or ("png" if img_p.suffix.lower() == ".png" else "pgm")
@@ -491,21 +535,23 @@ def write_ros_map(
     fmt = fmt.lower()
     if fmt not in ("pgm", "png"):
         raise RasterError(f"image format must be pgm or png, got {image_format!r}")
-    if alpha is not None and fmt == "pgm":
-        raise RasterError("scale mode with unknown cells needs transparency: write PNG, not PGM")
     if img_p.resolve() == yaml_p.resolve():
         raise RasterError(f"{yaml_p}: the image and the YAML would be the same file")
-    comment = f"CREATOR: mapkit {grid.resolution:.3f} m/pix"
-    write_image(img_p, grey, alpha, image_format=fmt, comment=comment)
+    return img_p, fmt
+
+
+def write_map_yaml(yaml_p: Path, img_p: Path, grid: OccupancyGrid, **settings: Any) -> None:
+    """Write the YAML naming ``img_p`` (relative to the YAML's folder when inside it), atomically.
+
+    ``settings`` are :func:`yaml_text`'s (``mode``, ``negate``, thresholds).
+    """
     try:
         rel = os.path.relpath(img_p.resolve(), yaml_p.resolve().parent)
     except ValueError:  # other drive (Windows)
         rel = str(img_p.resolve())
     name = rel if not rel.startswith("..") else str(img_p.resolve())
-    text = yaml_text(name.replace(os.sep, "/"), grid, mode=mode, negate=negate,
-                     occupied_thresh=occupied_thresh, free_thresh=free_thresh)
+    text = yaml_text(name.replace(os.sep, "/"), grid, **settings)
     atomic_write(yaml_p, text.encode("utf-8"))
-    return RosMapFiles(yaml_p, img_p)
 
 
 # -- reading -------------------------------------------------------------------------------------

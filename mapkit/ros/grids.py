@@ -10,14 +10,30 @@ called, so this module imports without ROS.
 Failures are :class:`MapLoadError` values carrying the ``nav_msgs/LoadMap`` result code that
 ``change_map`` answers with (1 map does not exist, 2 invalid map data, 3 invalid map metadata,
 255 undefined failure).
+
+Big maps. A ``.map`` is rasterised band by band (:class:`~mapkit.raster.bands.BandRaster`), and
+a YAML's 8-bit PGM read band by band (:func:`~mapkit.raster.image_stream.pgm_bands`): only the
+grid itself (one byte a cell) and its keepout mask are kept, as the messages need them. The
+messages are serialised from the grid's bytes (:func:`grid_message`), not through rospy's own
+``int8[]`` code, which packs a Python list of one object a cell (8 bytes a cell, twice over).
+
+ROS 1's limit, checked before any work (:func:`check_ros1_size`): every roscpp node (rviz,
+move_base, amcl, map_server's clients) drops a message whose length is over 1,000,000,000 bytes
+("a message of over a gigabyte was predicted in tcpros", ``TransportPublisherLink`` and
+``ServiceServerLink`` in ros_comm); a ``nav_msgs/OccupancyGrid`` is one byte a cell plus about
+100 bytes, so a grid over :data:`ROS1_MAX_CELLS` cells cannot reach them (rospy subscribers take
+up to the wire format's uint32 length, 4,294,967,295 bytes). The 415 x 270 m site at 2 cm is
+282 M cells, well inside; at 1 cm (1.1 G cells) it is refused with this explanation.
 """
 
 from __future__ import annotations
 
 import hashlib
+import io
 import math
 import os
 import stat
+import struct
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -26,6 +42,7 @@ import numpy as np
 
 from mapkit.errors import FormatError, MapkitError
 from mapkit.model import MapData
+from mapkit.raster.export import ROS1_MAX_CELLS, ROS1_MAX_MESSAGE_BYTES
 from mapkit.raster.grid import OccupancyGrid
 from mapkit.ros.node import ros_import
 
@@ -35,12 +52,16 @@ __all__ = [
     "LOAD_NOT_FOUND",
     "LOAD_SUCCESS",
     "LOAD_UNDEFINED",
+    "ROS1_MAX_CELLS",
+    "ROS1_MAX_MESSAGE_BYTES",
     "MapLoadError",
     "Pose",
     "ServedMap",
+    "check_ros1_size",
     "grid_message",
     "map_poses",
     "metadata_message",
+    "packed_response",
     "pose_array_message",
     "served_map",
 ]
@@ -51,6 +72,7 @@ LOAD_NOT_FOUND = 1
 LOAD_INVALID_DATA = 2
 LOAD_INVALID_METADATA = 3
 LOAD_UNDEFINED = 255
+
 
 
 class MapLoadError(MapkitError):
@@ -141,19 +163,59 @@ def map_poses(m: MapData) -> tuple[tuple[Pose, ...], tuple[Pose, ...], tuple[Pos
     return tuple(goals), tuple(homes), tuple(docks)
 
 
+def check_ros1_size(width: int, height: int, source: str = "") -> None:
+    """Refuse a grid too large for a ROS 1 ``nav_msgs/OccupancyGrid`` (before it is made).
+
+    Raises:
+        MapLoadError: (code 2, invalid map data) naming the limit and where it bites.
+    """
+    cells = int(width) * int(height)
+    if cells > ROS1_MAX_CELLS:
+        where = f"{source}: " if source else ""
+        raise MapLoadError(
+            f"{where}a {width} x {height} grid ({cells:,} cells) is too large for ROS 1: a "
+            f"nav_msgs/OccupancyGrid carries one byte a cell, and every roscpp node (rviz, "
+            f"move_base, amcl) drops messages over {ROS1_MAX_MESSAGE_BYTES:,} bytes, so at most "
+            f"{ROS1_MAX_CELLS:,} cells; use a coarser --resolution (the files `mapkit rasterize` "
+            f"writes have no such limit)", LOAD_INVALID_DATA)
+
+
 def _keepout(m: MapData, grid: OccupancyGrid) -> OccupancyGrid:
-    from mapkit.raster.masks import keepout_mask
+    """The keepout mask on the grid, made band by band into one int8 array."""
+    from mapkit.raster.masks import keepout_bands
 
-    return keepout_mask(m, grid)
+    data = np.empty((grid.height, grid.width), dtype=np.int8)
+    for r0, band in keepout_bands(m, grid):
+        data[r0:r0 + len(band)] = band
+    data.flags.writeable = False
+    return OccupancyGrid(data, grid.resolution, grid.origin)
 
 
-def served_map(path: str | os.PathLike[str], resolution: float = 0.05, **raster: Any) -> ServedMap:
+def _image_size(path: Path) -> tuple[int, int] | None:
+    """Width and height from a PNM or PNG header, without decoding (``None`` when unsure)."""
+    import re
+
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(4096)
+    except OSError:
+        return None
+    if head[:8] == b"\x89PNG\r\n\x1a\n" and head[12:16] == b"IHDR":
+        w, h = struct.unpack(">II", head[16:24])
+        return int(w), int(h)
+    found = re.match(rb"P[1-6](?:\s|#[^\n\r]*[\n\r])+(\d+)(?:\s|#[^\n\r]*[\n\r])+(\d+)", head)
+    return (int(found.group(1)), int(found.group(2))) if found else None
+
+
+def served_map(path: str | os.PathLike[str], resolution: float = 0.05, *, progress: Any = None,
+               **raster: Any) -> ServedMap:
     """Load a file for serving: an ARIA ``.map`` (rasterised) or a map_server YAML.
 
     Args:
         path: ``.map`` file, or ``.yaml``/``.yml`` map_server description; a ``file://`` URL
             (as ``change_map`` requests carry) is accepted too.
         resolution: Metres per cell for a ``.map`` (a YAML carries its own).
+        progress: Called as ``progress(rows, total)`` with rows of work just finished.
         **raster: More options for :func:`mapkit.raster.rasterize.rasterize` (``free``,
             ``margin_m``, ``inflate_mm`` ...).
 
@@ -161,11 +223,13 @@ def served_map(path: str | os.PathLike[str], resolution: float = 0.05, **raster:
         The map, ready to publish.
 
     Raises:
-        MapLoadError: With code 1 when the file does not exist, 2 when it is not a valid map, 3
-            when the resolution (or YAML metadata) is invalid, 255 otherwise.
+        MapLoadError: With code 1 when the file does not exist, 2 when it is not a valid map or
+            its grid is too large for a ROS 1 message (checked before rasterising, see
+            :func:`check_ros1_size`), 3 when the resolution (or YAML metadata) is invalid, 255
+            otherwise.
     """
     from mapkit.formats.map import loads
-    from mapkit.raster.rasterize import rasterize
+    from mapkit.raster.bands import BandRaster
 
     text = os.fspath(path)
     if text.startswith("file://"):
@@ -186,7 +250,7 @@ def served_map(path: str | os.PathLike[str], resolution: float = 0.05, **raster:
     sha256, md5 = hashlib.sha256(data).hexdigest(), hashlib.md5(data).hexdigest()
     suffix = p.suffix.lower()
     if suffix in (".yaml", ".yml"):
-        grid, yaw = _read_yaml_grid(p)
+        grid, yaw = _read_yaml_grid(p, progress)
         return ServedMap(str(p), grid, None, (), (), (), sha256, md5, yaw)
     if not (math.isfinite(resolution) and resolution > 0):
         raise MapLoadError(f"resolution must be a positive number of metres, got {resolution!r}",
@@ -196,19 +260,33 @@ def served_map(path: str | os.PathLike[str], resolution: float = 0.05, **raster:
     except FormatError as err:
         raise MapLoadError(str(err), LOAD_INVALID_DATA) from err
     try:
-        grid = rasterize(m, resolution, **raster)
+        bands = BandRaster(m, resolution, **raster)
     except (MapkitError, ValueError) as err:
         raise MapLoadError(f"{p}: {err}", LOAD_INVALID_METADATA) from err
+    check_ros1_size(bands.grid.width, bands.grid.height, str(p))
+    grid = bands.to_grid(None if progress is None else
+                         lambda rows: progress(rows, bands.work_rows + bands.grid.height))
     goals, homes, docks = map_poses(m)
-    return ServedMap(str(p), grid, _keepout(m, grid), goals, homes, docks, sha256, md5)
+    keepout = _keepout(m, grid)
+    if progress is not None:
+        progress(grid.height, bands.work_rows + grid.height)
+    return ServedMap(str(p), grid, keepout, goals, homes, docks, sha256, md5)
 
 
-def _read_yaml_grid(p: Path) -> tuple[OccupancyGrid, float]:
-    from mapkit.raster.ros import image_to_grid, open_map_image, read_ros_yaml
+def _read_yaml_grid(p: Path, progress: Any = None) -> tuple[OccupancyGrid, float]:
+    from mapkit.raster.image_stream import pgm_bands
+    from mapkit.raster.ros import read_ros_map, read_ros_yaml
 
     try:
         info = read_ros_yaml(p)
-        return image_to_grid(open_map_image(info).read_all(), info), info.origin[2]
+        size = _image_size(info.image_path)
+        if size is not None:
+            check_ros1_size(*size, source=str(info.image_path))
+        pgm = pgm_bands(info)  # an 8-bit PGM is read a band at a time
+        grid = pgm.to_grid() if pgm is not None else read_ros_map(p)
+        if progress is not None:
+            progress(grid.height, grid.height)
+        return grid, info.origin[2]
     except FormatError as err:
         # A YAML that map_server would not accept is bad metadata; a bad image is bad data.
         code = LOAD_INVALID_METADATA if str(err.source).lower().endswith((".yaml", ".yml")) \
@@ -244,14 +322,84 @@ def metadata_message(grid: OccupancyGrid, load_time: Any = None, yaw: float = 0.
     return _info(msgs.MapMetaData(), grid, load_time, yaw)
 
 
+def _cells_of(msg: Any) -> Any:
+    return msg.__dict__.get("mapkit_cells")
+
+
+def _serialize_packed(msg: Any, grid_msg: Any, tail: int, parent: Any, buff: Any) -> None:
+    """``parent.serialize`` of ``msg`` with ``grid_msg.data`` written from its packed cells.
+
+    The message is serialised with empty data (its uint32 length 0 sits ``tail`` bytes before
+    the end: the fields after ``data``), then the length and the cells' bytes are put there.
+    """
+    cells = _cells_of(grid_msg)
+    if cells is None:
+        parent.serialize(msg, buff)
+        return
+    tmp = io.BytesIO()
+    parent.serialize(msg, tmp)
+    raw = tmp.getvalue()
+    cut = len(raw) - tail - 4
+    buff.write(raw[:cut])
+    buff.write(struct.pack("<I", cells.nbytes))
+    buff.write(cells.data)
+    buff.write(raw[cut + 4:])
+
+
+_PACKED: dict[str, Any] = {}
+
+
+def _packed_grid_class() -> Any:
+    cls = _PACKED.get("grid")
+    if cls is None:
+        base = ros_import("nav_msgs.msg").OccupancyGrid
+
+        class PackedOccupancyGrid(base):  # type: ignore[misc, valid-type]
+            """``nav_msgs/OccupancyGrid`` whose cells are serialised from a numpy int8 array."""
+
+            def serialize(self, buff: Any) -> None:
+                _serialize_packed(self, self, 0, base, buff)
+
+        cls = _PACKED["grid"] = PackedOccupancyGrid
+    return cls
+
+
+def packed_response(kind: str, grid_msg: Any, **fields: Any) -> Any:
+    """A ``nav_msgs`` ``GetMap`` or ``LoadMap`` response carrying :func:`grid_message`'s cells.
+
+    rospy's generated response classes serialise the map's ``int8[]`` field inline, through a
+    Python list; this subclass writes the packed cells instead (the same bytes on the wire).
+
+    Args:
+        kind: ``"GetMap"`` or ``"LoadMap"``.
+        grid_msg: The map, from :func:`grid_message`.
+        **fields: Other fields (``result`` for ``LoadMap``).
+    """
+    cls = _PACKED.get(kind)
+    if cls is None:
+        base = getattr(ros_import("nav_msgs.srv"), f"{kind}Response")
+        tail = 1 if kind == "LoadMap" else 0  # LoadMap's uint8 result follows the map
+
+        class PackedResponse(base):  # type: ignore[misc, valid-type]
+            def serialize(self, buff: Any) -> None:
+                _serialize_packed(self, self.map, tail, base, buff)
+
+        cls = _PACKED[kind] = PackedResponse
+    return cls(map=grid_msg, **fields)
+
+
 def grid_message(grid: OccupancyGrid, frame_id: str = "map", stamp: Any = None,
                  load_time: Any = None, yaw: float = 0.0) -> Any:
-    """A ``nav_msgs/OccupancyGrid`` for a grid: row-major from the southern row, int8 cells."""
-    msgs = ros_import("nav_msgs.msg")
-    msg = msgs.OccupancyGrid()
+    """A ``nav_msgs/OccupancyGrid`` for a grid: row-major from the southern row, int8 cells.
+
+    The cells stay in the grid's numpy array (``msg.mapkit_cells``; ``msg.data`` is empty) and
+    are written straight into the serialised message: no Python list of one object a cell, so
+    a map of hundreds of millions of cells is published in about its own size of memory.
+    """
+    msg = _packed_grid_class()()
     _header(msg, frame_id, stamp)
     _info(msg.info, grid, load_time, yaw)
-    msg.data = np.ascontiguousarray(grid.data, dtype=np.int8).ravel().tolist()
+    msg.mapkit_cells = np.ascontiguousarray(grid.data, dtype=np.int8).reshape(-1)
     return msg
 
 

@@ -34,6 +34,7 @@ from mapkit.ros.grids import (
     ServedMap,
     grid_message,
     metadata_message,
+    packed_response,
     pose_array_message,
     served_map,
 )
@@ -71,6 +72,7 @@ class MapServer:
         path: The first map (``.map`` or map_server YAML).
         resolution: Metres per cell for ``.map`` files.
         frame_id: The frame of every message.
+        progress: Called as ``progress(rows, total)`` while the first map is made.
         raster: More options for the rasteriser (``free``, ``margin_m``, ``inflate_mm``).
 
     Raises:
@@ -78,11 +80,11 @@ class MapServer:
     """
 
     def __init__(self, path: str, *, resolution: float = 0.05, frame_id: str = "map",
-                 **raster: Any) -> None:
+                 progress: Any = None, **raster: Any) -> None:
         self.resolution = resolution
         self.frame_id = frame_id
         self.raster = raster
-        self.current = served_map(path, resolution, **raster)
+        self.current = served_map(path, resolution, progress=progress, **raster)
         self._lock = threading.Lock()
         self._pubs: dict[str, Any] = {}
         self._services: list[Any] = []
@@ -153,9 +155,8 @@ class MapServer:
         return new
 
     def _on_static_map(self, _req: Any) -> Any:
-        srv = ros_import("nav_msgs.srv")
         with self._lock:
-            return srv.GetMapResponse(map=self._grid_msg)
+            return packed_response("GetMap", self._grid_msg)
 
     def _on_change_map(self, req: Any) -> Any:
         srv = ros_import("nav_msgs.srv")
@@ -168,12 +169,12 @@ class MapServer:
             log.exception("change_map %s failed", req.map_url)
             return srv.LoadMapResponse(result=LOAD_UNDEFINED)
         with self._lock:
-            return srv.LoadMapResponse(map=self._grid_msg, result=LOAD_SUCCESS)
+            return packed_response("LoadMap", self._grid_msg, result=LOAD_SUCCESS)
 
 
 def run_map_server(path: str, *, resolution: float = 0.05, frame_id: str = "map",
                    node_name: str = "mapkit_map_server", on_ready: Any = None,
-                   **raster: Any) -> MapServer:
+                   progress: Any = None, **raster: Any) -> MapServer:
     """Start a node, serve ``path`` until Ctrl-C or SIGTERM, and return the server.
 
     Args:
@@ -182,6 +183,7 @@ def run_map_server(path: str, *, resolution: float = 0.05, frame_id: str = "map"
         frame_id: The frame of every message.
         node_name: The node's name (not anonymous: one map server per namespace, like ROS's).
         on_ready: Called with the :class:`MapServer` once everything is advertised.
+        progress: Called as ``progress(rows, total)`` while the first map is made.
         **raster: More rasteriser options.
 
     Raises:
@@ -190,7 +192,8 @@ def run_map_server(path: str, *, resolution: float = 0.05, frame_id: str = "map"
     """
     from mapkit.ros.node import spin, start_node
 
-    server = MapServer(path, resolution=resolution, frame_id=frame_id, **raster)
+    server = MapServer(path, resolution=resolution, frame_id=frame_id, progress=progress,
+                       **raster)
     start_node(node_name, anonymous=False)
     server.start()
     if on_ready is not None:

@@ -111,6 +111,10 @@ def test_grid_for_bounds_refuses_bad_options() -> None:
     with pytest.raises(RasterError, match="margin"):
         grid_for_bounds(((0, 0), (1, 1)), 0.05, -1)
     with pytest.raises(RasterError, match="too large"):
-        grid_for_bounds(((0, 0), (1_000_000, 1_000_000)), 0.05)
+        grid_for_bounds(((0, 0), (3_000_000_000, 1)), 0.001)  # a side over 2**31 - 1 cells
+    # A 400 M-cell grid's geometry takes no memory: its cells are one shared byte.
+    big = grid_for_bounds(((0, 0), (1_000_000, 1_000_000)), 0.05)
+    assert (big.width, big.height) == (20_021, 20_021)  # with the 0.5 m margins
+    assert big.data.strides == (0, 0) and int(big.data[123, 4567]) == -1
     g = grid_for_bounds(None, 0.1, 0)
     assert (g.width, g.height, g.origin) == (1, 1, (0.0, 0.0))
