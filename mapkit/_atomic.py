@@ -7,6 +7,8 @@ stays as it was.
 from __future__ import annotations
 
 import contextlib
+import contextvars
+import errno
 import os
 import tempfile
 from collections.abc import Iterable, Iterator
@@ -14,7 +16,68 @@ from typing import BinaryIO
 
 from mapkit._typing import PathLike
 
-__all__ = ["atomic_open", "atomic_write", "fsync_dir"]
+__all__ = [
+    "WriteError",
+    "atomic_open",
+    "atomic_write",
+    "check_writable",
+    "fsync_dir",
+    "replace_read_only",
+]
+
+#: When true, a read-only file may be replaced (``mapkit ... --force`` sets it for one command).
+replace_read_only: contextvars.ContextVar[bool] = contextvars.ContextVar(
+    "replace_read_only", default=False
+)
+
+
+class WriteError(OSError):
+    """A file could not be written. ``filename`` is the file asked for (never a temp file) and
+    ``strerror`` says why in words: ``folder is read-only``, ``folder ... does not exist``."""
+
+
+#: Errors of writing the temp file or renaming it (not, say, a dropped connection in the body).
+_WRITE_ERRNOS = frozenset(
+    {errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EPERM, errno.EFBIG, errno.EIO,
+     errno.ENOENT, errno.EISDIR, errno.ENOTDIR, errno.EXDEV}
+)
+
+
+def _write_error(target: str, err: OSError | None, why: str | None = None) -> WriteError:
+    folder = os.path.dirname(target) or "."
+    code = err.errno if err is not None else errno.EACCES
+    if why is None:
+        if code == errno.ENOENT:
+            why = f"folder {folder} does not exist"
+        elif code == errno.ENOTDIR:
+            why = f"{folder} is not a folder"
+        elif code in (errno.EACCES, errno.EPERM, errno.EROFS):
+            why = f"folder {folder} is read-only"
+        elif code == errno.EISDIR:
+            why = "it is a folder"
+        else:
+            why = err.strerror if err is not None and err.strerror else str(err)
+    return WriteError(code or errno.EIO, why, target)
+
+
+def check_writable(path: PathLike) -> None:
+    """Raise :class:`WriteError` now if ``path`` could not be written by :func:`atomic_open`.
+
+    For work that takes long before it writes: say at once that the folder is missing or
+    read-only, or that ``path`` is a read-only file (see :data:`replace_read_only`).
+    """
+    target = os.path.realpath(os.fspath(path))
+    shown = os.fspath(path)
+    folder = os.path.dirname(target)
+    if os.path.isdir(target):
+        raise _write_error(shown, None, "it is a folder")
+    if not os.path.isdir(folder):
+        raise _write_error(shown, OSError(errno.ENOENT if not os.path.exists(folder) else
+                                          errno.ENOTDIR, ""))
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise _write_error(shown, OSError(errno.EACCES, ""))
+    if os.path.exists(target) and not os.access(target, os.W_OK) and not replace_read_only.get():
+        raise _write_error(shown, None, "the file is read-only (--force replaces it)")
 
 
 def fsync_dir(folder: PathLike) -> None:
@@ -45,12 +108,24 @@ def atomic_open(path: PathLike, *, backup: bool = False) -> Iterator[BinaryIO]:
     Yields:
         A binary file object.
 
+    A symlink is followed (the file it points to is replaced, the link stays); the new file
+    keeps the old one's permission bits. A read-only file is not replaced unless
+    :data:`replace_read_only` is set.
+
     Raises:
-        OSError: When the folder cannot be written (full disk, permissions, ...).
+        WriteError: When the file cannot be written (missing or read-only folder, read-only file,
+            full disk, ...); it names ``path``, not the temp file.
     """
-    target = os.fspath(path)
-    folder = os.path.dirname(os.path.abspath(target))
-    fd, tmp = tempfile.mkstemp(prefix="." + os.path.basename(target) + ".", suffix=".tmp", dir=folder)
+    shown = os.fspath(path)
+    check_writable(shown)
+    target = os.path.realpath(shown)
+    folder = os.path.dirname(target)
+    try:
+        fd, tmp = tempfile.mkstemp(
+            prefix="." + os.path.basename(target) + ".", suffix=".tmp", dir=folder
+        )
+    except OSError as err:
+        raise _write_error(shown, err) from err
     try:
         with os.fdopen(fd, "wb") as fh:
             yield fh
@@ -73,9 +148,16 @@ def atomic_open(path: PathLike, *, backup: bool = False) -> Iterator[BinaryIO]:
             os.chmod(tmp, 0o666 & ~_umask())
         os.replace(tmp, target)
         fsync_dir(folder)
-    except BaseException:
+    except BaseException as exc:
         with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp)
+        if (
+            isinstance(exc, OSError)
+            and not isinstance(exc, WriteError)
+            and exc.errno in _WRITE_ERRNOS
+            and exc.filename in (None, tmp, target, folder)
+        ):
+            raise _write_error(shown, exc) from exc
         raise
 
 

@@ -23,8 +23,10 @@ OUT = ROOT / "docs" / "cli.md"
 
 def commands(group: click.Group, prefix: list[str]) -> Iterator[tuple[list[str], click.Command]]:
     yield prefix, group
-    for name in sorted(group.commands):
-        cmd = group.commands[name]
+    ctx = click.Context(group)
+    for name in group.list_commands(ctx):  # a lazy group imports each command here
+        cmd = group.get_command(ctx, name)
+        assert cmd is not None, name
         if isinstance(cmd, click.Group):
             yield from commands(cmd, [*prefix, name])
         else:

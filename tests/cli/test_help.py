@@ -19,7 +19,9 @@ def all_commands() -> list[list[str]]:
     out: list[list[str]] = []
 
     def walk(group: click.Group, prefix: list[str]) -> None:
-        for name, cmd in group.commands.items():
+        ctx = click.Context(group)
+        for name in group.list_commands(ctx):
+            cmd = group.get_command(ctx, name)
             if isinstance(cmd, click.Group):
                 walk(cmd, [*prefix, name])
             else:
