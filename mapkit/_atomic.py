@@ -17,11 +17,13 @@ from typing import BinaryIO
 from mapkit._typing import PathLike
 
 __all__ = [
+    "ReadOnlyFileError",
     "WriteError",
     "atomic_open",
     "atomic_write",
     "check_writable",
     "fsync_dir",
+    "is_read_only",
     "replace_read_only",
 ]
 
@@ -43,6 +45,10 @@ _WRITE_ERRNOS = frozenset(
 )
 
 
+class ReadOnlyFileError(WriteError):
+    """The file exists and is read-only; it is replaced only under :data:`replace_read_only`."""
+
+
 def _write_error(target: str, err: OSError | None, why: str | None = None) -> WriteError:
     folder = os.path.dirname(target) or "."
     code = err.errno if err is not None else errno.EACCES
@@ -60,24 +66,40 @@ def _write_error(target: str, err: OSError | None, why: str | None = None) -> Wr
     return WriteError(code or errno.EIO, why, target)
 
 
-def check_writable(path: PathLike) -> None:
+def is_read_only(path: PathLike) -> bool:
+    """True for an existing file nobody may write (``chmod a-w``), or that this user may not."""
+    try:
+        mode = os.stat(path).st_mode
+    except OSError:
+        return False
+    return not mode & 0o222 or not os.access(path, os.W_OK)
+
+
+def check_writable(path: PathLike, *, probe: bool = True) -> None:
     """Raise :class:`WriteError` now if ``path`` could not be written by :func:`atomic_open`.
 
     For work that takes long before it writes: say at once that the folder is missing or
-    read-only, or that ``path`` is a read-only file (see :data:`replace_read_only`).
+    read-only, or that ``path`` is a read-only file (see :data:`replace_read_only`). With
+    ``probe`` a temp file is made and removed in the folder, the only sure test (root, read-only
+    mounts).
     """
-    target = os.path.realpath(os.fspath(path))
     shown = os.fspath(path)
+    target = os.path.realpath(shown)
     folder = os.path.dirname(target)
     if os.path.isdir(target):
         raise _write_error(shown, None, "it is a folder")
     if not os.path.isdir(folder):
-        raise _write_error(shown, OSError(errno.ENOENT if not os.path.exists(folder) else
-                                          errno.ENOTDIR, ""))
-    if not os.access(folder, os.W_OK | os.X_OK):
-        raise _write_error(shown, OSError(errno.EACCES, ""))
-    if os.path.exists(target) and not os.access(target, os.W_OK) and not replace_read_only.get():
-        raise _write_error(shown, None, "the file is read-only (--force replaces it)")
+        missing = not os.path.exists(folder)
+        raise _write_error(shown, OSError(errno.ENOENT if missing else errno.ENOTDIR, ""))
+    if is_read_only(target) and not replace_read_only.get():
+        raise ReadOnlyFileError(errno.EACCES, "the file is read-only", shown)
+    if probe:
+        try:
+            fd, tmp = tempfile.mkstemp(prefix=".mapkit-probe.", suffix=".tmp", dir=folder)
+        except OSError as err:
+            raise _write_error(shown, err) from err
+        os.close(fd)
+        os.unlink(tmp)
 
 
 def fsync_dir(folder: PathLike) -> None:
@@ -117,7 +139,7 @@ def atomic_open(path: PathLike, *, backup: bool = False) -> Iterator[BinaryIO]:
             full disk, ...); it names ``path``, not the temp file.
     """
     shown = os.fspath(path)
-    check_writable(shown)
+    check_writable(shown, probe=False)
     target = os.path.realpath(shown)
     folder = os.path.dirname(target)
     try:

@@ -6,12 +6,12 @@ import os
 
 import click
 
-from mapkit.cli.options import force_option
+from mapkit.cli.options import InputFile, force_option
 from mapkit.formats.registry import convert_file
 
 
 @click.command()
-@click.argument("src", type=click.Path(exists=True, dir_okay=False))
+@click.argument("src", type=InputFile())
 @click.argument("dst", type=click.Path(dir_okay=False))
 @force_option
 def convert(src: str, dst: str, force: bool) -> None:

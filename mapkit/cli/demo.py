@@ -7,12 +7,12 @@ from typing import Any
 
 import click
 
-from mapkit.cli.options import echo_json, json_option
+from mapkit.cli.options import InputFile, echo_json, json_option
 
 
 @click.command()
 @click.argument("folder", default="mapkit-demo", type=click.Path(file_okay=False))
-@click.option("--log", "log_path", type=click.Path(exists=True, dir_okay=False),
+@click.option("--log", "log_path", type=InputFile(),
               help="Build from this .2d log instead of the bundled office-loop.2d.")
 @json_option
 def demo(folder: str, log_path: str | None, as_json: bool) -> None:

@@ -19,7 +19,7 @@ from typing import Any
 import click
 
 from mapkit import edit as editing
-from mapkit.cli.options import backup_option, echo_json, err, force_option, json_option
+from mapkit.cli.options import InputFile, backup_option, echo_json, err, force_option, json_option
 from mapkit.errors import MapkitError
 from mapkit.formats.map import load, save
 from mapkit.model import MapData
@@ -45,7 +45,7 @@ def _stack(*decorators: Callable[[F], F]) -> Callable[[F], F]:
     return apply
 
 
-_map_arg = click.argument("map_file", metavar="MAP", type=click.Path(exists=True, dir_okay=False))
+_map_arg = click.argument("map_file", metavar="MAP", type=InputFile())
 _writes = _stack(
     click.option(
         "-o",
@@ -764,8 +764,8 @@ def _merge_notes(other: MapData, on_clash: str) -> _Notes:
 
 
 @click.command("merge", context_settings=_SETTINGS)
-@click.argument("base", type=click.Path(exists=True, dir_okay=False))
-@click.argument("other", type=click.Path(exists=True, dir_okay=False))
+@click.argument("base", type=InputFile())
+@click.argument("other", type=InputFile())
 @click.option(
     "--region",
     nargs=4,
@@ -813,8 +813,8 @@ def merge_cmd(
 
 
 @click.command("diff")
-@click.argument("a", type=click.Path(dir_okay=False))
-@click.argument("b", type=click.Path(dir_okay=False))
+@click.argument("a", type=InputFile())
+@click.argument("b", type=InputFile())
 @json_option
 def diff_cmd(a: str, b: str, as_json: bool) -> None:
     """Show what differs from map A to map B. Exit 0 when equal, 1 when different, 2 on error.
@@ -825,10 +825,10 @@ def diff_cmd(a: str, b: str, as_json: bool) -> None:
     """
     try:
         ma, mb = load(a), load(b)
-    except (MapkitError, OSError) as e:
-        message = f"{e.filename}: {e.strerror}" if isinstance(e, OSError) and e.strerror else str(e)
-        click.echo(f"Error: {message}", err=True)
-        sys.exit(2)
+    except (MapkitError, OSError) as e:  # 1 means "different" here, so errors are 2
+        from mapkit.cli.main import EXIT_USAGE, CommandError, error_message
+
+        raise CommandError(error_message(e)[0], EXIT_USAGE) from e
     d = editing.diff(ma, mb)
     if as_json:
         echo_json(d.to_json())
@@ -851,7 +851,7 @@ def diff_cmd(a: str, b: str, as_json: bool) -> None:
     "--script",
     "script",
     required=True,
-    type=click.Path(exists=True, dir_okay=False),
+    type=InputFile(),
     help="A YAML or JSON file of edits (see docs/edit.md).",
 )
 @_writes

@@ -7,7 +7,7 @@ from typing import Any
 
 import click
 
-from mapkit.cli.options import echo_json, json_option
+from mapkit.cli.options import InputFile, echo_json, json_option
 from mapkit.formats.map import load, written_category
 from mapkit.model import MapData
 from mapkit.samples import sample_path
@@ -50,7 +50,7 @@ def summary(m: MapData) -> dict[str, Any]:
 
 
 @click.command()
-@click.argument("map_file", required=False, type=click.Path(dir_okay=False))
+@click.argument("map_file", required=False, type=InputFile())
 @click.option("--sample", help="Use a bundled sample map by name (e.g. office).")
 @click.option("--thumbnail", type=click.Path(dir_okay=False),
               help="Also write a small picture of the map (PNG; .svg/.pdf by suffix).")

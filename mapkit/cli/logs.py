@@ -8,7 +8,7 @@ from typing import Any
 
 import click
 
-from mapkit.cli.options import echo_json, err, force_option, json_option, output_option
+from mapkit.cli.options import InputFile, echo_json, err, force_option, json_option, output_option
 
 
 def _floats(text: str, n: tuple[int, ...], what: str) -> tuple[float, ...]:
@@ -27,7 +27,7 @@ def _check_output(path: str, force: bool) -> None:
 
 
 @click.command()
-@click.argument("map_file", required=False, type=click.Path(dir_okay=False))
+@click.argument("map_file", required=False, type=InputFile())
 @output_option("The .2d log to write.", required=True)
 @click.option("--sample", help="Use a bundled sample map by name (e.g. office).")
 @click.option("--version", "log_version", type=click.IntRange(1, 4), default=4, show_default=True,
@@ -131,7 +131,7 @@ class _Bar:
 
 
 @click.command()
-@click.argument("log_file", type=click.Path(exists=True, dir_okay=False))
+@click.argument("log_file", type=InputFile())
 @output_option("The .map to write.", required=True)
 @click.option("--resolution", type=click.IntRange(1, 1000), default=20, show_default=True,
               help="Grid of the map's points (mm).")
@@ -201,7 +201,7 @@ def build(log_file: str, output: str, resolution: int, no_register: bool, no_loo
 
 
 @click.command("log-info")
-@click.argument("log_file", type=click.Path(exists=True, dir_okay=False))
+@click.argument("log_file", type=InputFile())
 @click.option("--tolerant", is_flag=True, help="Count bad records instead of failing on the first.")
 @json_option
 def log_info(log_file: str, tolerant: bool, as_json: bool) -> None:

@@ -20,7 +20,6 @@ import sys
 from typing import Any, NoReturn
 
 import click
-from click.utils import make_default_short_help
 
 import mapkit
 from mapkit.errors import MapkitError
@@ -91,8 +90,10 @@ class CommandError(click.ClickException):
 
 def error_message(err: BaseException) -> tuple[str, int]:
     """The one line and the exit status for an error a command raised."""
-    from mapkit._atomic import WriteError
+    from mapkit._atomic import ReadOnlyFileError, WriteError
 
+    if isinstance(err, ReadOnlyFileError):
+        return f"cannot write {err.filename}: {err.strerror}; add --force to replace it", EXIT_FAILED
     if isinstance(err, WriteError):
         return f"cannot write {err.filename}: {err.strerror}", EXIT_FAILED
     if isinstance(err, OSError) and err.filename is not None:
@@ -137,7 +138,7 @@ class MapkitGroup(click.Group):
         names = self.list_commands(ctx)
         limit = formatter.width - 6 - max((len(n) for n in names), default=0)
         rows = [
-            (name, make_default_short_help(self.lazy[name][1], limit)
+            (name, click.Command(name, help=self.lazy[name][1]).get_short_help_str(limit)
              if name in self.lazy and name not in self.commands
              else self.commands[name].get_short_help_str(limit))
             for name in names

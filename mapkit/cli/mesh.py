@@ -6,7 +6,7 @@ import os
 
 import click
 
-from mapkit.cli.options import echo_json, force_option, json_option, output_option
+from mapkit.cli.options import InputFile, echo_json, force_option, json_option, output_option
 from mapkit.formats.registry import read_any
 from mapkit.mesh import export_mesh as export
 
@@ -14,7 +14,7 @@ _POSITIVE = click.FloatRange(0, min_open=True)
 
 
 @click.command("export-mesh", short_help="A 3D wall mesh (STL/OBJ/GLB/DAE) and a Gazebo world.")
-@click.argument("map_file", type=click.Path(exists=True, dir_okay=False))
+@click.argument("map_file", type=InputFile())
 @output_option("Mesh to write: .stl, .obj, .glb or .dae.", required=True)
 @click.option("--height", type=_POSITIVE, default=2.0, show_default=True, help="Wall height (m).")
 @click.option("--thickness", type=_POSITIVE, default=0.1, show_default=True,

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import errno
 import json
+import os
 import sys
 from collections.abc import Callable
 from typing import Any, TypeVar
@@ -11,8 +13,52 @@ import click
 
 F = TypeVar("F", bound=Callable[..., Any])
 
+
+class InputFile(click.Path):
+    """A file a command reads. Missing or unreadable: one line and exit 2, the same for every
+    command (``Error: cannot read office.map: no such file``), not click's usage text.
+
+    ``check=False`` leaves the check to the command (``validate --json`` reports it as JSON).
+    """
+
+    def __init__(self, *, check: bool = True) -> None:
+        super().__init__(exists=False, dir_okay=True)
+        self.check = check
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
+        path = super().convert(value, param, ctx)
+        if self.check:
+            problem = None
+            if not os.path.exists(path):
+                problem = errno.ENOENT
+            elif os.path.isdir(path):
+                problem = errno.EISDIR
+            elif not os.access(path, os.R_OK):
+                problem = errno.EACCES
+            if problem is not None:
+                from mapkit.cli.main import CommandError, error_message
+
+                raise CommandError(*error_message(OSError(problem, os.strerror(problem), path)))
+        return path
+
+
+def _allow_read_only(ctx: click.Context, _param: click.Parameter, force: bool) -> bool:
+    """``--force`` also lets this one command replace a read-only file (mapkit._atomic)."""
+    if force:
+        from mapkit._atomic import replace_read_only
+
+        token = replace_read_only.set(True)
+        ctx.call_on_close(lambda: replace_read_only.reset(token))
+    return force
+
+
 json_option = click.option("--json", "as_json", is_flag=True, help="Print one JSON document for machines.")
-force_option = click.option("--force", is_flag=True, help="Overwrite an existing output file.")
+force_option = click.option(
+    "--force",
+    is_flag=True,
+    callback=_allow_read_only,
+    help="Overwrite an existing output file (a read-only one too).",
+)
 backup_option = click.option("--backup", is_flag=True, help="Keep the previous file as FILE.bak.")
 
 
@@ -22,8 +68,11 @@ def output_option(help: str = "Output file.", required: bool = False) -> Callabl
 
 
 def echo_json(data: Any) -> None:
-    """Print a JSON document on stdout."""
-    click.echo(json.dumps(data, indent=2, ensure_ascii=False, default=str))
+    """Print a JSON document on stdout (also under ``mapkit -q``: it was asked for)."""
+    ctx = click.get_current_context(silent=True)
+    root = ctx.find_root().obj if ctx else None
+    out = root.get("stdout") if isinstance(root, dict) else None
+    click.echo(json.dumps(data, indent=2, ensure_ascii=False, default=str), file=out)
 
 
 def err(message: str) -> None:

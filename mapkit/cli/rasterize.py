@@ -8,7 +8,7 @@ from pathlib import Path
 
 import click
 
-from mapkit.cli.options import echo_json, force_option, json_option, output_option
+from mapkit.cli.options import InputFile, echo_json, force_option, json_option, output_option
 
 
 def _refuse_existing(paths: list[Path], force: bool) -> None:
@@ -19,7 +19,7 @@ def _refuse_existing(paths: list[Path], force: bool) -> None:
 
 
 @click.command()
-@click.argument("map_file", type=click.Path(exists=True, dir_okay=False))
+@click.argument("map_file", type=InputFile())
 @output_option("The map YAML to write (NAME.yaml; the image NAME.pgm goes beside it). "
                "Default: MAP's name with .yaml, in the current folder.")
 @click.option("--resolution", type=float, default=0.05, show_default=True, metavar="M",
@@ -39,7 +39,7 @@ def _refuse_existing(paths: list[Path], force: bool) -> None:
 @click.option("--inflate", type=float, default=0.0, metavar="MM", help="Grow walls by MM.")
 @click.option("--forbidden-as-walls", is_flag=True,
               help="Draw forbidden areas and lines into the map as walls.")
-@click.option("--log", "log_path", type=click.Path(exists=True, dir_okay=False), metavar="LOG.2d",
+@click.option("--log", "log_path", type=InputFile(), metavar="LOG.2d",
               help="Free space = the cells this laser log's beams pass through (the log must be in "
                    "the map's frame: its robotGlobal: poses, else its odometry).")
 @force_option
@@ -95,9 +95,9 @@ def rasterize(map_file: str, output: str | None, resolution: float, mode: str, f
 
 
 @click.command("import-ros")
-@click.argument("yaml_file", type=click.Path(exists=True, dir_okay=False))
+@click.argument("yaml_file", type=InputFile())
 @output_option("The .map to write. Default: YAML's name with .map, in the current folder.")
-@click.option("--keepout", type=click.Path(exists=True, dir_okay=False), metavar="MASK.yaml",
+@click.option("--keepout", type=InputFile(), metavar="MASK.yaml",
               help="A keepout mask (map_server YAML) to import as forbidden areas.")
 @click.option("--flavor", type=click.Choice(["ros1", "nav2"]), default="ros1", show_default=True,
               help="Read the image as ROS 1 map_server or Nav2 does.")

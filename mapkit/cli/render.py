@@ -6,13 +6,13 @@ import os
 
 import click
 
-from mapkit.cli.options import echo_json, err, force_option, json_option, output_option
+from mapkit.cli.options import InputFile, echo_json, err, force_option, json_option, output_option
 from mapkit.formats.registry import read_any
 from mapkit.render import render as render_map
 
 
 @click.command(short_help="Draw a map as PNG, SVG or PDF, or in a window.")
-@click.argument("map_file", type=click.Path(exists=True, dir_okay=False))
+@click.argument("map_file", type=InputFile())
 @output_option("Picture to write: .png, .svg or .pdf.")
 @click.option("--show", is_flag=True, help="Open a window with the picture (needs a display).")
 @click.option("--width", type=click.IntRange(32, 20000), default=1600, show_default=True,

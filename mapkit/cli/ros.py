@@ -12,7 +12,7 @@ from typing import Any
 
 import click
 
-from mapkit.cli.options import echo_json, err, json_option
+from mapkit.cli.options import InputFile, echo_json, err, json_option
 from mapkit.cli.transfer import _auth_text, _progress, _quiet, _secret_options, _size, print_listing
 
 
@@ -26,7 +26,7 @@ def ros() -> None:
 
 
 @ros.command("map-server")
-@click.argument("map_file", type=click.Path(dir_okay=False))
+@click.argument("map_file", type=InputFile())
 @click.option("--resolution", type=float, default=0.05, show_default=True,
               help="Metres per cell for .map files.")
 @click.option("--frame-id", default="map", show_default=True,
@@ -217,7 +217,7 @@ def _fleet_rows(results: list[Any]) -> list[dict[str, Any]]:
 
 
 @ros.command("send")
-@click.argument("file", type=click.Path(dir_okay=False, exists=True))
+@click.argument("file", type=InputFile())
 @_channel_option
 @click.option("--name", help="Name on the robots (default: the file's name).")
 @click.option("--robot", "robots", multiple=True, help="Only this robot (repeat for several).")

@@ -7,7 +7,7 @@ from collections import Counter
 
 import click
 
-from mapkit.cli.options import echo_json, json_option
+from mapkit.cli.options import InputFile, echo_json, json_option
 from mapkit.diagnostics import Issue, Severity
 from mapkit.errors import MapkitError
 from mapkit.validate import DEFAULT_ROBOT_RADIUS, ValidationReport
@@ -72,7 +72,7 @@ def render_text(report: ValidationReport) -> list[str]:
 
 
 @click.command()
-@click.argument("map_file", type=click.Path(dir_okay=False))
+@click.argument("map_file", type=InputFile(check=False))
 @json_option
 @click.option(
     "--robot-radius",
@@ -107,10 +107,9 @@ def validate(
     try:
         report = run_validate(map_file, robot_radius=robot_radius, navigation=not no_navigation)
     except (MapkitError, OSError) as err:
-        if isinstance(err, OSError) and err.filename and err.strerror:
-            message = f"{err.filename}: {err.strerror}"
-        else:
-            message = str(err)
+        from mapkit.cli.main import error_message
+
+        message = error_message(err)[0]
         if as_json:
             echo_json({"file": map_file, "readable": False, "error": message})
         click.echo(
