@@ -19,7 +19,7 @@ from typing import Any
 import click
 
 from mapkit import edit as editing
-from mapkit.cli.options import InputFile, backup_option, echo_json, err, force_option, json_option
+from mapkit.cli.options import InputFile, check_outputs, backup_option, echo_json, err, force_option, json_option
 from mapkit.errors import MapkitError
 from mapkit.formats.map import load, save
 from mapkit.model import MapData
@@ -141,13 +141,8 @@ def _apply(
 ) -> None:
     """Load, edit, report the changes, write atomically (unless nothing changed or a dry run)."""
     output, backup, force, dry_run = opts["output"], opts["backup"], opts["force"], opts["dry_run"]
-    if (
-        output
-        and os.path.exists(output)
-        and not force
-        and os.path.abspath(output) != os.path.abspath(map_file)
-    ):
-        raise click.UsageError(f"{output} exists; add --force to overwrite it")
+    if not dry_run:
+        check_outputs([output or map_file], force, same_as=map_file)
     m = load(map_file)
     new = edit(m)
     d = editing.diff(m, new)

@@ -2,13 +2,12 @@
 
 from __future__ import annotations
 
-import os
 import sys
 from typing import Any
 
 import click
 
-from mapkit.cli.options import InputFile, echo_json, err, force_option, json_option, output_option
+from mapkit.cli.options import InputFile, check_outputs, echo_json, err, force_option, json_option, output_option
 
 
 def _floats(text: str, n: tuple[int, ...], what: str) -> tuple[float, ...]:
@@ -22,8 +21,7 @@ def _floats(text: str, n: tuple[int, ...], what: str) -> tuple[float, ...]:
 
 
 def _check_output(path: str, force: bool) -> None:
-    if os.path.exists(path) and not force:
-        raise click.UsageError(f"{path} exists; add --force to overwrite it")
+    check_outputs([path], force)
 
 
 @click.command()

@@ -6,7 +6,7 @@ import os
 
 import click
 
-from mapkit.cli.options import InputFile, echo_json, force_option, json_option, output_option
+from mapkit.cli.options import InputFile, check_outputs, echo_json, force_option, json_option, output_option
 from mapkit.formats.registry import read_any
 from mapkit.mesh import export_mesh as export
 
@@ -45,9 +45,7 @@ def export_mesh(map_file: str, output: str, height: float, thickness: float, sou
         raise click.UsageError("--world and --no-world exclude each other")
     if not no_world and world is None:
         world = os.path.splitext(output)[0] + ".sdf"
-    for path in (output, world):
-        if path is not None and os.path.exists(path) and not force:
-            raise click.UsageError(f"{path} exists; add --force to overwrite it")
+    check_outputs([p for p in (output, world) if p is not None], force)
     m = read_any(map_file)
     r = export(m, output, height=height, thickness=thickness, source=source,
                resolution=resolution, world=None if no_world else world)

@@ -42,6 +42,23 @@ class InputFile(click.Path):
         return path
 
 
+def check_outputs(paths: list[str], force: bool, *, same_as: str | None = None) -> None:
+    """Before the work: refuse outputs that exist (unless ``force``) and say now if one cannot be
+    written (missing or read-only folder, read-only file) rather than after minutes of work.
+    ``same_as``: the input file, which an output may replace without ``--force``."""
+    from mapkit._atomic import check_writable
+
+    existing = [
+        p for p in paths
+        if os.path.exists(p) and not (same_as and os.path.abspath(p) == os.path.abspath(same_as))
+    ]
+    if existing and not force:
+        verb = "exists" if len(existing) == 1 else "exist"
+        raise click.UsageError(f"{', '.join(existing)} {verb}; add --force to overwrite it")
+    for p in paths:
+        check_writable(p)
+
+
 def _allow_read_only(ctx: click.Context, _param: click.Parameter, force: bool) -> bool:
     """``--force`` also lets this one command replace a read-only file (mapkit._atomic)."""
     if force:

@@ -8,14 +8,11 @@ from pathlib import Path
 
 import click
 
-from mapkit.cli.options import InputFile, echo_json, force_option, json_option, output_option
+from mapkit.cli.options import InputFile, check_outputs, echo_json, force_option, json_option, output_option
 
 
 def _refuse_existing(paths: list[Path], force: bool) -> None:
-    existing = [str(p) for p in paths if p.exists()]
-    if existing and not force:
-        verb = "exists" if len(existing) == 1 else "exist"
-        raise click.UsageError(f"{', '.join(existing)} {verb}; add --force to overwrite")
+    check_outputs([str(p) for p in paths], force)
 
 
 @click.command()

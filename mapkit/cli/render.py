@@ -2,11 +2,10 @@
 
 from __future__ import annotations
 
-import os
 
 import click
 
-from mapkit.cli.options import InputFile, echo_json, err, force_option, json_option, output_option
+from mapkit.cli.options import InputFile, check_outputs, echo_json, err, force_option, json_option, output_option
 from mapkit.formats.registry import read_any
 from mapkit.render import render as render_map
 
@@ -47,8 +46,8 @@ def render(map_file: str, output: str | None, show: bool, width: int, height: in
     """
     if output is None and not show:
         raise click.UsageError("give -o OUT.png|svg|pdf or --show")
-    if output is not None and os.path.exists(output) and not force:
-        raise click.UsageError(f"{output} exists; add --force to overwrite it")
+    if output is not None:
+        check_outputs([output], force)
     m = read_any(map_file)
     r = render_map(m, output, show=show, width=width, height=height, dpi=dpi,
                    show_names=not no_names, show_points=not no_points, show_lines=not no_lines,
