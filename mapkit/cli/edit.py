@@ -19,8 +19,8 @@ from typing import Any
 import click
 
 from mapkit import edit as editing
-from mapkit.cli.options import InputFile, check_outputs, backup_option, echo_json, err, force_option, json_option
-from mapkit.errors import MapkitError
+from mapkit.cli.options import InputFile, plural, check_outputs, backup_option, echo_json, err, force_option, json_option
+from mapkit.errors import EditError, MapkitError
 from mapkit.formats.map import load, save
 from mapkit.model import MapData
 
@@ -144,13 +144,21 @@ def _apply(
     if not dry_run:
         check_outputs([output or map_file], force, same_as=map_file)
     m = load(map_file)
+    for lost in editing.missing_rows(m):
+        if not force:
+            raise EditError(
+                f"{map_file}: {lost}; an edit would write the smaller count and lose those rows "
+                "for good (restore the file, or add --force to edit what is left)"
+            )
+        err(f"warning: {map_file}: {lost}; --force: writing what is left")
     new = edit(m)
     d = editing.diff(m, new)
     lines = d.summary()
     for line in lines[:_MAX_LINES]:
         click.echo(line)
     if len(lines) > _MAX_LINES:
-        click.echo(f"... and {len(lines) - _MAX_LINES} more changes (mapkit diff shows them all)")
+        more = plural(len(lines) - _MAX_LINES, "more change")
+        click.echo(f"... and {more} (mapkit diff shows them all)")
     for n in notes(m, new) if notes else []:
         err(f"note: {n}")
     if dry_run:
@@ -861,7 +869,7 @@ def edit_cmd(map_file: str, script: str, **opts: Any) -> None:
     """
     edits = editing.load_script(script)
     base_dir = os.path.dirname(os.path.abspath(script))
-    err(f"{len(edits)} edit(s) from {script}")
+    err(f"{plural(len(edits), 'edit')} from {script}")
     _apply(map_file, opts, lambda m: editing.apply_script(m, edits, base_dir=base_dir))
 
 

@@ -7,7 +7,7 @@ from typing import Any
 
 import click
 
-from mapkit.cli.options import InputFile, check_outputs, echo_json, err, force_option, json_option, output_option
+from mapkit.cli.options import InputFile, plural, check_outputs, echo_json, err, force_option, json_option, output_option
 
 
 def _floats(text: str, n: tuple[int, ...], what: str) -> tuple[float, ...]:
@@ -181,14 +181,16 @@ def build(log_file: str, output: str, resolution: int, no_register: bool, no_loo
         err(str(issue))
     reg = s["registration"]
     loops = s["loops"]
-    click.echo(f"wrote {output} (MD5 {md5}): {s['points']} points, {s['lines']} lines, "
-               f"{s['goals']} goals, RobotHome at the start")
+    click.echo(f"wrote {output} (MD5 {md5}): {plural(s['points'], 'point')}, "
+               f"{plural(s['lines'], 'line')}, {plural(s['goals'], 'goal')}, RobotHome at the start")
     click.echo(f"  scans: {s['scans_used']} used of {s['scans_in_log']}, path {s['path_length_m']} m")
     if s["register"]:
-        click.echo(f"  registration: {reg['registered']} scans matched, {reg['odometry_only']} on "
+        click.echo(f"  registration: {plural(reg['registered'], 'scan')} matched, "
+                   f"{reg['odometry_only']} on "
                    f"odometry alone, median residual {reg['median_residual_mm']} mm")
-        click.echo(f"  loops: {loops['tags']} loop tags ({loops['tags_matched']} matched), "
-                   f"{loops['revisits']} revisits closed, {loops['optimisations']} optimisations, "
+        click.echo(f"  loops: {plural(loops['tags'], 'loop tag')} ({loops['tags_matched']} matched), "
+                   f"{plural(loops['revisits'], 'revisit')} closed, "
+                   f"{plural(loops['optimisations'], 'optimisation')}, "
                    f"largest correction {loops['max_correction_mm']} mm / "
                    f"{loops['max_correction_deg']} deg; the end moved "
                    f"{s['end_shift_from_odometry_mm']} mm from odometry")

@@ -84,6 +84,18 @@ def output_option(help: str = "Output file.", required: bool = False) -> Callabl
     return click.option("-o", "--output", type=click.Path(dir_okay=False), required=required, help=help)
 
 
+def plural(n: int, word: str, many: str | None = None) -> str:
+    """``1 goal``, ``2 goals``, ``0 goals``; ``many`` for irregular words (``1 box``/``2 boxes``).
+
+    Examples:
+        >>> plural(1, "warning"), plural(3, "home"), plural(1, "forbidden area")
+        ('1 warning', '3 homes', '1 forbidden area')
+        >>> plural(2, "optimisation pass", "optimisation passes")
+        '2 optimisation passes'
+    """
+    return f"{n} {word if n == 1 else (many or word + 's')}"
+
+
 def echo_json(data: Any) -> None:
     """Print a JSON document on stdout (also under ``mapkit -q``: it was asked for)."""
     ctx = click.get_current_context(silent=True)

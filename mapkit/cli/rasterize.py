@@ -8,7 +8,7 @@ from pathlib import Path
 
 import click
 
-from mapkit.cli.options import InputFile, check_outputs, echo_json, force_option, json_option, output_option
+from mapkit.cli.options import InputFile, plural, check_outputs, echo_json, force_option, json_option, output_option
 
 
 def _refuse_existing(paths: list[Path], force: bool) -> None:
@@ -83,10 +83,10 @@ def rasterize(map_file: str, output: str | None, resolution: float, mode: str, f
     f = result.filters
     if f is not None:
         if f.keepout_yaml is not None:
-            click.echo(f"wrote {f.keepout_yaml} and {f.keepout_image}: {f.keepout_zones} keepout "
-                       "zone(s)")
+            click.echo(f"wrote {f.keepout_yaml} and {f.keepout_image}: "
+                       f"{plural(f.keepout_zones, 'keepout zone')}")
         if f.speed_yaml is not None:
-            click.echo(f"wrote {f.speed_yaml} and {f.speed_image}: {f.speed_zones} speed zone(s), "
+            click.echo(f"wrote {f.speed_yaml} and {f.speed_image}: {plural(f.speed_zones, 'speed zone')}, "
                        f"{f.speed_multiplier:g} m/s per unit")
         click.echo(f"wrote {f.params} (Nav2 costmap filter parameters)")
 
@@ -128,5 +128,6 @@ def import_ros(yaml_file: str, output: str | None, keepout: str | None, flavor: 
         echo_json({"map": os.fspath(out), "md5": md5, "points": m.scan.num_points,
                    "lines": m.scan.num_lines, "forbidden_areas": areas, "forbidden_lines": lines})
         return
-    click.echo(f"wrote {out} (MD5 {md5}): {m.scan.num_points} points, {m.scan.num_lines} lines, "
-               f"{areas} forbidden areas, {lines} forbidden lines")
+    click.echo(f"wrote {out} (MD5 {md5}): {plural(m.scan.num_points, 'point')}, "
+               f"{plural(m.scan.num_lines, 'line')}, {plural(areas, 'forbidden area')}, "
+               f"{plural(lines, 'forbidden line')}")

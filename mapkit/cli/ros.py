@@ -12,7 +12,7 @@ from typing import Any
 
 import click
 
-from mapkit.cli.options import InputFile, echo_json, err, json_option
+from mapkit.cli.options import InputFile, plural, echo_json, err, json_option
 from mapkit.cli.transfer import _auth_text, _progress, _quiet, _secret_options, _size, print_listing
 
 
@@ -57,8 +57,8 @@ def map_server(map_file: str, resolution: float, frame_id: str, free: str, as_js
         else:
             err(f"serving {info['file']} on /map: {info['width']} x {info['height']} cells of "
                 f"{info['resolution']:g} m, origin ({info['origin'][0]:g}, {info['origin'][1]:g}); "
-                f"{len(info['goals'])} goals, {len(info['homes'])} homes, "
-                f"{len(info['docks'])} docks. "
+                f"{plural(len(info['goals']), 'goal')}, {plural(len(info['homes']), 'home')}, "
+                f"{plural(len(info['docks']), 'dock')}. "
                 "Ctrl-C stops.")
 
     run_map_server(map_file, resolution=resolution, frame_id=frame_id, free=free, on_ready=ready)
@@ -262,7 +262,7 @@ def send(file: str, channel: str, name: str | None, robots: tuple[str, ...], exp
         width = max(5, *(len(r["robot"]) for r in rows))
         click.echo(f"{'robot':<{width}}  received  verified  loaded  note")
         for r in rows:
-            resumed = f"{r['resumed_chunks']} chunks resumed" if r["resumed_chunks"] else ""
+            resumed = f"{plural(r['resumed_chunks'], 'chunk')} resumed" if r["resumed_chunks"] else ""
             note = r["error"] or ("already had it" if r["skipped"] else resumed)
             click.echo(f"{r['robot']:<{width}}  {yn(r['received']):<8}  {yn(r['verified']):<8}  "
                        f"{yn(r['loaded']):<6}  {note}".rstrip())
@@ -298,7 +298,7 @@ def fetch(name: str, output: str | None, channel: str, robot: str | None, if_cha
         click.echo(f"{result['path']} is up to date (SHA-256 {result['sha256'][:16]}…), "
                    "nothing fetched")
     else:
-        resumed = f", {result['resumed']} chunks resumed" if result["resumed"] else ""
+        resumed = f", {plural(result['resumed'], 'chunk')} resumed" if result["resumed"] else ""
         click.echo(f"fetched {name} from {result['robot']} into {result['path']}: "
                    f"{_size(result['size'])}, SHA-256 verified{resumed}")
 

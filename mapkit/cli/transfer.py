@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING, Any, TypeVar
 
 import click
 
-from mapkit.cli.options import InputFile, echo_json, err, json_option
+from mapkit.cli.options import InputFile, plural, echo_json, err, json_option
 
 if TYPE_CHECKING:
     from mapkit.transfer import Client, MapServer
@@ -259,7 +259,7 @@ def send(file: str, address: str, name: str | None, and_load: bool, secret_file:
     if as_json:
         echo_json(result)
         return
-    resumed = f", {result['chunks_skipped']} chunks were already there" if result["chunks_skipped"] else ""
+    resumed = f", {plural(result['chunks_skipped'], 'chunk was', 'chunks were')} already there" if result["chunks_skipped"] else ""
     click.echo(f"sent {result['name']} to {address}: {_size(result['size'])} in "
                f"{result['seconds']:.2f} s ({result['mb_per_s'] or 0:.1f} MB/s), SHA-256 verified{resumed}")
     if and_load:
@@ -290,7 +290,7 @@ def fetch(address: str, name: str, output: str | None, if_changed: bool, secret_
     elif not result["modified"]:
         click.echo(f"{result['path']} is up to date (MD5 {result.get('md5') or '-'}), nothing fetched")
     else:
-        resumed = f", {result['chunks_resumed']} chunks resumed" if result["chunks_resumed"] else ""
+        resumed = f", {plural(result['chunks_resumed'], 'chunk')} resumed" if result["chunks_resumed"] else ""
         click.echo(f"fetched {name} from {address} into {result['path']}: {_size(result['size'])} in "
                    f"{result['seconds']:.2f} s, SHA-256 verified{resumed}")
 

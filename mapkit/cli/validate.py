@@ -7,7 +7,7 @@ from collections import Counter
 
 import click
 
-from mapkit.cli.options import InputFile, echo_json, json_option
+from mapkit.cli.options import InputFile, plural, echo_json, json_option
 from mapkit.diagnostics import Issue, Severity
 from mapkit.errors import MapkitError
 from mapkit.validate import DEFAULT_ROBOT_RADIUS, ValidationReport
@@ -66,7 +66,7 @@ def render_text(report: ValidationReport) -> list[str]:
             shown[code] += 1
             out.append(f"  {_where(issue)}: MK{code} {issue.message}")
         for code, n in hidden.items():
-            out.append(f"  ... {n} more MK{code} findings (--json lists them all)")
+            out.append(f"  ... {plural(n, f'more MK{code} finding')} (--json lists them all)")
     out.append(summary_line(report))
     return out
 
