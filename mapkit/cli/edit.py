@@ -80,12 +80,20 @@ _area_opts = _stack(
         "--angle",
         type=float,
         default=0.0,
-        help="Angle of the area in degrees (ARIA turns it about the map origin).",
+        help="Angle of the area in degrees, counter-clockwise.",
+    ),
+    click.option(
+        "--rotate-about",
+        type=click.Choice(["centre", "origin"]),
+        default="centre",
+        show_default=True,
+        help="Turn the box drawn about its own centre, or about the map origin (0, 0) as ARIA "
+        "stores turned areas (the box then moves).",
     ),
     click.option(
         "--rotate-about-centre",
         is_flag=True,
-        help="Turn the area about its own centre instead of the origin.",
+        hidden=True,  # the default since 0.2; kept so older commands still run
     ),
 )
 _region_opts = _stack(
@@ -94,6 +102,12 @@ _region_opts = _stack(
         "--polygon", metavar="'X1,Y1 X2,Y2 ...'", help="A polygon region (3 or more vertices)."
     ),
 )
+
+
+def _rotate_about(rotate_about: str, rotate_about_centre: bool) -> str:
+    if rotate_about_centre and rotate_about == "origin":
+        raise click.UsageError("give --rotate-about origin or --rotate-about-centre, not both")
+    return rotate_about
 
 
 def _params(values: Sequence[str]) -> dict[str, str]:
@@ -290,6 +304,7 @@ def add_home_cmd(
     heading: float | None,
     area: tuple[float, ...],
     angle: float,
+    rotate_about: str,
     rotate_about_centre: bool,
     name: str,
     description: str,
@@ -313,7 +328,7 @@ def add_home_cmd(
             heading=heading,
             area=area or None,
             angle=angle,
-            rotate_about_centre=rotate_about_centre,
+            rotate_about=_rotate_about(rotate_about, rotate_about_centre),
             name=name,
             description=description,
             allow_duplicate=allow_duplicate,
@@ -335,6 +350,7 @@ def forbid_cmd(
     map_file: str,
     area: tuple[float, ...],
     angle: float,
+    rotate_about: str,
     rotate_about_centre: bool,
     line: tuple[float, ...],
     name: str,
@@ -344,19 +360,20 @@ def forbid_cmd(
 ) -> None:
     """Add a ForbiddenArea (--area) or a ForbiddenLine (--line).
 
-    ARIA stores a turned area as corners in a frame turned by the angle about the map origin, so
-    --angle alone turns the drawn box about (0, 0); add --rotate-about-centre to get the box you
-    drew, turned in place.
+    --angle turns the box you drew about its own centre, so it stays where you drew it. ARIA
+    stores a turned area as corners in a frame turned about the map origin; mapkit computes
+    them. Reports give the corners in the world, as `mapkit objects` does. --rotate-about origin
+    turns the given corners about (0, 0) instead, the way ARIA reads stored corners.
 
     \b
     Examples:
-      mapkit forbid office.map --area 1000 1000 3000 2000 --angle 30 --rotate-about-centre
+      mapkit forbid office.map --area 1000 1000 3000 2000 --angle 30
       mapkit forbid office.map --line -5000 0 5000 0
     """
     if bool(area) == bool(line):
         raise click.UsageError("give --area X1 Y1 X2 Y2 or --line X1 Y1 X2 Y2")
-    if line and (angle or rotate_about_centre):
-        raise click.UsageError("--angle and --rotate-about-centre are for --area")
+    if line and (angle or rotate_about_centre or rotate_about != "centre"):
+        raise click.UsageError("--angle and --rotate-about are for --area")
     _apply(
         map_file,
         opts,
@@ -365,7 +382,7 @@ def forbid_cmd(
             area=area or None,
             line=line or None,
             angle=angle,
-            rotate_about_centre=rotate_about_centre,
+            rotate_about=_rotate_about(rotate_about, rotate_about_centre),
             name=name,
             description=description,
             allow_duplicate=allow_duplicate,
@@ -395,6 +412,7 @@ def add_object_cmd(
     heading: float | None,
     area: tuple[float, ...],
     angle: float,
+    rotate_about: str,
     rotate_about_centre: bool,
     line: tuple[float, ...],
     name: str,
@@ -425,7 +443,7 @@ def add_object_cmd(
             heading=heading,
             area=area or None,
             angle=angle,
-            rotate_about_centre=rotate_about_centre,
+            rotate_about=_rotate_about(rotate_about, rotate_about_centre),
             line=line or None,
             name=name,
             description=description,
