@@ -11,6 +11,20 @@ from typing import Any, TypeVar
 
 import click
 
+from mapkit._text import plural
+
+__all__ = [
+    "InputFile",
+    "backup_option",
+    "check_outputs",
+    "echo_json",
+    "err",
+    "force_option",
+    "json_option",
+    "output_option",
+    "plural",
+]
+
 F = TypeVar("F", bound=Callable[..., Any])
 
 
@@ -82,18 +96,6 @@ backup_option = click.option("--backup", is_flag=True, help="Keep the previous f
 def output_option(help: str = "Output file.", required: bool = False) -> Callable[[F], F]:
     """``-o/--output PATH``."""
     return click.option("-o", "--output", type=click.Path(dir_okay=False), required=required, help=help)
-
-
-def plural(n: int, word: str, many: str | None = None) -> str:
-    """``1 goal``, ``2 goals``, ``0 goals``; ``many`` for irregular words (``1 box``/``2 boxes``).
-
-    Examples:
-        >>> plural(1, "warning"), plural(3, "home"), plural(1, "forbidden area")
-        ('1 warning', '3 homes', '1 forbidden area')
-        >>> plural(2, "optimisation pass", "optimisation passes")
-        '2 optimisation passes'
-    """
-    return f"{n} {word if n == 1 else (many or word + 's')}"
 
 
 def echo_json(data: Any) -> None:

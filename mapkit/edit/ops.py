@@ -33,6 +33,7 @@ from typing import Any
 
 import numpy as np
 
+from mapkit._text import plural
 from mapkit.edit.checks import (
     check_coord,
     check_data_range,
@@ -580,7 +581,9 @@ def select(m: MapData, selector: str, *, type: str | None = None) -> list[int]:
     if selector.startswith("#") and selector[1:].isdigit():
         n = int(selector[1:])
         if not 1 <= n <= len(m.objects):
-            raise EditError(f"there is no object {selector}: the map has {len(m.objects)} objects")
+            raise EditError(
+                f"there is no object {selector}: the map has {plural(len(m.objects), 'object')}"
+            )
         if not _type_matches(m.objects[n - 1], type):
             raise EditError(f"object {selector} is a {m.objects[n - 1].type}, not a {type}")
         return [n - 1]
