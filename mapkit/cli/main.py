@@ -72,9 +72,11 @@ Exit status, every command:
        transfer that failed (diff: the maps differ; validate: errors found)
   2    bad usage, or an input file that is missing or cannot be read
        (diff, validate: also any input that cannot be read as a map)
-  130  interrupted (Ctrl-C)
+  130  interrupted (Ctrl-C); servers (serve, receive, ros serve, ros receive,
+       ros map-server) run until Ctrl-C, which stops them with 0
 Errors are one line on stderr (--debug shows the traceback). Output cut
-short by a closed pipe (mapkit ... | head) ends quietly with 141."""
+short by a closed pipe (mapkit ... | head) ends quietly with 141. A file
+is never half-written: a failed or interrupted write leaves it as it was."""
 
 #: Exit statuses (see :data:`EXIT_RULE`).
 EXIT_FAILED, EXIT_USAGE, EXIT_INTERRUPTED, EXIT_BROKEN_PIPE = 1, 2, 130, 141

@@ -391,3 +391,16 @@ def test_one_thing_is_not_plural(runner: CliRunner, one_of_each: Path, tmp_path:
         text += result.stdout + result.stderr
     assert "1 point" in text and "1 keepout zone" in text and "1 forbidden area" in text
     assert not ONE_PLURAL.findall(text), text
+
+
+@pytest.mark.parametrize("command", ["serve", "receive"])
+def test_ctrl_c_stops_a_server_normally(tmp_path: Path, command: str) -> None:
+    folder = tmp_path / "maps"
+    proc = _mapkit(command, str(folder), "--insecure", "--listen", "127.0.0.1:0") \
+        if command == "serve" else _mapkit(command, "--insecure", "--listen", "127.0.0.1:0",
+                                           "-o", str(folder))
+    time.sleep(2)
+    assert proc.poll() is None, proc.communicate()
+    proc.send_signal(signal.SIGINT)
+    _out, err = proc.communicate(timeout=30)
+    assert proc.returncode == 0 and b"Traceback" not in err, err.decode()
