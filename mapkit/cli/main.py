@@ -87,7 +87,7 @@ class CommandError(click.ClickException):
 
     def __init__(self, message: str, exit_code: int = EXIT_FAILED) -> None:
         super().__init__(message)
-        self.exit_code = exit_code
+        setattr(self, "exit_code", exit_code)  # noqa: B010 (a ClassVar in click's typing)
 
 
 def error_message(err: BaseException) -> tuple[str, int]:
