@@ -10,7 +10,6 @@ import contextlib
 import contextvars
 import errno
 import os
-import tempfile
 from collections.abc import Iterable, Iterator
 from typing import BinaryIO
 
@@ -94,6 +93,8 @@ def check_writable(path: PathLike, *, probe: bool = True) -> None:
     if is_read_only(target) and not replace_read_only.get():
         raise ReadOnlyFileError(errno.EACCES, "the file is read-only", shown)
     if probe:
+        import tempfile  # here: it brings shutil, bz2, lzma, which most commands never need
+
         try:
             fd, tmp = tempfile.mkstemp(prefix=".mapkit-probe.", suffix=".tmp", dir=folder)
         except OSError as err:
@@ -142,6 +143,8 @@ def atomic_open(path: PathLike, *, backup: bool = False) -> Iterator[BinaryIO]:
     check_writable(shown, probe=False)
     target = os.path.realpath(shown)
     folder = os.path.dirname(target)
+    import tempfile
+
     try:
         fd, tmp = tempfile.mkstemp(
             prefix="." + os.path.basename(target) + ".", suffix=".tmp", dir=folder

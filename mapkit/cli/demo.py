@@ -7,7 +7,7 @@ from typing import Any
 
 import click
 
-from mapkit.cli.options import InputFile, plural, echo_json, json_option
+from mapkit.cli.options import InputFile, echo_json, json_option, plural
 
 
 @click.command()

@@ -19,7 +19,16 @@ from typing import Any
 import click
 
 from mapkit import edit as editing
-from mapkit.cli.options import InputFile, plural, check_outputs, backup_option, echo_json, err, force_option, json_option
+from mapkit.cli.options import (
+    InputFile,
+    backup_option,
+    check_outputs,
+    echo_json,
+    err,
+    force_option,
+    json_option,
+    plural,
+)
 from mapkit.errors import EditError, MapkitError
 from mapkit.formats.map import load, save
 from mapkit.model import MapData

@@ -7,11 +7,10 @@ from typing import Any
 
 import click
 
-from mapkit.cli.options import InputFile, plural, echo_json, json_option
+from mapkit.cli.options import InputFile, echo_json, json_option, plural
 from mapkit.formats.map import load, written_category
 from mapkit.model import MapData
 from mapkit.model.map import missing_rows
-from mapkit.samples import sample_path
 
 #: Width in pixels of ``--thumbnail`` pictures.
 THUMBNAIL_WIDTH = 320
@@ -69,7 +68,11 @@ def info(map_file: str | None, sample: str | None, thumbnail: str | None, as_jso
     """
     if (map_file is None) == (sample is None):
         raise click.UsageError("give a MAP_FILE or --sample NAME")
-    path = str(sample_path(sample)) if sample else map_file
+    path = map_file
+    if sample:
+        from mapkit.samples import sample_path  # importlib.resources: only when asked for
+
+        path = str(sample_path(sample))
     assert path is not None
     m = load(path)
     data = summary(m)

@@ -7,7 +7,16 @@ from typing import Any
 
 import click
 
-from mapkit.cli.options import InputFile, plural, check_outputs, echo_json, err, force_option, json_option, output_option
+from mapkit.cli.options import (
+    InputFile,
+    check_outputs,
+    echo_json,
+    err,
+    force_option,
+    json_option,
+    output_option,
+    plural,
+)
 
 
 def _floats(text: str, n: tuple[int, ...], what: str) -> tuple[float, ...]:

@@ -6,7 +6,14 @@ import os
 
 import click
 
-from mapkit.cli.options import InputFile, check_outputs, echo_json, force_option, json_option, output_option
+from mapkit.cli.options import (
+    InputFile,
+    check_outputs,
+    echo_json,
+    force_option,
+    json_option,
+    output_option,
+)
 from mapkit.formats.registry import read_any
 from mapkit.mesh import export_mesh as export
 

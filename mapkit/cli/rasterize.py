@@ -8,7 +8,15 @@ from pathlib import Path
 
 import click
 
-from mapkit.cli.options import InputFile, plural, check_outputs, echo_json, force_option, json_option, output_option
+from mapkit.cli.options import (
+    InputFile,
+    check_outputs,
+    echo_json,
+    force_option,
+    json_option,
+    output_option,
+    plural,
+)
 
 
 def _refuse_existing(paths: list[Path], force: bool) -> None:

@@ -5,7 +5,15 @@ from __future__ import annotations
 
 import click
 
-from mapkit.cli.options import InputFile, check_outputs, echo_json, err, force_option, json_option, output_option
+from mapkit.cli.options import (
+    InputFile,
+    check_outputs,
+    echo_json,
+    err,
+    force_option,
+    json_option,
+    output_option,
+)
 from mapkit.formats.registry import read_any
 from mapkit.render import render as render_map
 

@@ -12,7 +12,7 @@ from typing import Any
 
 import click
 
-from mapkit.cli.options import InputFile, plural, echo_json, err, json_option
+from mapkit.cli.options import InputFile, echo_json, err, json_option, plural
 from mapkit.cli.transfer import _auth_text, _progress, _quiet, _secret_options, _size, print_listing
 
 

@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING, Any, TypeVar
 
 import click
 
-from mapkit.cli.options import InputFile, plural, echo_json, err, json_option
+from mapkit.cli.options import InputFile, echo_json, err, json_option, plural
 
 if TYPE_CHECKING:
     from mapkit.transfer import Client, MapServer

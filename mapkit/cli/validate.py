@@ -7,7 +7,7 @@ from collections import Counter
 
 import click
 
-from mapkit.cli.options import InputFile, plural, echo_json, json_option
+from mapkit.cli.options import InputFile, echo_json, json_option, plural
 from mapkit.diagnostics import Issue, Severity
 from mapkit.errors import MapkitError
 from mapkit.validate import DEFAULT_ROBOT_RADIUS, ValidationReport
