@@ -36,24 +36,27 @@ class InputFile(click.Path):
     """
 
     def __init__(self, *, check: bool = True) -> None:
-        super().__init__(exists=False, dir_okay=True)
+        super().__init__(exists=False, dir_okay=False)  # shown as FILE; checked below
         self.check = check
 
     def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
-        path = super().convert(value, param, ctx)
-        if self.check:
-            problem = None
-            if not os.path.exists(path):
-                problem = errno.ENOENT
-            elif os.path.isdir(path):
-                problem = errno.EISDIR
-            elif not os.access(path, os.R_OK):
-                problem = errno.EACCES
-            if problem is not None:
-                from mapkit.cli.main import CommandError, error_message
+        path = os.fsdecode(value) if isinstance(value, (bytes, os.PathLike)) else value
+        if not isinstance(path, str):
+            return super().convert(value, param, ctx)
+        problem = None
+        if not os.path.exists(path):
+            problem = errno.ENOENT
+        elif os.path.isdir(path):
+            problem = errno.EISDIR
+        elif not os.access(path, os.R_OK):
+            problem = errno.EACCES
+        if problem is None:
+            return super().convert(value, param, ctx)
+        if not self.check:
+            return path  # the command reports it (validate --json)
+        from mapkit.cli.main import CommandError, error_message
 
-                raise CommandError(*error_message(OSError(problem, os.strerror(problem), path)))
-        return path
+        raise CommandError(*error_message(OSError(problem, os.strerror(problem), path)))
 
 
 def check_outputs(paths: list[str], force: bool, *, same_as: str | None = None) -> None:
