@@ -1125,7 +1125,8 @@ def merge(
     clashes = merge_clashes(base, other)
     if clashes and on_clash == "error":
         listed = ", ".join(repr(o.name) for _, o in clashes[:10])
-        raise EditError(f"{len(clashes)} name clash(es) between the maps: {listed}")
+        clash_words = plural(len(clashes), "name clash", "name clashes")
+        raise EditError(f"{clash_words} between the maps: {listed}")
     clash_names = {o.name.lower() for _, o in clashes}
     objects = list(base.objects)
     if on_clash == "other":
