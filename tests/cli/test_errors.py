@@ -404,3 +404,11 @@ def test_ctrl_c_stops_a_server_normally(tmp_path: Path, command: str) -> None:
     proc.send_signal(signal.SIGINT)
     _out, err = proc.communicate(timeout=30)
     assert proc.returncode == 0 and b"Traceback" not in err, err.decode()
+
+
+@pytest.mark.parametrize("path", all_commands(), ids=" ".join)
+def test_bad_usage_is_exit_2_for_every_command(runner: CliRunner, path: list[str]) -> None:
+    result = runner.invoke(cli, [*path, "--no-such-option"])
+    # (editing commands take unknown options as arguments, for negative numbers: -1000)
+    assert result.exit_code == 2 and result.stdout == "", result.output
+    assert "No such option" in result.stderr or "--no-such-option" in result.stderr
