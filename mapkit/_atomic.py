@@ -23,6 +23,7 @@ __all__ = [
     "check_writable",
     "fsync_dir",
     "is_read_only",
+    "write_error",
     "replace_read_only",
 ]
 
@@ -48,7 +49,9 @@ class ReadOnlyFileError(WriteError):
     """The file exists and is read-only; it is replaced only under :data:`replace_read_only`."""
 
 
-def _write_error(target: str, err: OSError | None, why: str | None = None) -> WriteError:
+def write_error(target: str, err: OSError | None, why: str | None = None) -> WriteError:
+    """The :class:`WriteError` for ``target`` (the user's name for it) from the OS error ``err``,
+    with the reason in words: ``folder out does not exist``, ``folder out is read-only``."""
     folder = os.path.dirname(target) or "."
     code = err.errno if err is not None else errno.EACCES
     if why is None:
@@ -86,10 +89,10 @@ def check_writable(path: PathLike, *, probe: bool = True) -> None:
     target = os.path.realpath(shown)
     folder = os.path.dirname(target)
     if os.path.isdir(target):
-        raise _write_error(shown, None, "it is a folder")
+        raise write_error(shown, None, "it is a folder")
     if not os.path.isdir(folder):
         missing = not os.path.exists(folder)
-        raise _write_error(shown, OSError(errno.ENOENT if missing else errno.ENOTDIR, ""))
+        raise write_error(shown, OSError(errno.ENOENT if missing else errno.ENOTDIR, ""))
     if is_read_only(target) and not replace_read_only.get():
         raise ReadOnlyFileError(errno.EACCES, "the file is read-only", shown)
     if probe:
@@ -98,7 +101,7 @@ def check_writable(path: PathLike, *, probe: bool = True) -> None:
         try:
             fd, tmp = tempfile.mkstemp(prefix=".mapkit-probe.", suffix=".tmp", dir=folder)
         except OSError as err:
-            raise _write_error(shown, err) from err
+            raise write_error(shown, err) from err
         os.close(fd)
         os.unlink(tmp)
 
@@ -150,7 +153,7 @@ def atomic_open(path: PathLike, *, backup: bool = False) -> Iterator[BinaryIO]:
             prefix="." + os.path.basename(target) + ".", suffix=".tmp", dir=folder
         )
     except OSError as err:
-        raise _write_error(shown, err) from err
+        raise write_error(shown, err) from err
     try:
         with os.fdopen(fd, "wb") as fh:
             yield fh
@@ -182,7 +185,7 @@ def atomic_open(path: PathLike, *, backup: bool = False) -> Iterator[BinaryIO]:
             and exc.errno in _WRITE_ERRNOS
             and exc.filename in (None, tmp, target, folder)
         ):
-            raise _write_error(shown, exc) from exc
+            raise write_error(shown, exc) from exc
         raise
 
 

@@ -98,6 +98,15 @@ def error_message(err: BaseException) -> tuple[str, int]:
         return f"cannot write {err.filename}: {err.strerror}; add --force to replace it", EXIT_FAILED
     if isinstance(err, WriteError):
         return f"cannot write {err.filename}: {err.strerror}", EXIT_FAILED
+    if (
+        isinstance(err, OSError)
+        and err.errno in (errno.EACCES, errno.EPERM, errno.EROFS)
+        and isinstance(err.filename, str)
+        and not os.path.exists(err.filename)
+    ):  # not there and not allowed: making it (a folder, a file) was refused
+        from mapkit._atomic import write_error
+
+        return error_message(write_error(err.filename, err))
     if isinstance(err, OSError) and err.filename is not None:
         reason = {
             errno.ENOENT: "no such file",

@@ -412,3 +412,17 @@ def test_bad_usage_is_exit_2_for_every_command(runner: CliRunner, path: list[str
     # (editing commands take unknown options as arguments, for negative numbers: -1000)
     assert result.exit_code == 2 and result.stdout == "", result.output
     assert "No such option" in result.stderr or "--no-such-option" in result.stderr
+
+
+@pytest.mark.parametrize("args", [
+    ["samples", "office.map", "-o", "/sys/mapkit-samples"],
+    ["samples", "office.map", "-o", "/sys"],
+    ["serve", "/sys/mapkit-maps", "--insecure", "--listen", "127.0.0.1:0"],
+])
+def test_a_folder_that_cannot_be_made_is_a_write_error(runner: CliRunner, args: list[str]) -> None:
+    if os.access("/sys", os.W_OK) and not os.path.ismount("/sys"):
+        pytest.skip("no read-only folder here (/sys is not sysfs)")
+    result = runner.invoke(cli, args)
+    assert result.exit_code == 1, result.output
+    assert re.fullmatch(r"Error: cannot write /sys(/[\w.-]+)?: folder /sys is read-only",
+                        lines(result)[-1]), lines(result)
