@@ -14,16 +14,107 @@ Nothing else is touched: not other targets' temp files, not files of another pat
 from __future__ import annotations
 
 import contextlib
+import contextvars
+import errno
 import os
 import re
-import tempfile
 import time
 from collections.abc import Iterable, Iterator
 from typing import BinaryIO
 
 from mapkit._typing import PathLike
 
-__all__ = ["STALE_AGE", "atomic_open", "atomic_write", "fsync_dir", "remove_stale_temps"]
+__all__ = [
+    "ReadOnlyFileError",
+    "WriteError",
+    "atomic_open",
+    "atomic_write",
+    "check_writable",
+    "STALE_AGE",
+    "fsync_dir",
+    "is_read_only",
+    "remove_stale_temps",
+    "write_error",
+    "replace_read_only",
+]
+
+#: When true, a read-only file may be replaced (``mapkit ... --force`` sets it for one command).
+replace_read_only: contextvars.ContextVar[bool] = contextvars.ContextVar(
+    "replace_read_only", default=False
+)
+
+
+class WriteError(OSError):
+    """A file could not be written. ``filename`` is the file asked for (never a temp file) and
+    ``strerror`` says why in words: ``folder is read-only``, ``folder ... does not exist``."""
+
+
+#: Errors of writing the temp file or renaming it (not, say, a dropped connection in the body).
+_WRITE_ERRNOS = frozenset(
+    {errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EPERM, errno.EFBIG, errno.EIO,
+     errno.ENOENT, errno.EISDIR, errno.ENOTDIR, errno.EXDEV}
+)
+
+
+class ReadOnlyFileError(WriteError):
+    """The file exists and is read-only; it is replaced only under :data:`replace_read_only`."""
+
+
+def write_error(target: str, err: OSError | None, why: str | None = None) -> WriteError:
+    """The :class:`WriteError` for ``target`` (the user's name for it) from the OS error ``err``,
+    with the reason in words: ``folder out does not exist``, ``folder out is read-only``."""
+    folder = os.path.dirname(target) or "."
+    code = err.errno if err is not None else errno.EACCES
+    if why is None:
+        if code == errno.ENOENT:
+            why = f"folder {folder} does not exist"
+        elif code == errno.ENOTDIR:
+            why = f"{folder} is not a folder"
+        elif code in (errno.EACCES, errno.EPERM, errno.EROFS):
+            why = f"folder {folder} is read-only"
+        elif code == errno.EISDIR:
+            why = "it is a folder"
+        else:
+            why = err.strerror if err is not None and err.strerror else str(err)
+    return WriteError(code or errno.EIO, why, target)
+
+
+def is_read_only(path: PathLike) -> bool:
+    """True for an existing file nobody may write (``chmod a-w``), or that this user may not."""
+    try:
+        mode = os.stat(path).st_mode
+    except OSError:
+        return False
+    return not mode & 0o222 or not os.access(path, os.W_OK)
+
+
+def check_writable(path: PathLike, *, probe: bool = True) -> None:
+    """Raise :class:`WriteError` now if ``path`` could not be written by :func:`atomic_open`.
+
+    For work that takes long before it writes: say at once that the folder is missing or
+    read-only, or that ``path`` is a read-only file (see :data:`replace_read_only`). With
+    ``probe`` a temp file is made and removed in the folder, the only sure test (root, read-only
+    mounts).
+    """
+    shown = os.fspath(path)
+    target = os.path.realpath(shown)
+    folder = os.path.dirname(target)
+    if os.path.isdir(target):
+        raise write_error(shown, None, "it is a folder")
+    if not os.path.isdir(folder):
+        missing = not os.path.exists(folder)
+        raise write_error(shown, OSError(errno.ENOENT if missing else errno.ENOTDIR, ""))
+    if is_read_only(target) and not replace_read_only.get():
+        raise ReadOnlyFileError(errno.EACCES, "the file is read-only", shown)
+    if probe:
+        import tempfile  # here: it brings shutil, bz2, lzma, which most commands never need
+
+        try:
+            fd, tmp = tempfile.mkstemp(prefix=".mapkit-probe.", suffix=".tmp", dir=folder)
+        except OSError as err:
+            raise write_error(shown, err) from err
+        os.close(fd)
+        os.unlink(tmp)
 
 #: Seconds after which a temp file of our pattern is stale even if its writer's pid is in use
 #: (pids are reused); no atomic write of mapkit takes that long.
@@ -58,15 +149,28 @@ def atomic_open(path: PathLike, *, backup: bool = False) -> Iterator[BinaryIO]:
     Yields:
         A binary file object.
 
+    A symlink is followed (the file it points to is replaced, the link stays); the new file
+    keeps the old one's permission bits. A read-only file is not replaced unless
+    :data:`replace_read_only` is set.
+
     Raises:
-        OSError: When the folder cannot be written (full disk, permissions, ...).
+        WriteError: When the file cannot be written (missing or read-only folder, read-only file,
+            full disk, ...); it names ``path``, not the temp file.
     """
-    target = os.fspath(path)
-    folder = os.path.dirname(os.path.abspath(target))
+    shown = os.fspath(path)
+    check_writable(shown, probe=False)
+    target = os.path.realpath(shown)
+    folder = os.path.dirname(target)
     with contextlib.suppress(OSError):  # best effort: a write never fails for want of a cleanup
         remove_stale_temps(target)
-    fd, tmp = tempfile.mkstemp(prefix=f".{os.path.basename(target)}.{os.getpid()}-", suffix=".tmp",
-                               dir=folder)
+    import tempfile
+
+    try:
+        fd, tmp = tempfile.mkstemp(
+            prefix=f".{os.path.basename(target)}.{os.getpid()}-", suffix=".tmp", dir=folder
+        )
+    except OSError as err:
+        raise write_error(shown, err) from err
     try:
         with os.fdopen(fd, "wb") as fh:
             yield fh
@@ -89,9 +193,16 @@ def atomic_open(path: PathLike, *, backup: bool = False) -> Iterator[BinaryIO]:
             os.chmod(tmp, 0o666 & ~_umask())
         os.replace(tmp, target)
         fsync_dir(folder)
-    except BaseException:
+    except BaseException as exc:
         with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp)
+        if (
+            isinstance(exc, OSError)
+            and not isinstance(exc, WriteError)
+            and exc.errno in _WRITE_ERRNOS
+            and exc.filename in (None, tmp, target, folder)
+        ):
+            raise write_error(shown, exc) from exc
         raise
 
 

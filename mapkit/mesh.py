@@ -32,6 +32,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from mapkit._atomic import atomic_write
+from mapkit._text import plural
 from mapkit._typing import PathLike
 from mapkit.errors import MapkitError, UnsupportedFormatError
 from mapkit.formats.registry import register_writer
@@ -129,7 +130,8 @@ def _pick_source(m: MapData, source: str) -> str:
     if (source == "lines" and not n_lines) or (source == "points" and not n_points):
         where = m.provenance.source if m.provenance else "the map"
         raise MeshError(f"{where} has no {source.upper() if source == 'lines' else source} "
-                        f"to make walls from ({n_points} points, {n_lines} lines)")
+                        f"to make walls from ({plural(n_points, 'point')}, "
+                        f"{plural(n_lines, 'line')})")
     return source
 
 

@@ -36,6 +36,7 @@ from typing import Any
 import numpy as np
 
 from mapkit._atomic import atomic_write
+from mapkit._text import plural
 from mapkit._typing import PathLike
 from mapkit.errors import MapkitError
 from mapkit.formats.laser2d import goal_event, loop_event
@@ -372,7 +373,8 @@ class SimulatedLog:
         from mapkit.formats.laser2d import write_log
 
         write_log(self.log, path, version=version)
-        msg = (f"wrote {os.fspath(path)}: {len(self.truth)} scans, {len(self.log.events)} events, "
+        msg = (f"wrote {os.fspath(path)}: {plural(len(self.truth), 'scan')}, "
+               f"{plural(len(self.log.events), 'event')}, "
                f"{self.distance / 1000:.1f} m driven, odometry off by {self.odometry_error[0]:.0f} mm "
                f"/ {self.odometry_error[1]:.1f} deg at the end")
         if truth:

@@ -23,8 +23,10 @@ OUT = ROOT / "docs" / "cli.md"
 
 def commands(group: click.Group, prefix: list[str]) -> Iterator[tuple[list[str], click.Command]]:
     yield prefix, group
-    for name in sorted(group.commands):
-        cmd = group.commands[name]
+    ctx = click.Context(group)
+    for name in group.list_commands(ctx):  # a lazy group imports each command here
+        cmd = group.get_command(ctx, name)
+        assert cmd is not None, name
         if isinstance(cmd, click.Group):
             yield from commands(cmd, [*prefix, name])
         else:
@@ -36,7 +38,8 @@ def render() -> str:
              "Generated from the code by `scripts/make_cli_docs.py`; a test fails when it is stale.",
              "Shell completion: `eval \"$(_MAPKIT_COMPLETE=bash_source mapkit)\"` (bash; `zsh_source`,",
              "`fish_source` for the others). Every command takes `-h/--help`; errors are one line",
-             "(`mapkit --debug COMMAND` shows the traceback).\n"]
+             "(`mapkit --debug COMMAND` shows the traceback), and exit statuses follow one rule,",
+             "printed at the end of `mapkit --help` below.\n"]
     for path, cmd in commands(cli, ["mapkit"]):
         ctx = click.Context(cmd, info_name=" ".join(path), terminal_width=100, max_content_width=100)
         parts.append(f"## `{' '.join(path)}`\n")

@@ -11,7 +11,7 @@ PKG = Path(__file__).resolve().parent.parent / "mapkit"
 
 # Lower number = lower layer. A module may import mapkit modules of its layer or lower ones.
 LAYERS = {
-    "mapkit.errors": 0, "mapkit.diagnostics": 0, "mapkit._typing": 0, "mapkit._atomic": 0,
+    "mapkit.errors": 0, "mapkit.diagnostics": 0, "mapkit._typing": 0, "mapkit._atomic": 0, "mapkit._text": 0,
     "mapkit.samples": 0,
     "mapkit.model": 1,
     "mapkit.formats": 2,

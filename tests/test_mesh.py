@@ -189,7 +189,7 @@ def test_convert_writes_meshes(tmp_path: Path) -> None:
 def test_no_walls_to_make() -> None:
     with pytest.raises(MeshError, match=r"has no LINES to make walls from \(0 points, 0 lines\)"):
         wall_mesh(MapData(), source="lines")
-    with pytest.raises(MeshError, match=r"has no points to make walls from \(0 points, 1 lines\)"):
+    with pytest.raises(MeshError, match=r"has no points to make walls from \(0 points, 1 line\)"):
         wall_mesh(lines_map([[0, 0, 1, 1]]), source="points")
 
 

@@ -2,16 +2,15 @@
 
 from __future__ import annotations
 
-import os
 
 import click
 
-from mapkit.cli.options import force_option
+from mapkit.cli.options import InputFile, check_outputs, force_option
 from mapkit.formats.registry import convert_file
 
 
 @click.command()
-@click.argument("src", type=click.Path(exists=True, dir_okay=False))
+@click.argument("src", type=InputFile())
 @click.argument("dst", type=click.Path(dir_okay=False))
 @force_option
 def convert(src: str, dst: str, force: bool) -> None:
@@ -23,6 +22,5 @@ def convert(src: str, dst: str, force: bool) -> None:
     Example:
       mapkit convert scanned.map clean.map
     """
-    if os.path.exists(dst) and not force and os.path.abspath(dst) != os.path.abspath(src):
-        raise click.UsageError(f"{dst} exists; add --force to overwrite it")
+    check_outputs([dst], force, same_as=src)
     click.echo(convert_file(src, dst))

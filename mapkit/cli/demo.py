@@ -7,12 +7,12 @@ from typing import Any
 
 import click
 
-from mapkit.cli.options import echo_json, json_option
+from mapkit.cli.options import InputFile, echo_json, json_option, plural
 
 
 @click.command()
 @click.argument("folder", default="mapkit-demo", type=click.Path(file_okay=False))
-@click.option("--log", "log_path", type=click.Path(exists=True, dir_okay=False),
+@click.option("--log", "log_path", type=InputFile(),
               help="Build from this .2d log instead of the bundled office-loop.2d.")
 @json_option
 def demo(folder: str, log_path: str | None, as_json: bool) -> None:
@@ -57,10 +57,10 @@ def demo(folder: str, log_path: str | None, as_json: bool) -> None:
     s = result.summary
     b = s.get("build", {})
     click.echo(f"\nmapkit demo: done in {sum(result.seconds.values()):.1f} s; files in {result.folder}")
-    click.echo(f"  built      {b.get('scans_used', b.get('scans', '?'))} scans -> "
-               f"{s['edit']['objects']} objects, MD5 {s['edit']['md5']}")
+    click.echo(f"  built      {plural(b.get('scans_used', b.get('scans', 0)), 'scan')} -> "
+               f"{plural(s['edit']['objects'], 'object')}, MD5 {s['edit']['md5']}")
     v = s["validate"]
-    click.echo(f"  validated  {v['errors']} errors, {v['warnings']} warnings")
+    click.echo(f"  validated  {plural(v['errors'], 'error')}, {plural(v['warnings'], 'warning')}")
     r = s["ros"]
     click.echo(f"  ROS map    {r['width']} x {r['height']} cells of {r['resolution_m']} m")
     t = s["transfer"]

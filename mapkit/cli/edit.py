@@ -19,8 +19,17 @@ from typing import Any
 import click
 
 from mapkit import edit as editing
-from mapkit.cli.options import backup_option, echo_json, err, force_option, json_option
-from mapkit.errors import MapkitError
+from mapkit.cli.options import (
+    InputFile,
+    backup_option,
+    check_outputs,
+    echo_json,
+    err,
+    force_option,
+    json_option,
+    plural,
+)
+from mapkit.errors import EditError, MapkitError
 from mapkit.formats.map import load, save
 from mapkit.model import MapData
 
@@ -45,7 +54,7 @@ def _stack(*decorators: Callable[[F], F]) -> Callable[[F], F]:
     return apply
 
 
-_map_arg = click.argument("map_file", metavar="MAP", type=click.Path(exists=True, dir_okay=False))
+_map_arg = click.argument("map_file", metavar="MAP", type=InputFile())
 _writes = _stack(
     click.option(
         "-o",
@@ -80,12 +89,20 @@ _area_opts = _stack(
         "--angle",
         type=float,
         default=0.0,
-        help="Angle of the area in degrees (ARIA turns it about the map origin).",
+        help="Angle of the area in degrees, counter-clockwise.",
+    ),
+    click.option(
+        "--rotate-about",
+        type=click.Choice(["centre", "origin"]),
+        default="centre",
+        show_default=True,
+        help="Turn the box drawn about its own centre, or about the map origin (0, 0) as ARIA "
+        "stores turned areas (the box then moves).",
     ),
     click.option(
         "--rotate-about-centre",
         is_flag=True,
-        help="Turn the area about its own centre instead of the origin.",
+        hidden=True,  # the default since 0.2; kept so older commands still run
     ),
 )
 _region_opts = _stack(
@@ -94,6 +111,12 @@ _region_opts = _stack(
         "--polygon", metavar="'X1,Y1 X2,Y2 ...'", help="A polygon region (3 or more vertices)."
     ),
 )
+
+
+def _rotate_about(rotate_about: str, rotate_about_centre: bool) -> str:
+    if rotate_about_centre and rotate_about == "origin":
+        raise click.UsageError("give --rotate-about origin or --rotate-about-centre, not both")
+    return rotate_about
 
 
 def _params(values: Sequence[str]) -> dict[str, str]:
@@ -141,21 +164,24 @@ def _apply(
 ) -> None:
     """Load, edit, report the changes, write atomically (unless nothing changed or a dry run)."""
     output, backup, force, dry_run = opts["output"], opts["backup"], opts["force"], opts["dry_run"]
-    if (
-        output
-        and os.path.exists(output)
-        and not force
-        and os.path.abspath(output) != os.path.abspath(map_file)
-    ):
-        raise click.UsageError(f"{output} exists; add --force to overwrite it")
+    if not dry_run:
+        check_outputs([output or map_file], force, same_as=map_file)
     m = load(map_file)
+    for lost in editing.missing_rows(m):
+        if not force:
+            raise EditError(
+                f"{map_file}: {lost}; an edit would write the smaller count and lose those rows "
+                "for good (restore the file, or add --force to edit what is left)"
+            )
+        err(f"warning: {map_file}: {lost}; --force: writing what is left")
     new = edit(m)
     d = editing.diff(m, new)
     lines = d.summary()
     for line in lines[:_MAX_LINES]:
         click.echo(line)
     if len(lines) > _MAX_LINES:
-        click.echo(f"... and {len(lines) - _MAX_LINES} more changes (mapkit diff shows them all)")
+        more = plural(len(lines) - _MAX_LINES, "more change")
+        click.echo(f"... and {more} (mapkit diff shows them all)")
     for n in notes(m, new) if notes else []:
         err(f"note: {n}")
     if dry_run:
@@ -287,6 +313,7 @@ def add_home_cmd(
     heading: float | None,
     area: tuple[float, ...],
     angle: float,
+    rotate_about: str,
     rotate_about_centre: bool,
     name: str,
     description: str,
@@ -310,7 +337,7 @@ def add_home_cmd(
             heading=heading,
             area=area or None,
             angle=angle,
-            rotate_about_centre=rotate_about_centre,
+            rotate_about=_rotate_about(rotate_about, rotate_about_centre),
             name=name,
             description=description,
             allow_duplicate=allow_duplicate,
@@ -332,6 +359,7 @@ def forbid_cmd(
     map_file: str,
     area: tuple[float, ...],
     angle: float,
+    rotate_about: str,
     rotate_about_centre: bool,
     line: tuple[float, ...],
     name: str,
@@ -341,19 +369,20 @@ def forbid_cmd(
 ) -> None:
     """Add a ForbiddenArea (--area) or a ForbiddenLine (--line).
 
-    ARIA stores a turned area as corners in a frame turned by the angle about the map origin, so
-    --angle alone turns the drawn box about (0, 0); add --rotate-about-centre to get the box you
-    drew, turned in place.
+    --angle turns the box you drew about its own centre, so it stays where you drew it. ARIA
+    stores a turned area as corners in a frame turned about the map origin; mapkit computes
+    them. Reports give the corners in the world, as `mapkit objects` does. --rotate-about origin
+    turns the given corners about (0, 0) instead, the way ARIA reads stored corners.
 
     \b
     Examples:
-      mapkit forbid office.map --area 1000 1000 3000 2000 --angle 30 --rotate-about-centre
+      mapkit forbid office.map --area 1000 1000 3000 2000 --angle 30
       mapkit forbid office.map --line -5000 0 5000 0
     """
     if bool(area) == bool(line):
         raise click.UsageError("give --area X1 Y1 X2 Y2 or --line X1 Y1 X2 Y2")
-    if line and (angle or rotate_about_centre):
-        raise click.UsageError("--angle and --rotate-about-centre are for --area")
+    if line and (angle or rotate_about_centre or rotate_about != "centre"):
+        raise click.UsageError("--angle and --rotate-about are for --area")
     _apply(
         map_file,
         opts,
@@ -362,7 +391,7 @@ def forbid_cmd(
             area=area or None,
             line=line or None,
             angle=angle,
-            rotate_about_centre=rotate_about_centre,
+            rotate_about=_rotate_about(rotate_about, rotate_about_centre),
             name=name,
             description=description,
             allow_duplicate=allow_duplicate,
@@ -392,6 +421,7 @@ def add_object_cmd(
     heading: float | None,
     area: tuple[float, ...],
     angle: float,
+    rotate_about: str,
     rotate_about_centre: bool,
     line: tuple[float, ...],
     name: str,
@@ -422,7 +452,7 @@ def add_object_cmd(
             heading=heading,
             area=area or None,
             angle=angle,
-            rotate_about_centre=rotate_about_centre,
+            rotate_about=_rotate_about(rotate_about, rotate_about_centre),
             line=line or None,
             name=name,
             description=description,
@@ -764,8 +794,8 @@ def _merge_notes(other: MapData, on_clash: str) -> _Notes:
 
 
 @click.command("merge", context_settings=_SETTINGS)
-@click.argument("base", type=click.Path(exists=True, dir_okay=False))
-@click.argument("other", type=click.Path(exists=True, dir_okay=False))
+@click.argument("base", type=InputFile())
+@click.argument("other", type=InputFile())
 @click.option(
     "--region",
     nargs=4,
@@ -813,8 +843,8 @@ def merge_cmd(
 
 
 @click.command("diff")
-@click.argument("a", type=click.Path(dir_okay=False))
-@click.argument("b", type=click.Path(dir_okay=False))
+@click.argument("a", type=InputFile())
+@click.argument("b", type=InputFile())
 @json_option
 def diff_cmd(a: str, b: str, as_json: bool) -> None:
     """Show what differs from map A to map B. Exit 0 when equal, 1 when different, 2 on error.
@@ -825,10 +855,10 @@ def diff_cmd(a: str, b: str, as_json: bool) -> None:
     """
     try:
         ma, mb = load(a), load(b)
-    except (MapkitError, OSError) as e:
-        message = f"{e.filename}: {e.strerror}" if isinstance(e, OSError) and e.strerror else str(e)
-        click.echo(f"Error: {message}", err=True)
-        sys.exit(2)
+    except (MapkitError, OSError) as e:  # 1 means "different" here, so errors are 2
+        from mapkit.cli.main import EXIT_USAGE, CommandError, error_message
+
+        raise CommandError(error_message(e)[0], EXIT_USAGE) from e
     d = editing.diff(ma, mb)
     if as_json:
         echo_json(d.to_json())
@@ -851,7 +881,7 @@ def diff_cmd(a: str, b: str, as_json: bool) -> None:
     "--script",
     "script",
     required=True,
-    type=click.Path(exists=True, dir_okay=False),
+    type=InputFile(),
     help="A YAML or JSON file of edits (see docs/edit.md).",
 )
 @_writes
@@ -866,7 +896,7 @@ def edit_cmd(map_file: str, script: str, **opts: Any) -> None:
     """
     edits = editing.load_script(script)
     base_dir = os.path.dirname(os.path.abspath(script))
-    err(f"{len(edits)} edit(s) from {script}")
+    err(f"{plural(len(edits), 'edit')} from {script}")
     _apply(map_file, opts, lambda m: editing.apply_script(m, edits, base_dir=base_dir))
 
 

@@ -7,10 +7,10 @@ from typing import Any
 
 import click
 
-from mapkit.cli.options import echo_json, json_option
+from mapkit.cli.options import InputFile, echo_json, json_option, plural
 from mapkit.formats.map import load, written_category
 from mapkit.model import MapData
-from mapkit.samples import sample_path
+from mapkit.model.map import missing_rows
 
 #: Width in pixels of ``--thumbnail`` pictures.
 THUMBNAIL_WIDTH = 320
@@ -46,11 +46,13 @@ def summary(m: MapData) -> dict[str, Any]:
         "inactive_info": {k: len(v) for k, v in m.inactive_info.items()},
         "origin_lla": list(m.origin_lla) if m.origin_lla else None,
         "unknown_lines": len(m.remainder),
+        "missing_rows": missing_rows(m),
     }
 
 
+
 @click.command()
-@click.argument("map_file", required=False, type=click.Path(dir_okay=False))
+@click.argument("map_file", required=False, type=InputFile())
 @click.option("--sample", help="Use a bundled sample map by name (e.g. office).")
 @click.option("--thumbnail", type=click.Path(dir_okay=False),
               help="Also write a small picture of the map (PNG; .svg/.pdf by suffix).")
@@ -66,7 +68,11 @@ def info(map_file: str | None, sample: str | None, thumbnail: str | None, as_jso
     """
     if (map_file is None) == (sample is None):
         raise click.UsageError("give a MAP_FILE or --sample NAME")
-    path = str(sample_path(sample)) if sample else map_file
+    path = map_file
+    if sample:
+        from mapkit.samples import sample_path  # importlib.resources: only when asked for
+
+        path = str(sample_path(sample))
     assert path is not None
     m = load(path)
     data = summary(m)
@@ -75,6 +81,8 @@ def info(map_file: str | None, sample: str | None, thumbnail: str | None, as_jso
 
         pic = render(m, thumbnail, width=THUMBNAIL_WIDTH, thumbnail=True)
         data["thumbnail"] = {"path": pic.path, "width": pic.width, "height": pic.height}
+    for lost in data["missing_rows"]:
+        click.echo(f"warning: {path}: {lost}; editing it would lose them for good", err=True)
     if as_json:
         echo_json(data)
         return
@@ -83,8 +91,9 @@ def info(map_file: str | None, sample: str | None, thumbnail: str | None, as_jso
         label = f"source {s['name']!r}" if s["name"] else "scan"
         box = f"{s['min_pos']} .. {s['max_pos']}" if s["num_points"] else "-"
         lbox = f"{s['line_min_pos']} .. {s['line_max_pos']}" if s["num_lines"] else "-"
-        click.echo(f"  {label}: {s['num_points']} points (box {box}, resolution {s['resolution']} mm, "
-                   f"sorted {str(s['points_sorted']).lower()}), {s['num_lines']} lines (box {lbox})")
+        click.echo(f"  {label}: {plural(s['num_points'], 'point')} (box {box}, resolution "
+                   f"{s['resolution']} mm, sorted {str(s['points_sorted']).lower()}), "
+                   f"{plural(s['num_lines'], 'line')} (box {lbox})")
     if data["objects"]:
         objs = ", ".join(f"{n} {t}" for t, n in sorted(data["objects"].items()))
         click.echo(f"  objects: {objs}")
@@ -94,11 +103,11 @@ def info(map_file: str | None, sample: str | None, thumbnail: str | None, as_jso
         click.echo("  info: " + ", ".join(f"{k} {n}" for k, n in data["info"].items()))
     extra = []
     if data["inactive_objects"]:
-        extra.append(f"{data['inactive_objects']} inactive objects")
+        extra.append(plural(data["inactive_objects"], "inactive object"))
     if data["child_objects"]:
-        extra.append(f"{data['child_objects']} child objects")
+        extra.append(plural(data["child_objects"], "child object"))
     if data["unknown_lines"]:
-        extra.append(f"{data['unknown_lines']} unknown lines kept")
+        extra.append(plural(data["unknown_lines"], "unknown line") + " kept")
     if data["origin_lla"]:
         extra.append("origin lat/long/alt {:.6f} {:.6f} {:.1f}".format(*data["origin_lla"]))
     if extra:

@@ -2,13 +2,21 @@
 
 from __future__ import annotations
 
-import os
 import sys
 from typing import Any
 
 import click
 
-from mapkit.cli.options import echo_json, err, force_option, json_option, output_option
+from mapkit.cli.options import (
+    InputFile,
+    check_outputs,
+    echo_json,
+    err,
+    force_option,
+    json_option,
+    output_option,
+    plural,
+)
 
 
 def _floats(text: str, n: tuple[int, ...], what: str) -> tuple[float, ...]:
@@ -22,12 +30,11 @@ def _floats(text: str, n: tuple[int, ...], what: str) -> tuple[float, ...]:
 
 
 def _check_output(path: str, force: bool) -> None:
-    if os.path.exists(path) and not force:
-        raise click.UsageError(f"{path} exists; add --force to overwrite it")
+    check_outputs([path], force)
 
 
 @click.command()
-@click.argument("map_file", required=False, type=click.Path(dir_okay=False))
+@click.argument("map_file", required=False, type=InputFile())
 @output_option("The .2d log to write.", required=True)
 @click.option("--sample", help="Use a bundled sample map by name (e.g. office).")
 @click.option("--version", "log_version", type=click.IntRange(1, 4), default=4, show_default=True,
@@ -131,7 +138,7 @@ class _Bar:
 
 
 @click.command()
-@click.argument("log_file", type=click.Path(exists=True, dir_okay=False))
+@click.argument("log_file", type=InputFile())
 @output_option("The .map to write.", required=True)
 @click.option("--resolution", type=click.IntRange(1, 1000), default=20, show_default=True,
               help="Grid of the map's points (mm).")
@@ -183,14 +190,16 @@ def build(log_file: str, output: str, resolution: int, no_register: bool, no_loo
         err(str(issue))
     reg = s["registration"]
     loops = s["loops"]
-    click.echo(f"wrote {output} (MD5 {md5}): {s['points']} points, {s['lines']} lines, "
-               f"{s['goals']} goals, RobotHome at the start")
+    click.echo(f"wrote {output} (MD5 {md5}): {plural(s['points'], 'point')}, "
+               f"{plural(s['lines'], 'line')}, {plural(s['goals'], 'goal')}, RobotHome at the start")
     click.echo(f"  scans: {s['scans_used']} used of {s['scans_in_log']}, path {s['path_length_m']} m")
     if s["register"]:
-        click.echo(f"  registration: {reg['registered']} scans matched, {reg['odometry_only']} on "
+        click.echo(f"  registration: {plural(reg['registered'], 'scan')} matched, "
+                   f"{reg['odometry_only']} on "
                    f"odometry alone, median residual {reg['median_residual_mm']} mm")
-        click.echo(f"  loops: {loops['tags']} loop tags ({loops['tags_matched']} matched), "
-                   f"{loops['revisits']} revisits closed, {loops['optimisations']} optimisations, "
+        click.echo(f"  loops: {plural(loops['tags'], 'loop tag')} ({loops['tags_matched']} matched), "
+                   f"{plural(loops['revisits'], 'revisit')} closed, "
+                   f"{plural(loops['optimisations'], 'optimisation')}, "
                    f"largest correction {loops['max_correction_mm']} mm / "
                    f"{loops['max_correction_deg']} deg; the end moved "
                    f"{s['end_shift_from_odometry_mm']} mm from odometry")
@@ -201,7 +210,7 @@ def build(log_file: str, output: str, resolution: int, no_register: bool, no_loo
 
 
 @click.command("log-info")
-@click.argument("log_file", type=click.Path(exists=True, dir_okay=False))
+@click.argument("log_file", type=InputFile())
 @click.option("--tolerant", is_flag=True, help="Count bad records instead of failing on the first.")
 @json_option
 def log_info(log_file: str, tolerant: bool, as_json: bool) -> None:

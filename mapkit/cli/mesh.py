@@ -6,7 +6,14 @@ import os
 
 import click
 
-from mapkit.cli.options import echo_json, force_option, json_option, output_option
+from mapkit.cli.options import (
+    InputFile,
+    check_outputs,
+    echo_json,
+    force_option,
+    json_option,
+    output_option,
+)
 from mapkit.formats.registry import read_any
 from mapkit.mesh import export_mesh as export
 
@@ -14,7 +21,7 @@ _POSITIVE = click.FloatRange(0, min_open=True)
 
 
 @click.command("export-mesh", short_help="A 3D wall mesh (STL/OBJ/GLB/DAE) and a Gazebo world.")
-@click.argument("map_file", type=click.Path(exists=True, dir_okay=False))
+@click.argument("map_file", type=InputFile())
 @output_option("Mesh to write: .stl, .obj, .glb or .dae.", required=True)
 @click.option("--height", type=_POSITIVE, default=2.0, show_default=True, help="Wall height (m).")
 @click.option("--thickness", type=_POSITIVE, default=0.1, show_default=True,
@@ -45,9 +52,7 @@ def export_mesh(map_file: str, output: str, height: float, thickness: float, sou
         raise click.UsageError("--world and --no-world exclude each other")
     if not no_world and world is None:
         world = os.path.splitext(output)[0] + ".sdf"
-    for path in (output, world):
-        if path is not None and os.path.exists(path) and not force:
-            raise click.UsageError(f"{path} exists; add --force to overwrite it")
+    check_outputs([p for p in (output, world) if p is not None], force)
     m = read_any(map_file)
     r = export(m, output, height=height, thickness=thickness, source=source,
                resolution=resolution, world=None if no_world else world)

@@ -8,24 +8,24 @@ from pathlib import Path
 import click
 
 from mapkit.cli.options import (
+    InputFile,
     RowsBar,
+    check_outputs,
     echo_json,
     err,
     force_option,
     json_option,
     output_option,
+    plural,
 )
 
 
 def _refuse_existing(paths: list[Path], force: bool) -> None:
-    existing = [str(p) for p in paths if p.exists()]
-    if existing and not force:
-        verb = "exists" if len(existing) == 1 else "exist"
-        raise click.UsageError(f"{', '.join(existing)} {verb}; add --force to overwrite")
+    check_outputs([str(p) for p in paths], force)
 
 
 @click.command()
-@click.argument("map_file", type=click.Path(exists=True, dir_okay=False))
+@click.argument("map_file", type=InputFile())
 @output_option("The map YAML to write (NAME.yaml; the image NAME.pgm goes beside it). "
                "Default: MAP's name with .yaml, in the current folder.")
 @click.option("--resolution", type=float, default=0.05, show_default=True, metavar="M",
@@ -45,7 +45,7 @@ def _refuse_existing(paths: list[Path], force: bool) -> None:
 @click.option("--inflate", type=float, default=0.0, metavar="MM", help="Grow walls by MM.")
 @click.option("--forbidden-as-walls", is_flag=True,
               help="Draw forbidden areas and lines into the map as walls.")
-@click.option("--log", "log_path", type=click.Path(exists=True, dir_okay=False), metavar="LOG.2d",
+@click.option("--log", "log_path", type=InputFile(), metavar="LOG.2d",
               help="Free space = the cells this laser log's beams pass through (the log must be in "
                    "the map's frame: its robotGlobal: poses, else its odometry).")
 @force_option
@@ -92,18 +92,18 @@ def rasterize(map_file: str, output: str | None, resolution: float, mode: str, f
     f = result.filters
     if f is not None:
         if f.keepout_yaml is not None:
-            click.echo(f"wrote {f.keepout_yaml} and {f.keepout_image}: {f.keepout_zones} keepout "
-                       "zone(s)")
+            click.echo(f"wrote {f.keepout_yaml} and {f.keepout_image}: "
+                       f"{plural(f.keepout_zones, 'keepout zone')}")
         if f.speed_yaml is not None:
-            click.echo(f"wrote {f.speed_yaml} and {f.speed_image}: {f.speed_zones} speed zone(s), "
+            click.echo(f"wrote {f.speed_yaml} and {f.speed_image}: {plural(f.speed_zones, 'speed zone')}, "
                        f"{f.speed_multiplier:g} m/s per unit")
         click.echo(f"wrote {f.params} (Nav2 costmap filter parameters)")
 
 
 @click.command("import-ros")
-@click.argument("yaml_file", type=click.Path(exists=True, dir_okay=False))
+@click.argument("yaml_file", type=InputFile())
 @output_option("The .map to write. Default: YAML's name with .map, in the current folder.")
-@click.option("--keepout", type=click.Path(exists=True, dir_okay=False), metavar="MASK.yaml",
+@click.option("--keepout", type=InputFile(), metavar="MASK.yaml",
               help="A keepout mask (map_server YAML) to import as forbidden areas.")
 @click.option("--flavor", type=click.Choice(["ros1", "nav2"]), default="ros1", show_default=True,
               help="Read the image as ROS 1 map_server or Nav2 does.")
@@ -143,5 +143,6 @@ def import_ros(yaml_file: str, output: str | None, keepout: str | None, flavor: 
         echo_json({"map": os.fspath(out), "md5": md5, "points": m.scan.num_points,
                    "lines": m.scan.num_lines, "forbidden_areas": areas, "forbidden_lines": lines})
         return
-    click.echo(f"wrote {out} (MD5 {md5}): {m.scan.num_points} points, {m.scan.num_lines} lines, "
-               f"{areas} forbidden areas, {lines} forbidden lines")
+    click.echo(f"wrote {out} (MD5 {md5}): {plural(m.scan.num_points, 'point')}, "
+               f"{plural(m.scan.num_lines, 'line')}, {plural(areas, 'forbidden area')}, "
+               f"{plural(lines, 'forbidden line')}")

@@ -2,17 +2,24 @@
 
 from __future__ import annotations
 
-import os
 
 import click
 
-from mapkit.cli.options import echo_json, err, force_option, json_option, output_option
+from mapkit.cli.options import (
+    InputFile,
+    check_outputs,
+    echo_json,
+    err,
+    force_option,
+    json_option,
+    output_option,
+)
 from mapkit.formats.registry import read_any
 from mapkit.render import render as render_map
 
 
 @click.command(short_help="Draw a map as PNG, SVG or PDF, or in a window.")
-@click.argument("map_file", type=click.Path(exists=True, dir_okay=False))
+@click.argument("map_file", type=InputFile())
 @output_option("Picture to write: .png, .svg or .pdf.")
 @click.option("--show", is_flag=True, help="Open a window with the picture (needs a display).")
 @click.option("--width", type=click.IntRange(32, 20000), default=1600, show_default=True,
@@ -47,8 +54,8 @@ def render(map_file: str, output: str | None, show: bool, width: int, height: in
     """
     if output is None and not show:
         raise click.UsageError("give -o OUT.png|svg|pdf or --show")
-    if output is not None and os.path.exists(output) and not force:
-        raise click.UsageError(f"{output} exists; add --force to overwrite it")
+    if output is not None:
+        check_outputs([output], force)
     m = read_any(map_file)
     r = render_map(m, output, show=show, width=width, height=height, dpi=dpi,
                    show_names=not no_names, show_points=not no_points, show_lines=not no_lines,

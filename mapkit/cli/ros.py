@@ -14,7 +14,7 @@ from typing import Any
 import click
 
 from mapkit.cli.aria import robot_options as _aria_robot_options
-from mapkit.cli.options import RowsBar, echo_json, err, json_option
+from mapkit.cli.options import InputFile, RowsBar, echo_json, err, json_option, plural
 from mapkit.cli.transfer import _auth_text, _progress, _quiet, _secret_options, _size, print_listing
 
 
@@ -28,7 +28,7 @@ def ros() -> None:
 
 
 @ros.command("map-server")
-@click.argument("map_file", type=click.Path(dir_okay=False))
+@click.argument("map_file", type=InputFile())
 @click.option("--resolution", type=float, default=0.05, show_default=True,
               help="Metres per cell for .map files.")
 @click.option("--frame-id", default="map", show_default=True,
@@ -59,8 +59,8 @@ def map_server(map_file: str, resolution: float, frame_id: str, free: str, as_js
         else:
             err(f"serving {info['file']} on /map: {info['width']} x {info['height']} cells of "
                 f"{info['resolution']:g} m, origin ({info['origin'][0]:g}, {info['origin'][1]:g}); "
-                f"{len(info['goals'])} goals, {len(info['homes'])} homes, "
-                f"{len(info['docks'])} docks. "
+                f"{plural(len(info['goals']), 'goal')}, {plural(len(info['homes']), 'home')}, "
+                f"{plural(len(info['docks']), 'dock')}. "
                 "Ctrl-C stops.")
 
     bar = RowsBar("loading map")
@@ -267,7 +267,7 @@ def _fleet_rows(results: list[Any]) -> list[dict[str, Any]]:
 
 
 @ros.command("send")
-@click.argument("file", type=click.Path(dir_okay=False, exists=True))
+@click.argument("file", type=InputFile())
 @_channel_option
 @click.option("--name", help="Name on the robots (default: the file's name).")
 @click.option("--robot", "robots", multiple=True, help="Only this robot (repeat for several).")
@@ -312,7 +312,7 @@ def send(file: str, channel: str, name: str | None, robots: tuple[str, ...], exp
         width = max(5, *(len(r["robot"]) for r in rows))
         click.echo(f"{'robot':<{width}}  received  verified  loaded  note")
         for r in rows:
-            resumed = f"{r['resumed_chunks']} chunks resumed" if r["resumed_chunks"] else ""
+            resumed = f"{plural(r['resumed_chunks'], 'chunk')} resumed" if r["resumed_chunks"] else ""
             note = r["error"] or ("already had it" if r["skipped"] else resumed)
             click.echo(f"{r['robot']:<{width}}  {yn(r['received']):<8}  {yn(r['verified']):<8}  "
                        f"{yn(r['loaded']):<6}  {note}".rstrip())
@@ -348,7 +348,7 @@ def fetch(name: str, output: str | None, channel: str, robot: str | None, if_cha
         click.echo(f"{result['path']} is up to date (SHA-256 {result['sha256'][:16]}…), "
                    "nothing fetched")
     else:
-        resumed = f", {result['resumed']} chunks resumed" if result["resumed"] else ""
+        resumed = f", {plural(result['resumed'], 'chunk')} resumed" if result["resumed"] else ""
         click.echo(f"fetched {name} from {result['robot']} into {result['path']}: "
                    f"{_size(result['size'])}, SHA-256 verified{resumed}")
 

@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
-import shutil
 from pathlib import Path
 
 import click
 
+from mapkit._atomic import atomic_write, write_error
 from mapkit.cli.options import echo_json, json_option
 from mapkit.samples import list_samples, sample_path
 
@@ -39,11 +39,14 @@ def samples(names: tuple[str, ...], folder: str | None, copy_all: bool, as_json:
     if not chosen:
         raise click.UsageError("name the samples to copy, or give --all")
     dest = Path(folder)
-    dest.mkdir(parents=True, exist_ok=True)
+    try:
+        dest.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise write_error(str(dest), e) from e
     copied = []
     for n in chosen:
         src = sample_path(n)
-        shutil.copyfile(src, dest / src.name)
+        atomic_write(dest / src.name, src.read_bytes())
         copied.append(str(dest / src.name))
     if as_json:
         echo_json(copied)

@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING, Any, TypeVar
 
 import click
 
-from mapkit.cli.options import echo_json, err, json_option
+from mapkit.cli.options import InputFile, echo_json, err, json_option, plural
 
 if TYPE_CHECKING:
     from mapkit.transfer import Client, MapServer
@@ -47,7 +47,7 @@ def _secret_options(f: F) -> F:
 def _client_options(f: F) -> F:
     f = _secret_options(f)
     f = click.option("--tls", "use_tls", is_flag=True, help="Use TLS (the robot runs with --tls-cert).")(f)
-    f = click.option("--tls-ca", type=click.Path(dir_okay=False, exists=True),
+    f = click.option("--tls-ca", type=InputFile(),
                      help="Trust this CA or the robot's own certificate (implies --tls).")(f)
     f = click.option("--tls-no-verify", is_flag=True,
                      help="TLS without checking the certificate (the secret still authenticates).")(f)
@@ -147,8 +147,8 @@ def _server_setup(listen_addr: str, secret_file: str | None, insecure: bool, tls
 @click.option("--listen", "listen_addr", default=f"0.0.0.0:{DEFAULT_PORT}", show_default=True,
               metavar="HOST:PORT", help="Address to listen on (port 0: any free port).")
 @_secret_options
-@click.option("--tls-cert", type=click.Path(dir_okay=False, exists=True), help="TLS certificate (PEM).")
-@click.option("--tls-key", type=click.Path(dir_okay=False, exists=True), help="TLS private key (PEM).")
+@click.option("--tls-cert", type=InputFile(), help="TLS certificate (PEM).")
+@click.option("--tls-key", type=InputFile(), help="TLS private key (PEM).")
 @click.option("--max-size", type=int, default=1 << 30, show_default=True, help="Largest file accepted (bytes).")
 @click.option("--handshake-timeout", type=click.FloatRange(min=0.1), default=5.0, show_default=True,
               help="Seconds a client has from connecting to proving the secret.")
@@ -186,8 +186,8 @@ def serve(folder: str, listen_addr: str, secret_file: str | None, insecure: bool
 @click.option("-o", "--output", "folder", type=click.Path(file_okay=False), default=".",
               show_default=True, help="Folder for received files.")
 @_secret_options
-@click.option("--tls-cert", type=click.Path(dir_okay=False, exists=True), help="TLS certificate (PEM).")
-@click.option("--tls-key", type=click.Path(dir_okay=False, exists=True), help="TLS private key (PEM).")
+@click.option("--tls-cert", type=InputFile(), help="TLS certificate (PEM).")
+@click.option("--tls-key", type=InputFile(), help="TLS private key (PEM).")
 @click.option("--once", is_flag=True, help="Exit after the first file received.")
 @json_option
 def receive(listen_addr: str, folder: str, secret_file: str | None, insecure: bool,
@@ -239,7 +239,7 @@ def receive(listen_addr: str, folder: str, secret_file: str | None, insecure: bo
 
 
 @click.command()
-@click.argument("file", type=click.Path(dir_okay=False, exists=True))
+@click.argument("file", type=InputFile())
 @click.argument("address", metavar="HOST[:PORT]")
 @click.option("--name", help="Name on the robot (default: the file's name).")
 @click.option("--load", "and_load", is_flag=True, help="Then make it the robot's active map.")
@@ -265,7 +265,7 @@ def send(file: str, address: str, name: str | None, and_load: bool, secret_file:
     if as_json:
         echo_json(result)
         return
-    resumed = f", {result['chunks_skipped']} chunks were already there" if result["chunks_skipped"] else ""
+    resumed = f", {plural(result['chunks_skipped'], 'chunk was', 'chunks were')} already there" if result["chunks_skipped"] else ""
     click.echo(f"sent {result['name']} to {address}: {_size(result['size'])} in "
                f"{result['seconds']:.2f} s ({result['mb_per_s'] or 0:.1f} MB/s), SHA-256 verified{resumed}")
     if and_load:
@@ -296,7 +296,7 @@ def fetch(address: str, name: str, output: str | None, if_changed: bool, secret_
     elif not result["modified"]:
         click.echo(f"{result['path']} is up to date (MD5 {result.get('md5') or '-'}), nothing fetched")
     else:
-        resumed = f", {result['chunks_resumed']} chunks resumed" if result["chunks_resumed"] else ""
+        resumed = f", {plural(result['chunks_resumed'], 'chunk')} resumed" if result["chunks_resumed"] else ""
         click.echo(f"fetched {name} from {address} into {result['path']}: {_size(result['size'])} in "
                    f"{result['seconds']:.2f} s, SHA-256 verified{resumed}")
 

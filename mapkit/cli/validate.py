@@ -7,7 +7,7 @@ from collections import Counter
 
 import click
 
-from mapkit.cli.options import echo_json, json_option
+from mapkit.cli.options import InputFile, echo_json, json_option, plural
 from mapkit.diagnostics import Issue, Severity
 from mapkit.errors import MapkitError
 from mapkit.validate import DEFAULT_ROBOT_RADIUS, ValidationReport
@@ -66,13 +66,13 @@ def render_text(report: ValidationReport) -> list[str]:
             shown[code] += 1
             out.append(f"  {_where(issue)}: MK{code} {issue.message}")
         for code, n in hidden.items():
-            out.append(f"  ... {n} more MK{code} findings (--json lists them all)")
+            out.append(f"  ... {plural(n, f'more MK{code} finding')} (--json lists them all)")
     out.append(summary_line(report))
     return out
 
 
 @click.command()
-@click.argument("map_file", type=click.Path(dir_okay=False))
+@click.argument("map_file", type=InputFile(check=False))
 @json_option
 @click.option(
     "--robot-radius",
@@ -107,10 +107,9 @@ def validate(
     try:
         report = run_validate(map_file, robot_radius=robot_radius, navigation=not no_navigation)
     except (MapkitError, OSError) as err:
-        if isinstance(err, OSError) and err.filename and err.strerror:
-            message = f"{err.filename}: {err.strerror}"
-        else:
-            message = str(err)
+        from mapkit.cli.main import error_message
+
+        message = error_message(err)[0]
         if as_json:
             echo_json({"file": map_file, "readable": False, "error": message})
         click.echo(

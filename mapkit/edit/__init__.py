@@ -30,7 +30,7 @@ Examples:
     points: 2 removed in (0, 0)-(100, 0) (3 -> 1)
 """
 
-from mapkit.edit.checks import COORD_LIMIT, SPAN_LIMIT
+from mapkit.edit.checks import COORD_LIMIT, SPAN_LIMIT, missing_rows
 from mapkit.edit.diff import DataChange, InfoChange, MapDiff, ObjectChange, ValueChange, diff
 from mapkit.edit.geometry import Rigid, rect_about_centre
 from mapkit.edit.listing import list_objects
@@ -89,6 +89,7 @@ __all__ = [
     "load_script",
     "merge",
     "merge_clashes",
+    "missing_rows",
     "move",
     "name_references",
     "parse_script",

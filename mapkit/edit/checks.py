@@ -24,9 +24,11 @@ import numpy as np
 
 from mapkit.errors import EditError
 from mapkit.model import MapData, Scan
+from mapkit.model.map import missing_rows
 
 __all__ = [
     "COORD_LIMIT",
+    "missing_rows",
     "SPAN_LIMIT",
     "check_coord",
     "check_data_range",
@@ -156,3 +158,4 @@ def check_type_name(value: Any) -> str:
     if not isinstance(value, str) or not _TYPE_TOKEN.match(value):
         raise EditError(f"object type {value!r} must be one word without spaces or quotes")
     return value
+

@@ -254,7 +254,8 @@ def params_for_new_object(
     unknown = [k for k in values if k.lower() not in known]
     if unknown:
         raise EditError(
-            f"unknown parameter(s) {', '.join(unknown)} for type {type!r}; it has "
+            f"unknown {'parameter' if len(unknown) == 1 else 'parameters'} "
+            f"{', '.join(unknown)} for type {type!r}; it has "
             f"{', '.join(s.name for s in specs)}"
         )
     if not name:

@@ -71,9 +71,11 @@ def _fmt(v: float) -> str:
 def _where(o: MapObject) -> str:
     if o.from_to is None:
         return f"({_fmt(o.x)}, {_fmt(o.y)})" + (f" heading {o.theta:g}" if o.theta else "")
+    if o.theta:  # a turned rectangle: its corners in the world, not ARIA's stored frame
+        corners = " ".join(f"({x:.0f}, {y:.0f})" for x, y in o.corners())  # as `objects`
+        return f"corners {corners}, turned {o.theta:g}"
     fx, fy, tx, ty = o.from_to
-    turn = f" turned {o.theta:g}" if o.theta else ""
-    return f"({_fmt(fx)}, {_fmt(fy)}) - ({_fmt(tx)}, {_fmt(ty)}){turn}"
+    return f"({_fmt(fx)}, {_fmt(fy)}) - ({_fmt(tx)}, {_fmt(ty)})"
 
 
 def _label(o: MapObject) -> str:

@@ -33,6 +33,7 @@ from typing import Any
 
 import numpy as np
 
+from mapkit._text import plural
 from mapkit.edit.checks import (
     check_coord,
     check_data_range,
@@ -183,6 +184,24 @@ def _area(
     return ft, angle
 
 
+ROTATE_ABOUT = ("centre", "origin")
+
+
+def _about_centre(rotate_about: str, rotate_about_centre: bool | None) -> bool:
+    """Whether an area's ``angle`` turns it about its own centre (the default) or the origin."""
+    if rotate_about == "center":
+        rotate_about = "centre"
+    if rotate_about not in ROTATE_ABOUT:
+        raise EditError(f"rotate about {rotate_about!r}: give 'centre' or 'origin'")
+    if rotate_about_centre is None:
+        return rotate_about == "centre"
+    if not rotate_about_centre and rotate_about == "centre":
+        return False  # the old spelling of "about the origin": rotate_about_centre=False
+    if rotate_about_centre and rotate_about == "origin":
+        raise EditError("rotate about the centre or the origin, not both")
+    return True
+
+
 def _segment(line: Sequence[Any], what: str = "line") -> tuple[float, float, float, float]:
     if len(line) != 4:
         raise EditError(f"a {what} is 4 numbers X1 Y1 X2 Y2, got {len(line)}")
@@ -207,7 +226,8 @@ def add_object(
     heading: float | None = None,
     area: Sequence[float] | None = None,
     angle: float = 0.0,
-    rotate_about_centre: bool = False,
+    rotate_about: str = "centre",
+    rotate_about_centre: bool | None = None,
     line: Sequence[float] | None = None,
     name: str = "",
     description: str = "",
@@ -221,8 +241,9 @@ def add_object(
     The shape must fit the type's class: goal, dock and location types are points, sector
     types rectangles, boundary types lines (``RobotHome`` may be a point or a rectangle). A
     rectangle is stored as ARIA stores it: corners in a frame turned by ``angle`` about the map
-    origin; with ``rotate_about_centre`` the corners are computed so the box turns about its own
-    centre (what a person drawing it means). A goal type given a heading becomes its
+    origin. By default the box given is turned about its own centre (what a person drawing it
+    means: the corners are computed so it stays where it was drawn); ``rotate_about="origin"``
+    turns the given corners about the map origin instead (ARIA's storage rule, the box moves). A goal type given a heading becomes its
     ``...WithHeading`` form. Parameters (``MapInfo: ArgDesc``) are written to a ``CairnInfo:
     Params`` line, missing ones with their defaults.
 
@@ -233,7 +254,10 @@ def add_object(
         heading: Heading of a point object, degrees.
         area: ``(x1, y1, x2, y2)`` corners of a rectangle, mm.
         angle: Rectangle angle, degrees.
-        rotate_about_centre: Turn the rectangle about its centre instead of the origin.
+        rotate_about: ``"centre"`` (default): turn the rectangle about its own centre;
+            ``"origin"``: about the map origin, as ARIA stores it.
+        rotate_about_centre: The older spelling: ``True`` is ``"centre"``, ``False`` is
+            ``"origin"``.
         line: ``(x1, y1, x2, y2)`` ends of a line object, mm.
         name: Object name.
         description: Free text.
@@ -287,7 +311,7 @@ def add_object(
         obj = MapObject(type, x, y, theta, name=name, description=description, icon=icon)
     elif shape == "rect":
         assert area is not None
-        ft, theta = _area(area, angle, rotate_about_centre)
+        ft, theta = _area(area, angle, _about_centre(rotate_about, rotate_about_centre))
         obj = MapObject(
             type, 0, 0, theta, name=name, description=description, icon=icon, from_to=ft
         )
@@ -407,7 +431,8 @@ def add_home(
     heading: float | None = None,
     area: Sequence[float] | None = None,
     angle: float = 0.0,
-    rotate_about_centre: bool = False,
+    rotate_about: str = "centre",
+    rotate_about_centre: bool | None = None,
     name: str = "",
     description: str = "",
     allow_duplicate: bool = False,
@@ -421,6 +446,7 @@ def add_home(
             "RobotHome",
             area=area,
             angle=angle,
+            rotate_about=rotate_about,
             rotate_about_centre=rotate_about_centre,
             name=name,
             description=description,
@@ -445,18 +471,19 @@ def forbid(
     area: Sequence[float] | None = None,
     line: Sequence[float] | None = None,
     angle: float = 0.0,
-    rotate_about_centre: bool = False,
+    rotate_about: str = "centre",
+    rotate_about_centre: bool | None = None,
     name: str = "",
     description: str = "",
     allow_duplicate: bool = False,
 ) -> MapData:
     """Add a ``ForbiddenArea`` (``area``) or a ``ForbiddenLine`` (``line``): ``mapkit forbid``.
 
-    See :func:`add_object` for ``angle`` and ``rotate_about_centre``.
+    See :func:`add_object` for ``angle`` and ``rotate_about`` (default: the area's own centre).
     """
     if (area is None) == (line is None):
         raise EditError("forbid takes either an area or a line (X1 Y1 X2 Y2)")
-    if line is not None and (angle or rotate_about_centre):
+    if line is not None and angle:
         raise EditError("a forbidden line has no angle")
     kind = "ForbiddenArea" if area is not None else "ForbiddenLine"
     return add_object(
@@ -465,6 +492,7 @@ def forbid(
         area=area,
         line=line,
         angle=angle,
+        rotate_about=rotate_about,
         rotate_about_centre=rotate_about_centre,
         name=name,
         description=description,
@@ -480,7 +508,8 @@ def forbid_area(
     y2: float,
     *,
     angle: float = 0.0,
-    rotate_about_centre: bool = False,
+    rotate_about: str = "centre",
+    rotate_about_centre: bool | None = None,
     name: str = "",
     description: str = "",
     allow_duplicate: bool = False,
@@ -490,6 +519,7 @@ def forbid_area(
         m,
         area=(x1, y1, x2, y2),
         angle=angle,
+        rotate_about=rotate_about,
         rotate_about_centre=rotate_about_centre,
         name=name,
         description=description,
@@ -551,7 +581,9 @@ def select(m: MapData, selector: str, *, type: str | None = None) -> list[int]:
     if selector.startswith("#") and selector[1:].isdigit():
         n = int(selector[1:])
         if not 1 <= n <= len(m.objects):
-            raise EditError(f"there is no object {selector}: the map has {len(m.objects)} objects")
+            raise EditError(
+                f"there is no object {selector}: the map has {plural(len(m.objects), 'object')}"
+            )
         if not _type_matches(m.objects[n - 1], type):
             raise EditError(f"object {selector} is a {m.objects[n - 1].type}, not a {type}")
         return [n - 1]
@@ -1093,7 +1125,8 @@ def merge(
     clashes = merge_clashes(base, other)
     if clashes and on_clash == "error":
         listed = ", ".join(repr(o.name) for _, o in clashes[:10])
-        raise EditError(f"{len(clashes)} name clash(es) between the maps: {listed}")
+        clash_words = plural(len(clashes), "name clash", "name clashes")
+        raise EditError(f"{clash_words} between the maps: {listed}")
     clash_names = {o.name.lower() for _, o in clashes}
     objects = list(base.objects)
     if on_clash == "other":

@@ -255,7 +255,8 @@ def _call(edit: Edit, m: MapData, base_dir: str) -> MapData:
     unknown = [k for k in edit.args if k not in allowed]
     if unknown:
         raise EditError(
-            f"{edit.where}: unknown argument(s) {', '.join(unknown)}; {edit.op} takes "
+            f"{edit.where}: unknown {'argument' if len(unknown) == 1 else 'arguments'} "
+            f"{', '.join(unknown)}; {edit.op} takes "
             f"{', '.join(a.replace('_', '-') for a in allowed)}"
         )
     missing = [
@@ -265,7 +266,8 @@ def _call(edit: Edit, m: MapData, base_dir: str) -> MapData:
     ]
     if missing:
         raise EditError(
-            f"{edit.where}: missing argument(s) {', '.join(a.replace('_', '-') for a in missing)}"
+            f"{edit.where}: missing {'argument' if len(missing) == 1 else 'arguments'} "
+            f"{', '.join(a.replace('_', '-') for a in missing)}"
         )
     kwargs = dict(edit.args)
     if "_base_dir" in sig.parameters:

@@ -20,6 +20,7 @@ __all__ = [
     "Provenance",
     "Scan",
     "ScanHeader",
+    "missing_rows",
 ]
 
 #: Map categories (intro lines), oldest first.
@@ -460,3 +461,33 @@ class MapData:
         return isinstance(other, MapData) and self.equals(other)
 
     __hash__ = None  # type: ignore[assignment]
+
+
+def missing_rows(m: MapData) -> list[str]:
+    """What a truncated file lost: one line per scan whose header promises more rows than it has.
+
+    A file cut short (a copy that stopped, a full disk) still reads: ARIA and mapkit keep the rows
+    that are there. Writing it back would set ``NumPoints:``/``NumLines:`` to what is left and
+    lock the loss in, so edits refuse such a map unless told to go on, and ``mapkit info`` warns.
+
+    Examples:
+        >>> from mapkit import loads
+        >>> missing_rows(loads(b"2D-Map\\nNumPoints: 3\\nDATA\\n0 0\\n"))
+        ['NumPoints: 3 but the file has 1 DATA row: 2 missing (the file looks cut short)']
+        >>> missing_rows(loads(b"2D-Map\\nNumPoints: 1\\nDATA\\n0 0\\n"))
+        []
+    """
+    out = []
+    for s in m.scans:
+        prefix = "" if s.is_default else s.name
+        for key, claimed, actual, what in (
+            ("NumPoints:", s.header.num_points, s.num_points, "DATA"),
+            ("NumLines:", s.header.num_lines, s.num_lines, "LINES"),
+        ):
+            if claimed is not None and claimed > actual:
+                rows = "row" if actual == 1 else "rows"
+                out.append(
+                    f"{prefix}{key} {claimed} but the file has {actual} {what} {rows}: "
+                    f"{claimed - actual} missing (the file looks cut short)"
+                )
+    return out

@@ -1023,7 +1023,8 @@ def push(path: str, *, channel: str, secret: bytes | None, name: str | None = No
         missing = set(want) - {r.robot for r in found}
         if not found or missing or len(found) < expect:
             extra = f" (missing: {', '.join(sorted(missing))})" if missing else ""
-            raise RosError(f"{len(found)} robot(s) accept pushes on channel {channel!r}{extra}; "
+            accept = "robot accepts" if len(found) == 1 else "robots accept"
+            raise RosError(f"{len(found)} {accept} pushes on channel {channel!r}{extra}; "
                            f"expected {max(expect, len(want), 1)}. Is `mapkit ros receive` or "
                            "`mapkit ros serve` running there (same channel, same ROS master)?")
         term = _terminal(w, secret, rto=rto, idle_timeout=idle_timeout)

@@ -33,6 +33,8 @@ Examples:
 from __future__ import annotations
 
 import os
+import sys
+import types
 from collections import defaultdict
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -205,3 +207,22 @@ def validate(
     return ValidationReport(
         tuple(issues), source=ctx.source, robot_radius=ctx.robot_radius, checked=dict(ctx.stats)
     )
+
+
+class _CallableModule(types.ModuleType):
+    """``mapkit.validate(m)`` calls :func:`validate`: the package is also the function."""
+
+    def __call__(
+        self,
+        map_or_file: MapData | PathLike | bytes,
+        *,
+        robot_radius: float = DEFAULT_ROBOT_RADIUS,
+        navigation: bool = True,
+        source: str | None = None,
+    ) -> ValidationReport:
+        return validate(
+            map_or_file, robot_radius=robot_radius, navigation=navigation, source=source
+        )
+
+
+sys.modules[__name__].__class__ = _CallableModule

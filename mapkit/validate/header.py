@@ -7,6 +7,7 @@ from typing import Any
 
 import numpy as np
 
+from mapkit._text import plural
 from mapkit.diagnostics import IssueCode as C
 from mapkit.model import CATEGORIES, INFO_KEYWORDS
 from mapkit.validate._context import Context, HeaderView, rule, unquote
@@ -59,13 +60,14 @@ def counts(ctx: Context) -> None:
                 ctx.add(
                     C.COUNT_NOT_POSITIVE,
                     f"{kw} {claimed}: AriaCoda refuses the file (ARIA 2.9.4 and older accept it)"
-                    + (f"; the file has {actual} {what} rows" if actual else ""),
+                    + (f"; the file has {plural(actual, what + ' row')}" if actual else ""),
                     line=h.line(key),
                 )
             elif claimed != actual:
                 ctx.add(
                     code,
-                    f"{kw} {claimed} but the file has {actual} {what} rows ARIA keeps: ARIA's "
+                    f"{kw} {claimed} but the file has {plural(actual, what + ' row')} ARIA keeps: "
+                    "ARIA's "
                     f"ArMap uses {actual}, code that loads with ArMapSimple (e.g. the map "
                     f"server) trusts {claimed}",
                     line=h.line(key),
@@ -150,14 +152,14 @@ def resolution(ctx: Context) -> None:
         if h.resolution is None:
             ctx.add(
                 C.RESOLUTION_MISSING,
-                f"{n} points but no {kw} line; ARIA assumes 0 and writes 'Resolution: 0'; "
+                f"{plural(n, 'point')} but no {kw} line; ARIA assumes 0 and writes 'Resolution: 0'; "
                 f"localisation grids and ROS exports need the grid size{hint}",
                 line=None,
             )
         elif not (_PLAUSIBLE_RESOLUTION[0] <= h.resolution <= _PLAUSIBLE_RESOLUTION[1]):
             ctx.add(
                 C.RESOLUTION_IMPLAUSIBLE,
-                f"{kw} {h.resolution} is not a plausible grid size for {n} points "
+                f"{kw} {h.resolution} is not a plausible grid size for {plural(n, 'point')} "
                 f"(expected {_PLAUSIBLE_RESOLUTION[0]} to {_PLAUSIBLE_RESOLUTION[1]} mm, "
                 f"usually 20){hint}",
                 line=h.line("Resolution:"),

@@ -197,7 +197,7 @@ def test_edit_script(runner: CliRunner, columbia: Path, tmp_path: Path) -> None:
     )
     r = run(runner, "edit", columbia, "--script", script)
     assert r.exit_code == 0, r.output
-    assert "3 edit(s)" in r.stderr and "added GoalWithHeading 'Kitchen'" in r.stdout
+    assert "3 edits" in r.stderr and "added GoalWithHeading 'Kitchen'" in r.stdout
     assert "changed Goal 'Goal 2': name 'Goal 2' -> 'Reception'" in r.stdout
     m = load(columbia)
     assert (

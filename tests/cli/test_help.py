@@ -19,7 +19,9 @@ def all_commands() -> list[list[str]]:
     out: list[list[str]] = []
 
     def walk(group: click.Group, prefix: list[str]) -> None:
-        for name, cmd in group.commands.items():
+        ctx = click.Context(group)
+        for name in group.list_commands(ctx):
+            cmd = group.get_command(ctx, name)
             if isinstance(cmd, click.Group):
                 walk(cmd, [*prefix, name])
             else:
@@ -57,3 +59,88 @@ def test_errors_are_one_line_and_debug_shows_the_traceback(tmp_path: Path) -> No
     assert result.exit_code == 1 and len(result.output.strip().splitlines()) == 1
     debug = CliRunner().invoke(cli, ["--debug", "info", str(bad)])
     assert debug.exit_code == 1 and debug.exception is not None
+
+
+# -- the lazy command table --------------------------------------------------------------------
+
+
+def test_the_table_help_is_each_commands_own() -> None:
+    """``mapkit --help`` shows the table's line without importing the command: it must match."""
+    from mapkit.cli.main import COMMANDS
+
+    ctx = click.Context(cli)
+    for name, (_where, short) in COMMANDS.items():
+        cmd = cli.get_command(ctx, name)
+        assert cmd is not None, name
+        assert cmd.get_short_help_str(10**6) == short, f"{name}: update COMMANDS in cli/main.py"
+
+
+def test_every_command_defined_is_in_the_table() -> None:
+    """A command written in a mapkit/cli module but missing from the table would be unreachable."""
+    import importlib
+    import pkgutil
+
+    import mapkit.cli
+
+    reachable: set[int] = set()
+
+    def walk(group: click.Group) -> None:
+        ctx = click.Context(group)
+        for name in group.list_commands(ctx):
+            cmd = group.get_command(ctx, name)
+            assert cmd is not None
+            reachable.add(id(cmd))
+            if isinstance(cmd, click.Group):
+                walk(cmd)
+
+    walk(cli)
+    missing = []
+    for info in pkgutil.iter_modules(mapkit.cli.__path__):
+        module = importlib.import_module(f"mapkit.cli.{info.name}")
+        for attr, value in vars(module).items():
+            if isinstance(value, click.Command) and value is not cli and id(value) not in reachable:
+                missing.append(f"mapkit.cli.{info.name}:{attr}")
+    assert not missing, f"not registered in COMMANDS (mapkit/cli/main.py): {missing}"
+
+
+def _modules_after(code: str) -> set[str]:
+    probe = (f"import sys\n{code}\n"
+             "print('\\n'.join(sorted(sys.modules)))")
+    result = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True,
+                            cwd=ROOT, timeout=120)
+    assert result.returncode == 0, result.stderr
+    return set(result.stdout.split())
+
+
+HEAVY = {"numpy", "scipy", "matplotlib", "shapely", "trimesh", "yaml", "PIL", "rospy"}
+
+
+def test_help_imports_no_command_and_no_numpy() -> None:
+    mods = _modules_after("from mapkit.cli.main import cli\n"
+                          "try:\n    cli(['--help'], prog_name='mapkit')\n"
+                          "except SystemExit:\n    pass")
+    assert not {m for m in mods if m.startswith("mapkit.cli.")} - {"mapkit.cli.main"}
+    assert not HEAVY & mods
+
+
+def test_info_imports_only_what_it_needs() -> None:
+    mods = _modules_after("from mapkit.cli.main import cli\n"
+                          "try:\n    cli(['info', 'mapkit/sample_maps/office.map'], "
+                          "prog_name='mapkit')\nexcept SystemExit:\n    pass")
+    assert "numpy" in mods and "mapkit.cli.info" in mods
+    assert not (HEAVY - {"numpy"}) & mods
+    assert not {"mapkit.edit", "mapkit.validate", "mapkit.raster", "mapkit.cli.edit"} & mods
+
+
+def test_import_mapkit_is_light_and_whole() -> None:
+    mods = _modules_after("import mapkit")
+    assert not HEAVY & mods
+    import mapkit
+
+    assert all(hasattr(mapkit, name) for name in mapkit.__all__)
+    star: dict[str, object] = {}
+    exec("from mapkit import *", star)
+    assert set(mapkit.__all__) <= set(star)
+    for name in ("edit", "raster", "build", "validate", "formats", "model"):
+        assert getattr(mapkit, name).__name__ == f"mapkit.{name}"
+    assert callable(mapkit.validate) and callable(mapkit.build_map)

@@ -25,7 +25,7 @@ def test_rasterize_writes_map_and_masks(runner: CliRunner, tmp_path: Path) -> No
     names = sorted(p.name for p in tmp_path.iterdir())
     assert names == ["office.pgm", "office.yaml", "office_filters.yaml", "office_keepout.pgm",
                      "office_keepout.yaml", "office_speed.pgm", "office_speed.yaml"]
-    assert "wrote " + str(out) in result.output and "keepout zone(s)" in result.output
+    assert "wrote " + str(out) in result.output and ": 2 keepout zones\n" in result.output
     data, doc = cells(out)
     m = mapkit.load(sample_path("office"))
     assert np.array_equal(data, rasterize(m, 0.1).data) and doc["resolution"] == 0.1

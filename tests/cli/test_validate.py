@@ -68,7 +68,7 @@ def test_info_only_passes_strict(runner: CliRunner, tmp_path: Path) -> None:
 @pytest.mark.parametrize(
     "content, why",
     [
-        (None, "No such file"),
+        (None, "no such file"),
         (b"", "empty"),
         (b"hello\nworld\n", "not an ARIA map"),
         (b"\xef\xbb\xbf2D-Map\nDATA\n", "byte-order mark"),
@@ -90,7 +90,7 @@ def test_unreadable_exits_2(
 
 def test_directory_is_a_usage_error(runner: CliRunner, tmp_path: Path) -> None:
     code, _, err = run(runner, "validate", str(tmp_path))
-    assert code == 2 and "directory" in err
+    assert code == 2 and "it is a folder" in err
 
 
 def test_json_report(runner: CliRunner, tmp_path: Path) -> None:

@@ -114,11 +114,42 @@ def test_rotate_about_centre_gives_the_box_turned_in_place(
     assert seen.hausdorff_distance(drawn) <= 0.5 * 2**0.5 + 1e-9
 
 
-def test_plain_angle_turns_about_the_origin_as_aria_does() -> None:
-    m = edit.forbid_area(MapData(), -21124, 1564, 6001, 7648, angle=180)
+@pytest.mark.parametrize(
+    "how", [{"rotate_about": "origin"}, {"rotate_about_centre": False}], ids=["origin", "legacy"]
+)
+def test_rotate_about_origin_turns_as_aria_does(how: dict[str, object]) -> None:
+    m = edit.forbid_area(MapData(), -21124, 1564, 6001, 7648, angle=180, **how)  # type: ignore[arg-type]
     xs = sorted(round(c[0]) for c in m.objects[0].corners())
     ys = sorted(round(c[1]) for c in m.objects[0].corners())
     assert (xs[0], xs[-1], ys[0], ys[-1]) == (-6001, 21124, -7648, -1564)  # FORMATS.md T24
+
+
+@pytest.mark.parametrize("angle", [20, 90, -135, 179.5])
+@pytest.mark.parametrize("how", [{}, {"rotate_about": "centre"}, {"rotate_about_centre": True}])
+def test_an_angle_turns_the_box_about_its_own_centre_by_default(
+    angle: float, how: dict[str, object]
+) -> None:
+    # drawn 7 m from the origin, it stays 7 m from the origin (it landed 4 m away before)
+    area = {"add_home": "RobotHome", "forbid_area": "ForbiddenArea"}
+    for fn in area:
+        if fn == "forbid_area":
+            m = edit.forbid_area(MapData(), 6000, 3000, 8000, 4000, angle=angle, **how)  # type: ignore[arg-type]
+        else:
+            m = edit.add_home(MapData(), area=(6000, 3000, 8000, 4000), angle=angle, **how)  # type: ignore[arg-type]
+        corners = m.objects[0].corners()
+        cx = sum(c[0] for c in corners) / 4
+        cy = sum(c[1] for c in corners) / 4
+        assert m.objects[0].type == area[fn]
+        assert (cx, cy) == pytest.approx((7000, 3500), abs=1)
+        assert m.objects[0].theta == pytest.approx(angle)
+
+
+def test_rotating_about_both_is_refused() -> None:
+    with pytest.raises(EditError, match="not both"):
+        edit.forbid_area(MapData(), 0, 0, 1, 1, angle=5, rotate_about="origin",
+                         rotate_about_centre=True)
+    with pytest.raises(EditError, match="'centre' or 'origin'"):
+        edit.forbid_area(MapData(), 0, 0, 1, 1, angle=5, rotate_about="middle")
 
 
 # -- checks --
@@ -140,7 +171,9 @@ def test_plain_angle_turns_about_the_origin_as_aria_does() -> None:
         (lambda m: edit.forbid_area(m, 0, 0, 0, 100), "degenerate"),
         (lambda m: edit.forbid_area(m, 0, 0, 100, 100, angle=float("nan")), "angle"),
         (
-            lambda m: edit.forbid_area(m, 1_900_000, 1_900_000, 1_950_000, 1_950_000, angle=45),
+            lambda m: edit.forbid_area(
+                m, 1_900_000, 1_900_000, 1_950_000, 1_950_000, angle=45, rotate_about="origin"
+            ),
             "corner y",
         ),
         (lambda m: edit.forbid_line(m, 5, 5, 5, 5), "no length"),

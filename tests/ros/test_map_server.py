@@ -227,4 +227,4 @@ def test_map_server_without_a_master_fails_cleanly(ros: Ros, sample: Path) -> No
     assert res.returncode == 1
     assert "no ROS master answers at http://127.0.0.1:" in res.stderr
     res = ros.mapkit("ros", "map-server", "/nonexistent/x.map", check=False, timeout=30)
-    assert res.returncode == 1 and "no such map file" in res.stderr
+    assert res.returncode == 2 and "cannot read /nonexistent/x.map: no such file" in res.stderr
