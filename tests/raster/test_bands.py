@@ -350,7 +350,7 @@ def test_pgm_read_by_bands_is_read_ros_map(tmp_path: Path, mode: str, negate: bo
 
 def test_pgm_bands_leaves_other_images_to_the_whole_reader(tmp_path: Path) -> None:
     from mapkit.raster.image_stream import pgm_bands
-    from mapkit.raster.ros import read_ros_yaml
+    from mapkit.raster.ros import read_ros_map, read_ros_yaml
 
     g = rasterize(_speed_map(), 0.1)
     png = write_ros_map(g, tmp_path / "p.yaml", image_format="png")
@@ -360,8 +360,10 @@ def test_pgm_bands_leaves_other_images_to_the_whole_reader(tmp_path: Path) -> No
     pgm.image.write_bytes(data[:-10])  # truncated
     with pytest.raises(RosMapError, match=r"q\.pgm: image data truncated"):
         pgm_bands(read_ros_yaml(pgm.yaml))
-    pgm.image.write_bytes(data.replace(b"\n255\n", b"\n254\n", 1))  # not maxval 255
-    assert pgm_bands(read_ros_yaml(pgm.yaml)) is None
+    pgm.image.write_bytes(data.replace(b"\n255\n", b"\n254\n", 1))  # any binary PNM streams
+    bands = pgm_bands(read_ros_yaml(pgm.yaml))
+    assert bands is not None
+    assert bands.to_grid(band_cells=bands.width * 2) == read_ros_map(pgm.yaml)
 
 
 @pytest.mark.parametrize("mode,fmt", [("trinary", "pgm"), ("scale", "png")])
