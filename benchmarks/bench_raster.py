@@ -51,7 +51,7 @@ def main() -> None:
         t_read, m = best(lambda: mapkit.load(big), args.repeat)
         rasterize(m, 0.05)  # warm up (scipy imports)
         t_ras, g = best(lambda: rasterize(m, 0.05), args.repeat)
-        t_exp, res = best(lambda: export_ros(m, folder / "big.yaml"), args.repeat)
+        t_exp, _res = best(lambda: export_ros(m, folder / "big.yaml"), args.repeat)
         print(f"read bigmap.map ({m.scan.num_points:,} points, {m.scan.num_lines:,} lines): "
               f"{t_read:.3f} s (baseline)")
         print(f"rasterise at 0.05 m ({g.width} x {g.height}):            {t_ras:.3f} s = "

@@ -25,17 +25,17 @@ from typing import BinaryIO
 from mapkit._typing import PathLike
 
 __all__ = [
+    "STALE_AGE",
     "ReadOnlyFileError",
     "WriteError",
     "atomic_open",
     "atomic_write",
     "check_writable",
-    "STALE_AGE",
     "fsync_dir",
     "is_read_only",
     "remove_stale_temps",
-    "write_error",
     "replace_read_only",
+    "write_error",
 ]
 
 #: When true, a read-only file may be replaced (``mapkit ... --force`` sets it for one command).

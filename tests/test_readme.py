@@ -46,7 +46,7 @@ def test_ci_runs_the_readme_test_command() -> None:
     assert TEST_COMMAND in (ROOT / ".ci" / "run").read_text()
 
 
-@pytest.mark.parametrize("page", sorted((ROOT / "docs").glob("*.md")) + [README],
+@pytest.mark.parametrize("page", [*sorted((ROOT / "docs").glob("*.md")), README],
                          ids=lambda p: p.name)
 def test_docs_stand_on_their_own(page: Path) -> None:
     hits = [f"{page.name}:{n}: {line.strip()}"

@@ -276,7 +276,7 @@ class ClientConnection:
                 self._by_id[cid] = info
                 self.commands[info.name] = info
             else:
-                self._extra.setdefault(cid, {}).update(zip(keys, values))
+                self._extra.setdefault(cid, {}).update(zip(keys, values, strict=True))
         if f.remaining:
             raise AriaProtocolError(f"the server's {what} has {f.remaining} bytes after its "
                                     f"{count} entries")

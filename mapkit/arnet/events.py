@@ -9,7 +9,6 @@ server that says goodbye :class:`ServerClosed`.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Union
 
 from mapkit.arnet.packet import Fields
 
@@ -81,4 +80,4 @@ class Data:
         return Fields(self.data, f"{self.name} reply")
 
 
-Event = Union[Introduced, Accepted, Ready, Rejected, ServerClosed, Data]
+Event = Introduced | Accepted | Ready | Rejected | ServerClosed | Data

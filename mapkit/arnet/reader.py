@@ -11,6 +11,7 @@ not guess, so here they end the connection with :class:`AriaProtocolError`.
 from __future__ import annotations
 
 import struct
+
 from mapkit.arnet.errors import AriaProtocolError
 from mapkit.arnet.packet import MAX_LENGTH, MIN_LENGTH, SYNC, Packet, checksum
 

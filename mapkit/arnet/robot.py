@@ -51,7 +51,7 @@ from mapkit.arnet.services import (
 from mapkit.formats.map import dumpb, loads
 from mapkit.model import MapData
 
-__all__ = ["FetchedMap", "LoadResult", "MapChange", "Robot", "SERVICES", "connect"]
+__all__ = ["SERVICES", "FetchedMap", "LoadResult", "MapChange", "Robot", "connect"]
 
 log = logging.getLogger(__name__)
 

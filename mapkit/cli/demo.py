@@ -69,4 +69,4 @@ def demo(folder: str, log_path: str | None, as_json: bool) -> None:
     click.echo("\n  file                     size  SHA-256")
     for a in result.artefacts:
         name = a.path.relative_to(result.folder)
-        click.echo(f"  {str(name):<20} {a.size:>9}  {a.sha256[:16]}…  {a.what}")
+        click.echo(f"  {name!s:<20} {a.size:>9}  {a.sha256[:16]}…  {a.what}")

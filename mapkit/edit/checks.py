@@ -28,7 +28,6 @@ from mapkit.model.map import missing_rows
 
 __all__ = [
     "COORD_LIMIT",
-    "missing_rows",
     "SPAN_LIMIT",
     "check_coord",
     "check_data_range",
@@ -37,6 +36,7 @@ __all__ = [
     "check_span",
     "check_text",
     "check_type_name",
+    "missing_rows",
 ]
 
 #: Largest absolute coordinate (mm) an edit writes.

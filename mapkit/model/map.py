@@ -447,7 +447,7 @@ class MapData:
             isinstance(other, MapData)
             and self.category == other.category
             and len(self.scans) == len(other.scans)
-            and all(a.equals(b) for a, b in zip(self.scans, other.scans))
+            and all(a.equals(b) for a, b in zip(self.scans, other.scans, strict=True))
             and self.objects == other.objects
             and self.inactive_objects == other.inactive_objects
             and self.child_objects == other.child_objects

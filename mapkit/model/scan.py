@@ -31,7 +31,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
-from typing import Any, NamedTuple, Union
+from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -350,7 +350,7 @@ def _same(a: float | None, b: float | None) -> bool:
 def _same_tuple(a: tuple[float, ...] | None, b: tuple[float, ...] | None) -> bool:
     if a is None or b is None:
         return a is b
-    return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b))
+    return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b, strict=True))
 
 
 @dataclass(frozen=True, slots=True)
@@ -394,7 +394,7 @@ class LogEvent:
     __hash__ = None  # type: ignore[assignment]
 
 
-LogRecord = Union[LaserScan, LogEvent]
+LogRecord = LaserScan | LogEvent
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -450,7 +450,7 @@ class LaserLog:
         return (
             isinstance(other, LaserLog) and self.header == other.header
             and self.complete == other.complete and len(self.records) == len(other.records)
-            and all(a == b for a, b in zip(self.records, other.records))
+            and all(a == b for a, b in zip(self.records, other.records, strict=True))
         )
 
     def __eq__(self, other: object) -> bool:

@@ -36,24 +36,24 @@ from numpy.typing import NDArray
 
 from mapkit._atomic import atomic_open
 from mapkit._typing import PathLike
-from mapkit.raster.errors import RasterError, RosMapError
+from mapkit.raster.errors import RasterError
 from mapkit.raster.grid import OccupancyGrid
-from mapkit.raster.ros_image import ImageSource
 from mapkit.raster.ros import (
     DEFAULT_FREE_THRESH,
-    check_scale,
     DEFAULT_OCCUPIED_THRESH,
     Flavor,
     Mode,
     RosMapFiles,
     RosMapInfo,
+    check_scale,
     image_target,
     open_map_image,
-    pixel_values,
     pgm_comment,
     pixel_table,
+    pixel_values,
     write_map_yaml,
 )
+from mapkit.raster.ros_image import ImageSource
 
 __all__ = ["IDAT_BYTES", "ImageSink", "PgmBands", "pgm_bands", "write_image_bands",
            "write_ros_map_bands"]

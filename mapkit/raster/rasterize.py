@@ -185,7 +185,7 @@ def _mask_for(
     if row0 == 0 and out.shape == grid.data.shape and out.dtype == np.bool_:
         return out
     if not (out.dtype == np.bool_ and out.ndim == 2 and out.shape[1] == grid.width
-            and 0 <= row0 and row0 + out.shape[0] <= grid.height):
+            and row0 >= 0 and row0 + out.shape[0] <= grid.height):
         raise ValueError(f"out must be a bool array of shape {grid.data.shape}, or a band of its "
                          f"rows from row0 ({row0}) with {grid.width} columns")
     return out
@@ -491,7 +491,7 @@ def inflate(mask: NDArray[np.bool_], radius_mm: float, resolution: float) -> NDA
     from scipy import ndimage
 
     r_cells = radius_mm / (resolution * 1000.0)
-    pad = int(math.ceil(r_cells)) + 1
+    pad = math.ceil(r_cells) + 1
     rows = np.flatnonzero(mask.any(axis=1))
     cols = np.flatnonzero(mask.any(axis=0))
     r0, r1 = max(rows[0] - pad, 0), min(rows[-1] + pad + 1, mask.shape[0])

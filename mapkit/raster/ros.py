@@ -173,10 +173,7 @@ def load_pixel_values(
     if occupied_thresh == free_thresh:
         raise RasterError("scale mode divides by occupied_thresh - free_thresh, which is 0")
     ratio = (occ[between] - free_thresh) / (occupied_thresh - free_thresh)
-    if flavor == "ros1":
-        val = np.trunc(1.0 + 98.0 * ratio)
-    else:
-        val = np.rint(ratio * 100.0)
+    val = np.trunc(1.0 + 98.0 * ratio) if flavor == "ros1" else np.rint(ratio * 100.0)
     out[between] = val.astype(np.int64).astype(np.uint8).view(np.int8)
     return out
 

@@ -18,6 +18,7 @@ Examples:
 
 from __future__ import annotations
 
+import contextlib
 import os
 import secrets
 import socket
@@ -373,10 +374,8 @@ class Client:
     def close(self) -> None:
         """Say BYE and close the connection."""
         if not self.link.closed:
-            try:
+            with contextlib.suppress(TransferError):
                 self._request(FrameType.BYE, {}, (FrameType.BYE,))
-            except TransferError:
-                pass
             self.link.close()
 
     def __enter__(self) -> Client:

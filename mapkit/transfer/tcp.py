@@ -262,10 +262,8 @@ class FrameLink:
     def close(self) -> None:
         """Close the socket (idempotent)."""
         self.closed = True
-        try:
+        with contextlib.suppress(OSError):
             self.sock.shutdown(socket.SHUT_RDWR)
-        except OSError:
-            pass
         self.sock.close()
 
 

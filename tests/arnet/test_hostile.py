@@ -127,9 +127,11 @@ def _then_close(reply: Callable[[str, bytes], Any]) -> Callable[[str, bytes], An
 def test_endless_file_hits_the_size_limit_and_writes_nothing(fake: Any, tmp_path: Path) -> None:
     chunk = file_packet(b"x" * 30000)
     server = fake(map_server(lambda: chunk * 40))
-    with aria.connect(server.address, timeout=2) as r:
-        with pytest.raises(aria.AriaProtocolError, match="larger than 500000 bytes"):
-            r.get_file("x.map", tmp_path / "x.map", max_size=500_000)
+    with (
+        aria.connect(server.address, timeout=2) as r,
+        pytest.raises(aria.AriaProtocolError, match="larger than 500000 bytes"),
+    ):
+        r.get_file("x.map", tmp_path / "x.map", max_size=500_000)
     assert leftovers(tmp_path) == []
 
 

@@ -286,7 +286,7 @@ def test_ctrl_c_exits_130_with_one_line(tmp_path: Path) -> None:
     time.sleep(2.5)  # started and working: the log is read, scans are being matched
     assert proc.poll() is None, proc.communicate()
     proc.send_signal(signal.SIGINT)
-    out, err = proc.communicate(timeout=60)
+    _out, err = proc.communicate(timeout=60)
     assert proc.returncode == 130, err.decode()
     assert err.decode().strip().splitlines()[-1] == "Error: interrupted"
     assert b"Traceback" not in err and not (tmp_path / "b.map").exists()
