@@ -47,9 +47,9 @@ def test_the_same_file_from_a_new_sender_takes_over_at_once(tmp_path: Path, monk
     session, not silent long enough to count as stale, gives way to it at once."""
     import threading
 
-    import mapkit.ros.transfer as ros_transfer
+    import mapkit.ros.transfer.robot as robot_side
 
-    monkeypatch.setattr(ros_transfer, "STALE", 1000.0)  # only the same-transfer rule can apply
+    monkeypatch.setattr(robot_side, "STALE", 1000.0)  # only the same-transfer rule can apply
     bus = Bus()
     rt, robot = robot_on(bus, tmp_path)
     try:
