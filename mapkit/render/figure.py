@@ -1,289 +1,44 @@
-"""Pictures of maps: PNG, SVG and PDF drawn with matplotlib.
-
-:func:`render` draws a map the way a person wants to look at it: the scan points as one density
-image (fast for millions of points), the LINES as one line collection, goals with their names and
-heading arrows, the home and docks, forbidden areas hatched and rotated by ARIA's rule (about the
-map origin, see :meth:`~mapkit.model.MapObject.corners`), forbidden lines, sectors and boundaries
-of declared types in their declared colours, a grid and a scale bar in metres and a legend.
-:func:`make_figure` gives the matplotlib figure itself, for notebooks and tests.
-
-matplotlib is imported inside the functions (with the Agg canvas, no pyplot) unless a window is
-asked for with ``show=True``.
-
-Examples:
-    >>> import tempfile, pathlib
-    >>> from mapkit.model import MapData, MapObject, Scan
-    >>> m = MapData(scans=(Scan.from_arrays([[0, 0], [4000, 3000]], [[0, 0, 4000, 0]]),),
-    ...             objects=(MapObject("Goal", 2000, 1500, name="Desk"),))
-    >>> out = pathlib.Path(tempfile.mkdtemp()) / "tiny.png"
-    >>> r = render(m, out, width=400)
-    >>> r.format, r.width, out.read_bytes()[:4] == b"\\x89PNG"
-    ('png', 400, True)
-"""
+"""Drawing a map into a matplotlib figure: layout, the scan as a density image, lines, objects
+and their names, grid, scale bar and legend."""
 
 from __future__ import annotations
 
-import dataclasses
-import io
 import math
 import os
-from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from mapkit._atomic import atomic_write
-from mapkit._typing import PathLike
-from mapkit.errors import MapkitError, UnsupportedFormatError
-from mapkit.formats.registry import register_writer
 from mapkit.model import MapData, MapObject
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
+from mapkit.render.base import _LEGEND_MIN_WIDTH, MAX_PIXELS, MIN_PIXELS, RenderError, Rendering
+from mapkit.render.geometry import (
+    _color,
+    _data_extent,
+    _finite,
+    _is_degenerate,
+    _label,
+    _nice,
+    _scale_label,
+    _text,
+)
+from mapkit.render.kinds import (
+    _AREA_FILL,
+    _HATCH,
+    _HATCH_PATTERN,
+    _LEGEND_LABELS,
+    _MARKERS,
+    _RC,
+    COLORS,
+    object_kind,
+    type_params,
+)
 
-__all__ = [
-    "FORMATS",
-    "RenderError",
-    "Rendering",
-    "make_figure",
-    "object_kind",
-    "render",
-    "type_params",
-]
-
-#: Output formats by file suffix.
-FORMATS = {".png": "png", ".svg": "svg", ".pdf": "pdf"}
-
-#: Largest picture side in pixels (a 20000 x 20000 RGBA image is 1.6 GB in memory).
-MAX_PIXELS = 20000
-#: Smallest picture side in pixels.
-MIN_PIXELS = 32
-#: Narrower pictures get no legend (it would leave too little room for the map).
-_LEGEND_MIN_WIDTH = 560
-
-
-class RenderError(MapkitError, ValueError):
-    """A picture could not be made: bad size, no window to show it in, ..."""
-
-
-@dataclass(frozen=True, slots=True)
-class Rendering:
-    """What :func:`render` made.
-
-    Attributes:
-        path: The file written, or ``None`` when only shown.
-        format: ``"png"``, ``"svg"`` or ``"pdf"`` (``None`` when only shown).
-        width: Picture width in pixels (PNG pixels; SVG/PDF are ``width * 72 / dpi`` points).
-        height: Picture height in pixels.
-        dpi: Dots per inch the sizes were computed with.
-        view: The part of the map shown, ``(xmin, ymin, xmax, ymax)`` in metres.
-        metres_per_pixel: Scale of the map area.
-        names_hidden: Names left out because they would have overlapped others.
-    """
-
-    path: str | None
-    format: str | None
-    width: int
-    height: int
-    dpi: float
-    view: tuple[float, float, float, float]
-    metres_per_pixel: float
-    names_hidden: int = 0
-
-
-# -- what each object is ----------------------------------------------------------------------
-
-#: Colours of the built-in kinds (declared types use their ``Color0`` where they have one).
-COLORS = {
-    "points": "#3a3a3a",
-    "lines": "#000000",
-    "goal": "#1a9850",
-    "goal_heading": "#00683a",
-    "dock": "#7b3294",
-    "home": "#e66101",
-    "home_area": "#e66101",
-    "forbidden_name": "#a50f15",
-    "location": "#2166ac",
-    "other_point": "#555555",
-    "forbidden_area": "#d7191c",
-    "forbidden_line": "#d7191c",
-    "sector": "#4393c3",
-    "boundary": "#c51b7d",
-}
-
-_LEGEND_LABELS = {
-    "goal": "goal",
-    "goal_heading": "goal with heading",
-    "dock": "dock",
-    "home": "robot home",
-    "home_area": "robot home area",
-    "location": "location",
-    "other_point": "other object",
-    "forbidden_area": "forbidden area",
-    "forbidden_line": "forbidden line",
-}
-
-_AREA_FILL = (0.84, 0.1, 0.11, 0.08)
-_HATCH = "#ec8a8c"
-_HATCH_PATTERN = "///"
-#: matplotlib settings for every picture (deterministic SVG ids, text kept as text, thin hatching).
-_RC: dict[Any, Any] = {"svg.hashsalt": "mapkit", "svg.fonttype": "none", "pdf.fonttype": 42,
-                       "hatch.linewidth": 0.7}
-
-_MARKERS = {
-    "goal": "o",
-    "goal_heading": "o",
-    "dock": "s",
-    "home": "p",
-    "location": "D",
-    "other_point": "X",
-}
-
-
-def _unquote(tok: str) -> str:
-    return tok[1:-1] if len(tok) >= 2 and tok[0] == tok[-1] == '"' else tok
-
-
-def type_params(m: MapData) -> dict[str, dict[str, str]]:
-    """The ``Key=Value`` parameters of each type declared in ``MapInfo:``, by type name.
-
-    The first value of a repeated key wins, as in ARIA's own reader.
-
-    Examples:
-        >>> m = MapData(info={"MapInfo": [("SectorType", "Name=Slow", '"Label=Slow zone"',
-        ...                                "Color0=0x00ff00")]})
-        >>> type_params(m)["Slow"]["Color0"], type_params(m)["Slow"]["Label"]
-        ('0x00ff00', 'Slow zone')
-    """
-    out: dict[str, dict[str, str]] = {}
-    for line in m.info.get("MapInfo", ()):
-        if not line or not line[0].endswith("Type"):
-            continue
-        params: dict[str, str] = {}
-        for tok in line[1:]:
-            key, sep, value = _unquote(tok).partition("=")
-            if sep:
-                params.setdefault(key, value)
-        name = params.get("Name")
-        if name is not None:
-            out.setdefault(name, params)
-    return out
-
-
-def object_kind(m: MapData, obj: MapObject, declared: dict[str, str] | None = None) -> str:
-    """How :func:`render` draws an object: its kind.
-
-    Point objects: ``goal``, ``goal_heading``, ``dock``, ``home``, ``location``, ``other_point``;
-    rectangles: ``forbidden_area``, ``home_area``, ``sector``; lines: ``forbidden_line``,
-    ``boundary``. Heading arrows are drawn for ``goal_heading``, ``dock`` and ``home``.
-
-    Args:
-        m: The map (its ``MapInfo:`` declarations decide declared types).
-        obj: The object.
-        declared: ``m.declared_types()``, when the caller has it already.
-
-    Examples:
-        >>> m = MapData(info={"MapInfo": [("DockType", "Name=DockLynx")]})
-        >>> [object_kind(m, MapObject(t, 0, 0)) for t in ("Goal", "GoalWithHeading", "DockLynx")]
-        ['goal', 'goal_heading', 'dock']
-        >>> object_kind(m, MapObject("ForbiddenArea", 0, 0, from_to=(0, 0, 1, 1)))
-        'forbidden_area'
-    """
-    decl = m.declared_types() if declared is None else declared
-    shape = m.object_shape(obj)
-    if shape == "line":
-        return "forbidden_line" if obj.type == "ForbiddenLine" else "boundary"
-    if shape == "rect":
-        if obj.type == "ForbiddenArea":
-            return "forbidden_area"
-        if obj.type == "RobotHome":
-            return "home_area"
-        return "sector"
-    base = obj.base_type
-    cls = decl.get(obj.type) or decl.get(base)
-    if base == "RobotHome":
-        return "home"
-    if base == "Dock" or cls == "DockType":
-        return "dock"
-    if base == "Goal" or cls == "GoalType":
-        return "goal_heading" if obj.type != base else "goal"
-    if cls == "LocationType":
-        return "location"
-    return "other_point"
-
-
-# -- geometry helpers -------------------------------------------------------------------------
-
-
-def _color(value: str | None, default: str) -> str:
-    """``0xRRGGBB`` (ARIA's colour form) as ``#rrggbb``; the default when absent or malformed."""
-    if value:
-        v = value.strip().lower()
-        if v.startswith("0x"):
-            v = v[2:]
-        if len(v) == 6 and all(c in "0123456789abcdef" for c in v):
-            return "#" + v
-    return default
-
-
-def _text(s: str) -> str:
-    """A name as text matplotlib can draw: undecodable bytes become U+FFFD."""
-    return s.encode("utf-8", "surrogateescape").decode("utf-8", "replace")
-
-
-def _label(s: str) -> str:
-    """A legend label: no mathtext, and not hidden by a leading underscore."""
-    s = _text(s).replace("$", r"\$")
-    return " " + s if s.startswith("_") else s
-
-
-def _is_degenerate(obj: MapObject) -> bool:
-    if obj.from_to is None:
-        return False
-    fx, fy, tx, ty = obj.from_to
-    return fx == tx and fy == ty
-
-
-def _finite(obj: MapObject) -> bool:
-    vals = [obj.x, obj.y, obj.theta, *(obj.from_to or ())]
-    return all(math.isfinite(v) for v in vals)
-
-
-def _data_extent(
-    m: MapData, objects: Iterable[MapObject]
-) -> tuple[float, float, float, float] | None:
-    """Extent in metres of the scan data and the drawn objects."""
-    xs: list[float] = []
-    ys: list[float] = []
-    for scan in m.scans:
-        b = scan.data_bounds()
-        if b is not None:
-            xs += [b[0][0], b[1][0]]
-            ys += [b[0][1], b[1][1]]
-    for o in objects:
-        for cx, cy in o.corners():
-            xs.append(cx)
-            ys.append(cy)
-    if not xs:
-        return None
-    return min(xs) / 1000, min(ys) / 1000, max(xs) / 1000, max(ys) / 1000
-
-
-def _nice(x: float) -> float:
-    """The largest 1, 2 or 5 times a power of ten that is at most ``x`` (``x`` > 0)."""
-    p = 10.0 ** math.floor(math.log10(x))
-    for f in (5.0, 2.0, 1.0):
-        if f * p <= x:
-            return f * p
-    return p
-
-
-def _scale_label(length: float) -> str:
-    if length >= 1:
-        return f"{length:g} m"
-    return f"{length * 100:g} cm" if length >= 0.01 else f"{length * 1000:g} mm"
+__all__ = ["make_figure"]
 
 
 # -- drawing -----------------------------------------------------------------------------------
@@ -709,107 +464,3 @@ def make_figure(
     return fig, Rendering(None, None, lay.width, lay.height, float(dpi), lay.view, lay.mpp, hidden)
 
 
-def _check_display() -> None:
-    import matplotlib
-
-    if os.name == "posix" and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
-        raise RenderError("cannot open a window: no display (DISPLAY is not set); write a file "
-                          "with -o OUT.png instead")
-    import matplotlib.pyplot as plt  # resolves the backend
-
-    backend = plt.get_backend().lower()
-    if backend in ("agg", "pdf", "svg", "ps", "pgf", "cairo", "template") or "inline" in backend:
-        raise RenderError(f"cannot open a window: matplotlib has no interactive backend here "
-                          f"(it uses {matplotlib.get_backend()!r}; install a GUI toolkit, e.g. "
-                          f"Tk: apt install python3-tk python3-pil.imagetk); write a file with "
-                          f"-o OUT.png instead")
-
-
-def render(
-    m: MapData,
-    path: PathLike | None = None,
-    *,
-    show: bool = False,
-    width: int = 1600,
-    height: int | None = None,
-    dpi: float = 100,
-    show_names: bool = True,
-    show_points: bool = True,
-    show_lines: bool = True,
-    legend: bool = True,
-    thumbnail: bool = False,
-    title: str | None = None,
-) -> Rendering:
-    """Draw a map to a PNG, SVG or PDF file (by the suffix of ``path``) and/or a window.
-
-    The file is written atomically. PNG is exactly ``width`` x ``height`` pixels; SVG and PDF
-    have the same size in points at ``dpi`` (``width * 72 / dpi``), with names kept as text in SVG.
-
-    Args:
-        m: The map.
-        path: Output file (``.png``, ``.svg`` or ``.pdf``), or ``None`` with ``show=True``.
-        show: Open a window with the picture (blocks until it is closed).
-        width: Picture width in pixels.
-        height: Picture height in pixels (default: from the map's shape).
-        dpi: Dots per inch.
-        show_names: Write object names.
-        show_points: Draw the scan points.
-        show_lines: Draw the LINES.
-        legend: Draw a legend.
-        thumbnail: A bare picture of the map only (see :func:`make_figure`).
-        title: Title (default: file name and category; ``""`` for none).
-
-    Returns:
-        What was drawn and where.
-
-    Raises:
-        UnsupportedFormatError: When the suffix is not ``.png``, ``.svg`` or ``.pdf``.
-        RenderError: When neither a path nor ``show`` is given, the size is out of range, or
-            ``show`` is asked for where no window can be opened.
-        OSError: When the file cannot be written.
-    """
-    fmt = None
-    if path is not None:
-        suffix = os.path.splitext(os.fspath(path))[1].lower()
-        fmt = FORMATS.get(suffix)
-        if fmt is None:
-            raise UnsupportedFormatError(
-                f"cannot draw {os.fspath(path)!r}: pictures are .png, .svg or .pdf, not "
-                f"{suffix or '(no suffix)'!r}")
-    elif not show:
-        raise RenderError("give an output file or show=True")
-    if show:
-        _check_display()
-    opts = dict(width=width, height=height, dpi=dpi, show_names=show_names,
-                show_points=show_points, show_lines=show_lines, legend=legend,
-                thumbnail=thumbnail, title=title)
-    fig, info = make_figure(m, _pyplot=show, **opts)  # type: ignore[arg-type]
-    if path is not None:
-        import matplotlib
-
-        buf = io.BytesIO()
-        meta: dict[str, Any] = {"Software": "mapkit"} if fmt == "png" else {"Creator": "mapkit"}
-        if fmt == "svg":
-            meta["Date"] = None
-        elif fmt == "pdf":
-            meta["CreationDate"] = None
-        with matplotlib.rc_context(_RC):
-            fig.savefig(buf, format=fmt, dpi=dpi, metadata=meta, facecolor="white")
-        atomic_write(path, buf.getvalue())
-        info = dataclasses.replace(info, path=os.fspath(path), format=fmt)
-    if show:
-        import matplotlib.pyplot as plt
-
-        plt.show()
-        plt.close(fig)
-    return info
-
-
-def _writer(m: MapData, path: PathLike) -> str:
-    r = render(m, path)
-    kind = r.format.upper() if r.format else ""
-    return f"wrote {os.fspath(path)} ({r.width}x{r.height} px {kind})"
-
-
-for _suffix in FORMATS:
-    register_writer(_suffix, _writer)
