@@ -120,6 +120,23 @@ def test_the_transfer_core_is_stdlib_only(name: str) -> None:
                 f"{path}:{lineno}: imports {target}, not in the standard library"
 
 
+# At the top level live the layer-0 basics, the package's entry points and the aria facade;
+# everything else has a package whose layer LAYERS gives.
+TOP_LEVEL_MODULES = {
+    "__init__", "__main__", "errors", "diagnostics", "_typing", "_atomic", "_text", "aria",
+    "simulate",
+}
+
+
+def test_the_top_level_holds_packages() -> None:
+    modules = {p.stem for p in PKG.glob("*.py")}
+    assert modules <= TOP_LEVEL_MODULES, (
+        f"{sorted(modules - TOP_LEVEL_MODULES)}: give a new module a home in a package of its layer")
+    for pkg in ("demo", "mesh", "render", "samples"):
+        assert (PKG / pkg / "__init__.py").is_file()
+        assert layer_of(f"mapkit.{pkg}") is not None
+
+
 @pytest.mark.parametrize("name", ARNET_CORE)
 def test_arnet_core_is_sans_io(name: str) -> None:
     path = PKG / "arnet" / f"{name}.py"

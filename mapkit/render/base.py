@@ -3,12 +3,8 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 from mapkit.errors import MapkitError
-
-if TYPE_CHECKING:
-    pass
 
 __all__ = ["FORMATS", "MAX_PIXELS", "MIN_PIXELS", "RenderError", "Rendering"]
 

@@ -11,10 +11,6 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from mapkit.model import MapData, MapObject
-
-if TYPE_CHECKING:
-    from matplotlib.axes import Axes
-    from matplotlib.figure import Figure
 from mapkit.render.base import _LEGEND_MIN_WIDTH, MAX_PIXELS, MIN_PIXELS, RenderError, Rendering
 from mapkit.render.geometry import (
     _color,
@@ -37,6 +33,10 @@ from mapkit.render.kinds import (
     object_kind,
     type_params,
 )
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
 
 __all__ = ["make_figure"]
 

@@ -4,12 +4,8 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable
-from typing import TYPE_CHECKING
 
 from mapkit.model import MapData, MapObject
-
-if TYPE_CHECKING:
-    pass
 
 # -- geometry helpers -------------------------------------------------------------------------
 

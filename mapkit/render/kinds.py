@@ -2,12 +2,9 @@
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from mapkit.model import MapData, MapObject
-
-if TYPE_CHECKING:
-    pass
 
 __all__ = ["COLORS", "object_kind", "type_params"]
 

@@ -6,16 +6,13 @@ from __future__ import annotations
 import dataclasses
 import io
 import os
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from mapkit._atomic import atomic_write
 from mapkit._typing import PathLike
 from mapkit.errors import UnsupportedFormatError
 from mapkit.formats.registry import register_writer
 from mapkit.model import MapData
-
-if TYPE_CHECKING:
-    pass
 from mapkit.render.base import FORMATS, RenderError, Rendering
 from mapkit.render.figure import make_figure
 from mapkit.render.kinds import _RC

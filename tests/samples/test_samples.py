@@ -11,7 +11,7 @@ import pytest
 import mapkit
 from mapkit.samples import list_samples, sample_path
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def test_samples_match_their_generator() -> None:

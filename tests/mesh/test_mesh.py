@@ -27,7 +27,7 @@ from mapkit.mesh import (
 )
 from mapkit.model import MapData, MapObject, Scan
 
-FUSE = 1e-4  # the footprint grows by this much (mesh.py _FUSE) ...
+FUSE = 1e-4  # the footprint grows by this much (mesh/walls.py _FUSE) ...
 GROW = 5 * FUSE  # ... and up to 5 times that at sharp corners (mitre limit 5)
 
 
