@@ -42,8 +42,10 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from mapkit.transfer import client as client_mod  # noqa: E402
-from mapkit.transfer import send_file  # noqa: E402
+from mapkit.transfer import (
+    client as client_mod,  # noqa: E402
+    send_file,  # noqa: E402
+)
 
 SECRET = b"benchmark-secret-0123456789abcdef"
 

@@ -12,8 +12,7 @@ import struct
 from pathlib import Path
 
 import pytest
-from hypothesis import given
-from hypothesis import strategies as st
+from hypothesis import given, strategies as st
 
 from mapkit.arnet.connection import ClientConnection, State
 from mapkit.arnet.errors import AriaPermissionError, AriaProtocolError

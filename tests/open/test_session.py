@@ -8,8 +8,7 @@ import shutil
 from pathlib import Path
 
 import numpy as np
-from hypothesis import given, settings
-from hypothesis import strategies as st
+from hypothesis import given, settings, strategies as st
 
 import mapkit
 from mapkit.edit import apply_script, diff, parse_script

@@ -7,8 +7,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given
-from hypothesis import strategies as st
+from hypothesis import given, strategies as st
 
 import mapkit
 from mapkit.model import MapData, MapObject, Scan
@@ -131,8 +130,7 @@ def test_rotated_rectangles_cover_their_cells(ft, theta, res) -> None:
     # Nothing farther than a cell's half-diagonal from the rectangle is marked.
     marked = g.cell_to_world(np.argwhere(mask))
     if shape is not None and len(marked):
-        from shapely import distance
-        from shapely import points as spoints
+        from shapely import distance, points as spoints
 
         assert (distance(shape, spoints(marked)) <= g.resolution_mm * math.sqrt(0.5) + 1e-6).all()
 

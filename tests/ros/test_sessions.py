@@ -17,8 +17,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from hypothesis import HealthCheck, given, settings
-from hypothesis import strategies as st
+from hypothesis import HealthCheck, given, settings, strategies as st
 
 from mapkit.ros.transfer import FEATURES_SERVE, Robot, RobotNode, Terminal
 from mapkit.ros.transport import Faults

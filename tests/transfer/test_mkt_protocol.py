@@ -10,8 +10,7 @@ import zlib
 from dataclasses import dataclass, field
 
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
+from hypothesis import given, settings, strategies as st
 
 from mapkit.errors import TransferError
 from mapkit.transfer.protocol import (

@@ -7,8 +7,7 @@ import json
 import sys
 
 import pytest
-from hypothesis import given
-from hypothesis import strategies as st
+from hypothesis import given, strategies as st
 
 from mapkit.transfer.protocol import Frame, FrameType, ProtocolError, parse_json
 from mapkit.transfer.wirejson import (
