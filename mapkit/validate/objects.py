@@ -46,15 +46,23 @@ def _edges(obj: MapObject) -> np.ndarray[Any, Any]:
     return np.array([[*c[i], *c[(i + 1) % 4]] for i in range(4)], dtype=np.float64)
 
 
-@rule(C.NON_FINITE_OBJECT, C.UNWRITABLE_TEXT)
+@rule(C.NON_FINITE_OBJECT, C.INFINITE_OBJECT, C.UNWRITABLE_TEXT)
 def writable(ctx: Context) -> None:
     """Everything in the model can be written and read back as it is."""
     for i, o in enumerate(ctx.map.objects):
         vals = (o.x, o.y, o.theta, *(o.from_to or ()))
-        if not all(math.isfinite(v) for v in vals):
+        if any(math.isnan(v) for v in vals):
             ctx.add(
                 C.NON_FINITE_OBJECT,
-                f"{ctx.kind(o)} has a NaN or infinite coordinate or heading: ARIA crashes on it",
+                f"{ctx.kind(o)} has a NaN coordinate or heading: ARIA crashes on it",
+                line=ctx.object_line(i),
+                object=o.name,
+            )
+        elif not all(math.isfinite(v) for v in vals):
+            ctx.add(
+                C.INFINITE_OBJECT,
+                f"{ctx.kind(o)} has an infinite coordinate or heading: ARIA reads and writes it "
+                "as inf, but no robot can go there; it is left out of drawings and checks",
                 line=ctx.object_line(i),
                 object=o.name,
             )
