@@ -953,10 +953,10 @@ def _map_chunks(m: MapData, pool: ThreadPoolExecutor | None) -> Iterator[bytes]:
     yield _encode("".join(line + "\n" for line in iter_header_lines(m)))
     for s in m.scans:
         if s.num_lines:
-            yield (_scan_prefix(s) + "_LINES\n" if _scan_prefix(s) else "LINES\n").encode()
+            yield _encode(_scan_prefix(s) + "_LINES\n" if _scan_prefix(s) else "LINES\n")
             yield from iter_format_rows(s.lines, pool)
     for s in m.scans:
-        yield (_scan_prefix(s) + "_DATA\n" if _scan_prefix(s) else "DATA\n").encode()
+        yield _encode(_scan_prefix(s) + "_DATA\n" if _scan_prefix(s) else "DATA\n")
         yield from iter_format_rows(s.points, pool)
 
 
