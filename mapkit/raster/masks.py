@@ -156,7 +156,7 @@ def speed_zones(m: MapData, *, param: str | None = None) -> list[SpeedZone]:
             speed = float(text)
         except ValueError:
             continue
-        if speed > 0 and np.isfinite(speed):
+        if speed > 0 and np.isfinite(speed) and o.is_finite:
             out.append(SpeedZone(o.name, o.type, speed, np.array(o.corners(), dtype=np.float64)))
     return out
 
