@@ -125,14 +125,20 @@ _PLAIN_NUMBERS = re.compile(
 )
 
 
+_BIG_INT = 10**18
+
+
 def _numbers(rest: bytes) -> np.ndarray[Any, np.dtype[np.float64]]:
     """Whitespace-separated numbers to float64 (C's ``strtod``, any length in linear time).
 
-    Integers beyond 64 bits saturate (as ``strtol`` does); ValueError on a token that is not a
-    whole number. The result may hold NaN or infinities only when :func:`_all_ints` is false.
+    Every value is a double as ``strtod`` reads it (a 30-digit integer is 1e30); ValueError on
+    a token that is not a whole number. The result may hold NaN or infinities only when :func:`_all_ints` is false.
     """
     if _all_ints(rest):
-        return np.fromstring(rest, dtype=np.int64, sep=" ").astype(np.float64)
+        ints = np.fromstring(rest, dtype=np.int64, sep=" ")
+        if len(ints) == 0 or not ((ints >= _BIG_INT) | (ints <= -_BIG_INT)).any():
+            return ints.astype(np.float64)
+        # 19 digits or more: int64 may have saturated; strtod reads them as doubles (below).
     if _PLAIN_NUMBERS.fullmatch(rest):
         return np.array(rest.split(), dtype=np.float64)
     return np.array(_small(rest), dtype=np.float64)
