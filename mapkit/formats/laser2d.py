@@ -997,9 +997,10 @@ _INT64_SAFE = 2.0**62  # |values| below this convert to int64 exactly
 def _rounded(a: np.ndarray[Any, Any]) -> list[Any]:
     """Values rounded half to even (as ``%.0f``), as ints; as ``%.0f`` text beyond 64 bits."""
     flat = np.asarray(a, dtype=np.float64).reshape(-1)
-    if len(flat) and not np.abs(flat).max() < _INT64_SAFE:  # huge (a saturated 50-digit number)
+    if len(flat) and not np.abs(flat).max() < _INT64_SAFE:  # huge (a 50-digit number reads 1e50)
         return ["%.0f" % v for v in flat.tolist()]
-    return np.rint(flat).astype(np.int64).tolist()
+    out: list[Any] = np.rint(flat).astype(np.int64).tolist()
+    return out
 
 
 def _ints(a: np.ndarray[Any, Any]) -> str:
