@@ -126,48 +126,46 @@ def _exponent(sign: str, digits: str) -> int:
     return -value if sign == "-" else value
 
 
-def _decimal_value(neg: bool, whole: str, frac: str, exp: int) -> float:
+def _significand(
+    whole: str, frac: str, exp: int, step: int, keep: int
+) -> tuple[str, int] | None:
+    """``whole.frac * base**exp`` as significant digits and an exponent in units of ``step``.
+
+    ``step`` is 1 for decimal digits (powers of 10) and 4 for hexadecimal ones (powers of 2).
+    Leading and trailing zeros go; digits past ``keep`` become one sticky ``1``. ``None`` for 0.
+    """
     mant = (whole + frac).lstrip("0")
-    exp -= len(frac)
+    exp -= step * len(frac)
     stripped = mant.rstrip("0")
-    exp += len(mant) - len(stripped)
+    exp += step * (len(mant) - len(stripped))
     mant = stripped
     if not mant:
-        return -0.0 if neg else 0.0
-    magnitude = len(mant) + exp  # value < 10**magnitude, >= 10**(magnitude - 1)
-    if magnitude > 310:
-        value = math.inf
-    elif magnitude < -330:
-        value = 0.0
-    else:
-        if len(mant) > _MAX_DEC_DIGITS:
-            exp += len(mant) - _MAX_DEC_DIGITS - 1
-            mant = mant[:_MAX_DEC_DIGITS] + "1"
-        value = float(f"{mant}e{exp}")
-    return -value if neg else value
+        return None
+    if len(mant) > keep:
+        exp += step * (len(mant) - keep - 1)
+        mant = mant[:keep] + "1"
+    return mant, exp
 
 
-def _hex_value(neg: bool, whole: str, frac: str, exp: int) -> float:
-    mant = (whole + frac).lstrip("0")
-    exp -= 4 * len(frac)
-    stripped = mant.rstrip("0")
-    exp += 4 * (len(mant) - len(stripped))
-    mant = stripped
-    if not mant:
+def _value(neg: bool, whole: str, frac: str, exp: int, hexa: bool) -> float:
+    step, keep, top, bottom = (4, _MAX_HEX_DIGITS, 1100, -1200) if hexa else (
+        1, _MAX_DEC_DIGITS, 310, -330)
+    found = _significand(whole, frac, exp, step, keep)
+    if found is None:
         return -0.0 if neg else 0.0
-    magnitude = 4 * len(mant) + exp  # value < 2**magnitude
-    if magnitude > 1100:
+    mant, exp = found
+    magnitude = step * len(mant) + exp  # value < base**magnitude, >= base**(magnitude - step)
+    if magnitude > top:
         value = math.inf
-    elif magnitude < -1200:
+    elif magnitude < bottom:
         value = 0.0
-    else:
-        if len(mant) > _MAX_HEX_DIGITS:
-            exp += 4 * (len(mant) - _MAX_HEX_DIGITS - 1)
-            mant = mant[:_MAX_HEX_DIGITS] + "1"
+    elif hexa:
         try:
             value = float.fromhex(f"0x{mant}p{exp}")
-        except OverflowError:
+        except OverflowError:  # rounds up past the largest double
             value = math.inf
+    else:
+        value = float(f"{mant}e{exp}")
     return -value if neg else value
 
 
@@ -207,9 +205,7 @@ def strtod(s: str) -> tuple[float, int]:
     if m:
         exp = _exponent(m.group(1), m.group(2))
         pos = m.end()
-    if hexa:
-        return _hex_value(neg, whole, frac, exp), pos
-    return _decimal_value(neg, whole, frac, exp), pos
+    return _value(neg, whole, frac, exp, bool(hexa)), pos
 
 
 def token_long(tok: str, base: int = 10) -> int | None:
