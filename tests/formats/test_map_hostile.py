@@ -153,6 +153,19 @@ def test_object_and_origin_numbers_with_many_digits_in_linear_time(digits: int) 
     assert all(len(i.message) < 300 for i in issues)  # the line is named, not copied
 
 
+def test_info_values_with_many_digits_are_checked_in_linear_time() -> None:
+    # ArgDesc and CairnInfo: values were matched by a backtracking regex in validate.
+    d = "9" * 50_000
+    text = (
+        "2D-Map\nMapInfo: GoalType Name=Goal\n"
+        f"MapInfo: ArgDesc Name=Speed Parent=Goal Type=double Value={d}x Min=-{d}\n"
+        f"MapInfo: ArgDesc Name=N Parent=Goal Type=int Value={d}\n"
+        f'CairnInfo: Params "g" {d}x {d}\nCairn: Goal 1 1 0 "" ICON "g"\nDATA\n1 1\n'
+    )
+    codes = validate(mapkit.loads(text), navigation=False).codes()
+    assert int(C.ARGDESC_BAD_VALUE) in codes and int(C.PARAMS_BAD_VALUE) in codes
+
+
 def test_data_rows_beyond_64_bits_saturate_and_validate_warns() -> None:
     m = mapkit.loads(b"2D-Map\nDATA\n" + b"9" * 30 + b" 1\n-" + b"9" * 5000 + b" 3\n4294967297 3\n")
     assert m.points.tolist() == [[2**63 - 1, 1], [-(2**63), 3], [4294967297, 3]]
