@@ -216,6 +216,15 @@ def token_long(tok: str, base: int = 10) -> int | None:
 
 def token_double(tok: str) -> float | None:
     """``strtod`` on a whole token: the value, or ``None`` unless every character was used."""
+    if tok.isascii() and tok.isprintable() and "_" not in tok and " " not in tok:
+        # On printable ASCII without blanks or "_" (nothing to strip, no Unicode digits, no digit
+        # separators) Python's float() takes exactly the decimal, inf and nan spellings strtod
+        # takes whole, rounds them the same, in linear time, and faster; hexadecimal floats and
+        # nan(...) fall through to strtod.
+        try:
+            return float(tok)
+        except ValueError:
+            pass
     value, used = strtod(tok)
     return value if used and used == len(tok) else None
 

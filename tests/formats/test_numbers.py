@@ -75,6 +75,20 @@ def test_strtod_is_glibcs(s: str) -> None:
     assert same_double(mine, theirs), (s, mine, theirs)
 
 
+@given(st.one_of(number_text, long_digits, st.text(max_size=12)))
+def test_whole_token_reading_is_glibcs(s: str) -> None:
+    from mapkit.formats._numbers import token_double
+
+    if "\x00" in s or not s.isascii():
+        return  # a token never holds NUL; non-ASCII is never a number for either
+    theirs, their_used = c_strtod(s)
+    mine = token_double(s)
+    if their_used == len(s) and s:
+        assert mine is not None and same_double(mine, theirs), (s, mine, theirs)
+    else:
+        assert mine is None, (s, mine)
+
+
 @given(st.one_of(number_text, long_digits), st.sampled_from([10, 16]))
 def test_strtol_is_glibcs(s: str, base: int) -> None:
     assert strtol(s, base) == c_strtol(s, base)
