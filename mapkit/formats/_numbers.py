@@ -1,4 +1,4 @@
-"""Text to numbers the way ARIA's C library reads them (``strtol``, ``atoi``, ``strtod``), in linear time.
+"""Text to numbers as ARIA's C library reads them (``strtol``, ``atoi``, ``strtod``), linearly.
 
 Every place the ``.map`` and ``.2d`` readers turn text into a number goes through this module, so
 that a file reads the same everywhere and no input can raise a foreign exception or take more
@@ -170,7 +170,7 @@ def _value(neg: bool, whole: str, frac: str, exp: int, hexa: bool) -> float:
 
 
 def strtod(s: str) -> tuple[float, int]:
-    """glibc's ``strtod`` on ``s`` (C locale): ``(value, characters used)``; ``(0.0, 0)`` if none."""
+    """glibc's ``strtod`` on ``s`` (C locale): ``(value, characters used)``; ``(0.0, 0)``: none."""
     if len(s) < 40 and _PLAIN.fullmatch(s):
         return float(s), len(s)  # the common case: what ARIA and mapkit write
     pos = _skip_space(s, 0)
@@ -248,7 +248,7 @@ def c_int(value: int) -> int:
 
 
 def aria_double(tok: str) -> float | None:
-    """ARIA's ``getArgDouble`` on one token (``INF``/``-INF`` or a whole ``strtod``), or ``None``."""
+    """ARIA's ``getArgDouble`` on one token (``INF``/``-INF`` or a whole ``strtod``) or ``None``."""
     return token_double(tok)
 
 

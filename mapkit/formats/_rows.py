@@ -3,8 +3,8 @@
 ARIA's row rules (FORMATS.md A.8): a row is ``<int><ws+><int>...`` then anything; an int is an
 optional ``-`` and decimal digits (a lone ``-`` is 0) read by ``atoi`` (``strtol``: a number
 beyond 64 bits saturates; mapkit keeps the 64-bit value where ARIA cuts it to 32 bits); no ``+``,
-hex or decimals; a row that starts with whitespace or does not fit is skipped silently. Here every row is checked with those
-rules; rows that fail are reported by index.
+hex or decimals; a row that starts with whitespace or does not fit is skipped silently. Here
+every row is checked with those rules; rows that fail are reported by index.
 
 How it is fast (no Python loop per row):
 

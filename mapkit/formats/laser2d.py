@@ -132,7 +132,8 @@ def _numbers(rest: bytes) -> np.ndarray[Any, np.dtype[np.float64]]:
     """Whitespace-separated numbers to float64 (C's ``strtod``, any length in linear time).
 
     Every value is a double as ``strtod`` reads it (a 30-digit integer is 1e30); ValueError on
-    a token that is not a whole number. The result may hold NaN or infinities only when :func:`_all_ints` is false.
+    a token that is not a whole number. The result may hold NaN or infinities only when
+    :func:`_all_ints` is false.
     """
     if _all_ints(rest):
         ints = np.fromstring(rest, dtype=np.int64, sep=" ")
@@ -161,7 +162,7 @@ def _finite(v: np.ndarray[Any, Any]) -> bool:
 
 
 def _small(rest: bytes) -> list[float]:
-    """A few numbers (a pose line) as Python floats (C's ``strtod``); ValueError on a bad token."""
+    """A few numbers (a pose line) as floats (C's ``strtod``); ValueError on a bad token."""
     return [_float(t) for t in rest.split()]
 
 
@@ -584,7 +585,7 @@ class LogReader:
                                lineno, line, has_nl)
                     p.bad = True
                     continue
-                self._velocities = (float(v[0]), float(v[1]), float(v[2]) if len(v) == 3 else math.nan)
+                self._velocities = (v[0], v[1], v[2] if len(v) == 3 else math.nan)
                 continue
             if tag.startswith(b"reflector") and _is_laser_no(tag[9:-1]) and tag[-1:] == b":":
                 self._array_line(p.reflectors, int(tag[9:-1]), rest, lineno, line, has_nl,

@@ -207,7 +207,8 @@ class _Parser:
                 break
             if low.startswith("2d-map"):
                 raise MapFormatError(
-                    f"the map category {_short(kw)!r} is newer than mapkit supports (up to '2D-Map-Ex4')",
+                    f"the map category {_short(kw)!r} is newer than mapkit supports "
+                    "(up to '2D-Map-Ex4')",
                     source=self.source, line=lineno, text=text,
                 )
             if text.strip(_WS):
@@ -330,7 +331,8 @@ class _Parser:
         if (exact is not None and len(args) != exact) or len(args) < want:
             what = f"exactly {exact}" if exact is not None else "at least 1"
             self.fail(lineno, f"{kw} expects {what} integer{'s' if want > 1 else ''}, got "
-                      f"{len(args)} argument{'s' if len(args) != 1 else ''}: {_short(' '.join(args))!r}", text)
+                      f"{len(args)} argument{'s' if len(args) != 1 else ''}: "
+                      f"{_short(' '.join(args))!r}", text)
             return None
         vals = []
         for a in args[:want]:
@@ -538,7 +540,8 @@ class _Parser:
                 first = raw.split(None, 1)[0] if raw.split() else b""
                 if first.endswith(b":") and not raw[:1].isspace():
                     self.note(IssueCode.HEADER_LINE_AFTER_DATA, line_no,
-                              f"{_short(_decode(first))} after the first data tag: ARIA ignores it "
+                              f"{_short(_decode(first))} after the first data tag: "
+                              "ARIA ignores it "
                               "(header lines must come before DATA/LINES)")
                 else:
                     self.note(IssueCode.BAD_DATA_ROW, line_no,
@@ -669,7 +672,8 @@ _SCAN_KEYS = {
 }
 
 _KNOWN_KEYWORDS = {
-    *_OBJECT_KEYWORDS, *_INFO_LOWER, *_INACTIVE_INFO_LOWER, *_SCAN_KEYS, "sources:", "originlatlongalt:"
+    *_OBJECT_KEYWORDS, *_INFO_LOWER, *_INACTIVE_INFO_LOWER, *_SCAN_KEYS,
+    "sources:", "originlatlongalt:",
 }
 
 
@@ -879,13 +883,19 @@ def _uses_templates(m: MapData) -> bool:
     return False
 
 
+def _printf(spec: str, v: float) -> str:
+    """C's printf of one double: as Python's %, but a NaN with its sign bit set is ``-nan``."""
+    text = spec % v
+    return "-" + text if math.isnan(v) and math.copysign(1.0, v) < 0 else text
+
+
 def _f0(v: float) -> str:
-    return "%.0f" % v
+    return _printf("%.0f", v)
 
 
 def _object_line(keyword: str, o: MapObject) -> str:
-    s = (f'{keyword} {o.type} {_f0(o.x)} {_f0(o.y)} {o.theta:f} "{o.description}" {o.icon} '
-         f'"{o.name}"')
+    th = _printf("%f", o.theta)
+    s = f'{keyword} {o.type} {_f0(o.x)} {_f0(o.y)} {th} "{o.description}" {o.icon} "{o.name}"'
     if o.from_to is not None:
         s += " " + " ".join(_f0(v) for v in o.from_to)
     return s
@@ -923,7 +933,7 @@ def iter_header_lines(m: MapData) -> Iterator[str]:
             yield f"{p}LinesAreSorted: {'true' if s.lines_sorted else 'false'}"
     if m.origin_lla is not None:
         lat, lon, alt = m.origin_lla
-        yield f"OriginLatLongAlt: {lat:f} {lon:f} {alt:f}"
+        yield "OriginLatLongAlt: " + " ".join(_printf("%f", v) for v in (lat, lon, alt))
     for key in INFO_KEYWORDS:
         for line in m.info.get(key, ()):
             yield f"{key}: " + " ".join(line)

@@ -18,6 +18,9 @@ C = IssueCode
 
 # name: (input, what ARIA 2.9.1 writes after reading it)
 ARIA_REWRITES = {
+    'origin_nan_sign': (b'2D-Map\nOriginLatLongAlt: -nan NaN(x) -0\nDATA\n1 2\n',
+        b'2D-Map\nMinPos: 0 0\nMaxPos: 1 2\nNumPoints: 1\nPointsAreSorted: false\nResolution: 0\n'
+        b'OriginLatLongAlt: -nan nan -0.000000\nDATA\n1 2\n'),
     'unknown_keywords': (b'2D-Map\n2D-Map-Ex2\nFoo:\n"quoted kw" x\n  "Cairn:" Goal 1 2 3 "" ICON "q"\n"unterminated kw\n# comment  with   spaces \nDATA\n1 2\n',
         b'2D-Map\nMinPos: 0 0\nMaxPos: 1 2\nNumPoints: 1\nPointsAreSorted: false\nResolution: 0\nCairn: Goal 1 2 3.000000 "" ICON "q"\n2D-Map-Ex2\nFoo:\nquoted kw" x\nunterminated kw\n# comment with spaces\nDATA\n1 2\n'),
     'cairn_inf_hex': (b'2D-Map\nCairn: Goal INF -INF 0x10 "" ICON "a"\nCairn: ForbiddenArea 0 0 0 "" ICON "b" INF 0x10 -inf 1e400\nDATA\n1 2\n',
