@@ -264,7 +264,7 @@ class _Parser:
 
     def header_line(self, lineno: int, kw: str, low: str, rest: str, text: str) -> None:
         args = tokenize(rest)
-        if len(args) > _MAX_TOKENS or 4 * len(text) >= _MAX_ARG_BYTES:
+        if len(args) >= _MAX_TOKENS or 4 * len(text) >= _MAX_ARG_BYTES:  # (+1: an unknown keyword)
             self.long_line(lineno, kw, low, args, text)
         if low in _OBJECT_KEYWORDS:
             self.object_line(lineno, kw, _OBJECT_KEYWORDS[low], args, text)

@@ -97,12 +97,19 @@ def test_long_header_lines_are_kept_whole_and_reported(size: int) -> None:
 
 
 def test_511_arguments_and_9999_bytes_are_the_limits() -> None:
+    # Checked with ARIA 2.9.1: a known keyword keeps 511 arguments, an unknown line 511 tokens
+    # (its keyword is one of them), and the argument splitter reads 9,999 bytes.
     ok = "MapInfo: " + " ".join(["x"] * 511)
     cut = "MapInfo: " + " ".join(["x"] * 512)
     wide = "MapInfo: " + "w" * 10_000
-    _m, issues = mapkit.recover(f"2D-Map\n{ok}\n{cut}\n{wide}\nDATA\n".encode())
-    assert [(i.code, i.location.line) for i in issues] == [(C.TOO_MANY_TOKENS, 3), (C.TOO_MANY_TOKENS, 4)]
-    assert "512 arguments" in issues[0].message and "10,000 bytes" in issues[1].message
+    unknown_ok = "Foo " + " ".join(["y"] * 510)
+    unknown_cut = "Bar " + " ".join(["y"] * 511)
+    data = f"2D-Map\n{ok}\n{cut}\n{wide}\n{unknown_ok}\n{unknown_cut}\nDATA\n".encode()
+    _m, issues = mapkit.recover(data)
+    long = [i for i in issues if i.code is C.TOO_MANY_TOKENS]
+    assert [i.location.line for i in long] == [3, 4, 6]
+    assert "512 arguments" in long[0].message and "10,000 bytes" in long[1].message
+    assert "512 arguments" in long[2].message
 
 
 DIGITS = "9" * 50_000
