@@ -185,8 +185,10 @@ def _int(tok: bytes) -> int:
 def _time(tok: bytes) -> float:
     """``S.M`` with M milliseconds (ARIA's unpadded ``%ld.%ld``), else a decimal number."""
     s, dot, m = tok.partition(b".")
-    if dot and 0 < len(m) <= 3 and m.isdigit() and (s.isdigit() or (s[:1] == b"-" and s[1:].isdigit())):
-        sec = _int(s)
+    if (dot and 0 < len(m) <= 3 and m.isdigit() and len(s) <= 16
+            and (s.isdigit() or (s[:1] == b"-" and s[1:].isdigit()))):
+        # (Longer seconds: milliseconds are below a double's precision; strtod reads them.)
+        sec = int(s)
         ms = int(m)
         return (sec * 1000 + (ms if not s.startswith(b"-") else -ms)) / 1000.0
     return _float(tok)
@@ -1022,9 +1024,14 @@ def _pairs(xy: np.ndarray[Any, Any]) -> str:
 
 
 def _time_text(t: float, version: int) -> str:
-    total = int(round(t * 1000))
-    sec, ms = divmod(abs(total), 1000)
-    sign = "-" if total < 0 else ""
+    if abs(t) < 1e15:
+        total = int(round(t * 1000))
+        sec, ms = divmod(abs(total), 1000)
+        sign = "-" if total < 0 else ""
+    else:  # t * 1000 could overflow to inf; a double this large has no milliseconds to speak of
+        sec, frac = divmod(abs(t), 1.0)
+        sec, ms = int(sec) + (frac >= 0.9995), round(frac * 1000) % 1000
+        sign = "-" if t < 0 else ""
     return f"{sign}{sec}.{ms:03d}" if version >= 4 else f"{sign}{sec}.{ms}"
 
 

@@ -148,7 +148,9 @@ def _check_log(data: bytes) -> None:
         log, _issues = recover_log(data, name="fuzz.2d")
     except MapkitError:
         return
-    dumps_log(log)
+    # (No fixed-point check for logs: a header cut short by a record line is written with the
+    # header lines that follow it as extra lines, which read back as a second header.)
+    recover_log(dumps_log(log).encode("utf-8", "surrogateescape"))
 
 
 def _fuzz(

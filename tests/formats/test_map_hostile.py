@@ -237,6 +237,14 @@ def test_2d_numbers_with_thousands_of_digits(old: bytes, new: bytes) -> None:
     dumps_log(log)
 
 
+@pytest.mark.parametrize("value", [b"1e306", b"-1e300", b"99999999999999999999.5", b"9" * 300])
+def test_2d_huge_times_and_values_write_and_read_back(value: bytes) -> None:
+    rec = LOG_REC.replace(b"logTime: 0.100", b"logTime: " + value)
+    rec = rec.replace(b"robot: 1000 0 90.00", b"robot: 1e308 -1e308 90.00")
+    text = dumps_log(loads_log(LOG_HEAD + rec))  # t * 1000 overflowed to inf here
+    assert dumps_log(loads_log(text)) == text
+
+
 def test_2d_velocities_infinite_is_reported_as_such() -> None:
     data = (LOG_HEAD + LOG_REC).replace(b"velocities: 0.00", b"velocities: inf")
     with pytest.raises(LogFormatError, match="velocities: NaN or infinite value"):
