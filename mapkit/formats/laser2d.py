@@ -1029,8 +1029,8 @@ def _time_text(t: float, version: int) -> str:
         sec, ms = divmod(abs(total), 1000)
         sign = "-" if total < 0 else ""
     else:  # t * 1000 could overflow to inf; a double this large has no milliseconds to speak of
-        sec, frac = divmod(abs(t), 1.0)
-        sec, ms = int(sec) + (frac >= 0.9995), round(frac * 1000) % 1000
+        whole, frac = divmod(abs(t), 1.0)
+        sec, ms = int(whole) + (frac >= 0.9995), round(frac * 1000) % 1000
         sign = "-" if t < 0 else ""
     return f"{sign}{sec}.{ms:03d}" if version >= 4 else f"{sign}{sec}.{ms}"
 
