@@ -118,6 +118,8 @@ def as_written(obj: MapObject) -> MapObject:
         >>> g.x, g.y, g.theta
         (2.0, 2.0, 0.123457)
     """
+    if not obj.is_finite:
+        return obj  # inf/nan: ARIA writes it as it is ("inf"), and rounding has no meaning
     ft = None
     if obj.from_to is not None:
         fx, fy, tx, ty = (float(round(v)) for v in obj.from_to)
@@ -875,7 +877,9 @@ def _object_overlaps(m: MapData, obj: MapObject, region: Region) -> bool:
     shape = m.object_shape(obj)
     geom = region.geometry()
     if shape == "point":
-        return bool(shapely.intersects_xy(geom, obj.x, obj.y))
+        return bool(shapely.intersects_xy(geom, obj.x, obj.y))  # False for inf or nan
+    if not obj.is_finite:
+        return False  # at infinity: outside every region
     if shape == "line":
         assert obj.from_to is not None
         fx, fy, tx, ty = obj.from_to
