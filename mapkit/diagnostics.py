@@ -57,6 +57,7 @@ class IssueCode(enum.IntEnum):
     TOO_MANY_TOKENS = 112
     BOX_RECOMPUTED = 113
     LOSSY_QUOTE = 114
+    NUMBER_OUT_OF_RANGE = 115
 
     # 2xx: header consistency (validator)
     NUM_POINTS_MISMATCH = 201
@@ -96,6 +97,7 @@ class IssueCode(enum.IntEnum):
     SEVERAL_ROBOT_HOMES = 413
     UNWRITABLE_TEXT = 414
     WRONG_SHAPE_FOR_TYPE = 415
+    INFINITE_OBJECT = 416
 
     # 5xx: navigation (validator)
     UNREACHABLE = 501
@@ -147,12 +149,20 @@ CODE_SUMMARY: dict[IssueCode, tuple[Severity, str]] = {
     IssueCode.CR_IN_HEADER: (Severity.INFO, "CR inside a header line (ARIA deletes it)"),
     IssueCode.BAD_HEADER_LINE: (Severity.ERROR, "header line ARIA rejects (the load fails)"),
     IssueCode.BAD_SOURCES_LINE: (Severity.WARNING, "Sources: line with duplicate or empty names"),
-    IssueCode.TOO_MANY_TOKENS: (Severity.WARNING, "line longer than ARIA reads (511 tokens / 9999 bytes)"),
+    IssueCode.TOO_MANY_TOKENS: (
+        Severity.WARNING,
+        "header line longer than ARIA reads (12,000-byte line, 9,999 bytes or 511 arguments): "
+        "mapkit keeps it whole, ARIA splits or cuts it",
+    ),
     IssueCode.BOX_RECOMPUTED: (
         Severity.WARNING,
         "bounding box wider than 2 km: ARIA 2.9.4 recomputes it and sorts the data",
     ),
     IssueCode.LOSSY_QUOTE: (Severity.WARNING, "a quote inside a quoted token: ARIA splits it there"),
+    IssueCode.NUMBER_OUT_OF_RANGE: (
+        Severity.WARNING,
+        "header integer beyond 32 bits: read as ARIA reads it (strtol saturates, the int wraps)",
+    ),
     # 2xx
     IssueCode.NUM_POINTS_MISMATCH: (
         Severity.WARNING,
@@ -217,7 +227,7 @@ CODE_SUMMARY: dict[IssueCode, tuple[Severity, str]] = {
         Severity.WARNING,
         "built-in goal/dock type used but not listed while the map declares its goal/dock types",
     ),
-    IssueCode.NON_FINITE_OBJECT: (Severity.ERROR, "object with a NaN or infinite coordinate or heading"),
+    IssueCode.NON_FINITE_OBJECT: (Severity.ERROR, "object with a NaN coordinate or heading"),
     IssueCode.HEADING_NOT_NORMALISED: (
         Severity.INFO,
         "heading outside (-180, 180] in the file (ARIA normalises it)",
@@ -242,6 +252,11 @@ CODE_SUMMARY: dict[IssueCode, tuple[Severity, str]] = {
     IssueCode.WRONG_SHAPE_FOR_TYPE: (
         Severity.WARNING,
         "object drawn as point/line/rectangle against its type's declaration",
+    ),
+    IssueCode.INFINITE_OBJECT: (
+        Severity.WARNING,
+        "object with an infinite coordinate or heading (ARIA reads and writes it as inf): "
+        "nothing can reach it and it is left out of every drawing and check",
     ),
     # 5xx
     IssueCode.UNREACHABLE: (

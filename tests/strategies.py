@@ -68,7 +68,7 @@ def maps(draw: st.DrawFn) -> MapData:
                 draw(st.lists(st.sampled_from(INFO_KEYWORDS), max_size=2, unique=True))}
     remainder = draw(st.lists(
         st.tuples(word, st.lists(info_token, max_size=3)).map(
-            lambda kv: "X-" + kv[0] + ": " + " ".join(kv[1])), max_size=3))
+            lambda kv: " ".join(["X-" + kv[0] + ":", *kv[1]])), max_size=3))  # as ARIA joins them
     lla = draw(st.none() | st.tuples(*[st.integers(-90_000_000, 90_000_000).map(lambda v: v / 1e6)] * 3))
     category = draw(st.sampled_from(["2D-Map", "2D-Map-Ex", "2D-Map-Ex2", "2D-Map-Ex3", "2D-Map-Ex4"]))
     m = MapData(

@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING, Any, TypeVar
 
 import click
 
-from mapkit.cli.options import echo_json, err, json_option
+from mapkit.cli.options import InputFile, echo_json, err, json_option
 from mapkit.cli.transfer import _progress, _quiet, _size
 
 if TYPE_CHECKING:
@@ -129,7 +129,7 @@ def fetch(host: str, name: str | None, output: str | None, via: str, user: str,
 
 
 @aria.command()
-@click.argument("map_file", metavar="MAP", type=click.Path(dir_okay=False, exists=True))
+@click.argument("map_file", metavar="MAP", type=InputFile())
 @click.argument("host")
 @click.option("--name", help="File name on the robot (default: MAP's name).")
 @click.option("--load", "and_load", is_flag=True,
@@ -213,7 +213,7 @@ def get(host: str, remote: str, output: str | None, user: str, password_file: st
 
 
 @aria.command()
-@click.argument("local", type=click.Path(dir_okay=False, exists=True))
+@click.argument("local", type=InputFile())
 @click.argument("host")
 @click.argument("remote")
 @robot_options

@@ -17,6 +17,7 @@ from typing import Any
 
 from mapkit.edit.checks import check_text
 from mapkit.errors import EditError
+from mapkit.formats._numbers import aria_double
 from mapkit.model import InfoLine, MapData, MapObject
 
 __all__ = [
@@ -169,11 +170,8 @@ class ArgSpec:
 def _bound(v: str | None) -> float | None:
     if v is None:
         return None
-    try:
-        f = float(v)
-    except ValueError:
-        return None
-    return f if math.isfinite(f) else None
+    f = aria_double(v)  # read from the file: as ARIA reads it
+    return f if f is not None and math.isfinite(f) else None
 
 
 def type_args(m: MapData, type: str) -> list[ArgSpec]:

@@ -26,6 +26,7 @@ Examples:
 
 from __future__ import annotations
 
+import math
 from collections import Counter, defaultdict
 from collections.abc import Sequence
 from dataclasses import dataclass, fields
@@ -65,6 +66,8 @@ def object_json(o: MapObject) -> dict[str, Any]:
 
 
 def _fmt(v: float) -> str:
+    if not math.isfinite(v):
+        return f"{v:.0f}"  # "inf" / "nan", as ARIA writes them
     return f"{v:.0f}" if abs(v - round(v)) < 0.05 else f"{v:.1f}"
 
 

@@ -115,8 +115,8 @@ class Rigid:
 
         Zero-size anchor rectangles at the origin (:func:`is_anchor`) are not places and stay.
         """
-        if is_anchor(obj):
-            return obj
+        if is_anchor(obj) or not obj.is_finite:
+            return obj  # an object at infinity (ARIA reads `inf`) has no place to move from
         if shape == "point" or obj.from_to is None:
             x, y = self._xy(obj.x, obj.y)
             return replace(obj, x=x, y=y, theta=_snap(obj.theta + self.angle, 1e-9))

@@ -1,9 +1,10 @@
 """Data rows of a ``.map`` (``DATA``: 2 integers, ``LINES``: 4) to numpy and back, vectorised.
 
 ARIA's row rules (FORMATS.md A.8): a row is ``<int><ws+><int>...`` then anything; an int is an
-optional ``-`` and decimal digits (a lone ``-`` is 0); no ``+``, hex or decimals; a row that
-starts with whitespace or does not fit is skipped silently. Here every row is checked with those
-rules; rows that fail are reported by index.
+optional ``-`` and decimal digits (a lone ``-`` is 0) read by ``atoi`` (``strtol``: a number
+beyond 64 bits saturates; mapkit keeps the 64-bit value where ARIA cuts it to 32 bits); no ``+``,
+hex or decimals; a row that starts with whitespace or does not fit is skipped silently. Here
+every row is checked with those rules; rows that fail are reported by index.
 
 How it is fast (no Python loop per row):
 
@@ -47,6 +48,8 @@ from typing import Any, TypeVar
 
 import numpy as np
 
+from mapkit.formats._numbers import atoi
+
 __all__ = [
     "RowReader",
     "RowSink",
@@ -70,11 +73,9 @@ _ROW = {
 }
 
 
-_INT64_MAX = 2**63 - 1
-
-
 def _int(tok: bytes) -> int:
-    return 0 if tok == b"-" else int(tok)
+    # strtol in base 10 (atoi before its int cast): a lone '-' is 0, beyond 64 bits saturates.
+    return atoi(tok.decode("ascii"))
 
 
 def _parse_rows_reference(seg: bytes, ncols: int) -> tuple[IntArray, list[int]]:
@@ -93,11 +94,10 @@ def _parse_rows_reference(seg: bytes, ncols: int) -> tuple[IntArray, list[int]]:
     bad: list[int] = []
     for i, line in enumerate(lines):
         m = pattern.match(line + b"\n")
-        row = None if m is None else [_int(g) for g in m.groups()]
-        if row is None or any(not -_INT64_MAX - 1 <= v <= _INT64_MAX for v in row):
-            bad.append(i)  # not a row, or a number no integer type holds
+        if m is None:
+            bad.append(i)  # not a row
         else:
-            out.append(row)
+            out.append([_int(g) for g in m.groups()])
     values = np.array(out, dtype=np.int64).reshape(-1, ncols)
     return values, bad
 

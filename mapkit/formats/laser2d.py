@@ -59,6 +59,7 @@ from __future__ import annotations
 import io
 import math
 import os
+import re
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from typing import IO, Any
@@ -69,6 +70,7 @@ from mapkit._atomic import atomic_open
 from mapkit._typing import PathLike
 from mapkit.diagnostics import Issue, IssueCode
 from mapkit.errors import LogFormatError
+from mapkit.formats._numbers import token_double, token_long
 from mapkit.formats.map import tokenize
 from mapkit.model.scan import (
     LaserConfig,
@@ -115,14 +117,32 @@ def _decode(b: bytes) -> str:
     return b.decode("utf-8", "surrogateescape")
 
 
-def _numbers(rest: bytes) -> np.ndarray[Any, np.dtype[np.float64]]:
-    """Whitespace-separated numbers to float64, fast for integers; ValueError on a bad token.
+# A line of plain decimal numbers (what ARIA's loggers write), which numpy reads exactly as C's
+# strtod does; atomic groups keep the match linear whatever the line holds.
+_PLAIN_NUMBERS = re.compile(
+    rb"[ \t\r\x0b\x0c]*(?>[+-]?(?:[0-9]+(?:\.[0-9]*+)?+|\.[0-9]+)(?:[eE][+-]?[0-9]+)?+"
+    rb"(?:[ \t\r\x0b\x0c]++|\Z))*+"
+)
 
-    The result may hold NaN or infinities only when :func:`_all_ints` is false for ``rest``.
+
+_BIG_INT = 10**18
+
+
+def _numbers(rest: bytes) -> np.ndarray[Any, np.dtype[np.float64]]:
+    """Whitespace-separated numbers to float64 (C's ``strtod``, any length in linear time).
+
+    Every value is a double as ``strtod`` reads it (a 30-digit integer is 1e30); ValueError on
+    a token that is not a whole number. The result may hold NaN or infinities only when
+    :func:`_all_ints` is false.
     """
     if _all_ints(rest):
-        return np.fromstring(rest, dtype=np.int64, sep=" ").astype(np.float64)
-    return np.array(rest.split(), dtype=np.float64)
+        ints = np.fromstring(rest, dtype=np.int64, sep=" ")
+        if len(ints) == 0 or not ((ints >= _BIG_INT) | (ints <= -_BIG_INT)).any():
+            return ints.astype(np.float64)
+        # 19 digits or more: int64 may have saturated; strtod reads them as doubles (below).
+    if _PLAIN_NUMBERS.fullmatch(rest):
+        return np.array(rest.split(), dtype=np.float64)
+    return np.array(_small(rest), dtype=np.float64)
 
 
 def _all_ints(rest: bytes) -> bool:
@@ -142,19 +162,36 @@ def _finite(v: np.ndarray[Any, Any]) -> bool:
 
 
 def _small(rest: bytes) -> list[float]:
-    """A few numbers (a pose line) as Python floats; ValueError on a bad token."""
-    return [float(t) for t in rest.split()]
+    """A few numbers (a pose line) as floats (C's ``strtod``); ValueError on a bad token."""
+    return [_float(t) for t in rest.split()]
+
+
+def _float(tok: bytes) -> float:
+    """One whole token read by C's ``strtod``; ValueError when it is not a number."""
+    v = token_double(tok.decode("latin-1"))
+    if v is None:
+        raise ValueError(f"not a number: {tok[:40]!r}")
+    return v
+
+
+def _int(tok: bytes) -> int:
+    """One whole token read by C's ``strtol`` in base 10 (saturating); ValueError otherwise."""
+    v = token_long(tok.decode("latin-1"))
+    if v is None:
+        raise ValueError(f"not an integer: {tok[:40]!r}")
+    return v
 
 
 def _time(tok: bytes) -> float:
     """``S.M`` with M milliseconds (ARIA's unpadded ``%ld.%ld``), else a decimal number."""
     s, dot, m = tok.partition(b".")
-    if dot and 0 < len(m) <= 3 and m.isdigit() and (s.isdigit() or (s[:1] == b"-" and s[1:].isdigit())):
+    if (dot and 0 < len(m) <= 3 and m.isdigit() and len(s) <= 16
+            and (s.isdigit() or (s[:1] == b"-" and s[1:].isdigit()))):
+        # (Longer seconds: milliseconds are below a double's precision; strtod reads them.)
         sec = int(s)
         ms = int(m)
         return (sec * 1000 + (ms if not s.startswith(b"-") else -ms)) / 1000.0
-    v = float(tok)
-    return v
+    return _float(tok)
 
 
 def goal_fields(event: LogEvent) -> tuple[str, str, str, str]:
@@ -366,14 +403,14 @@ class LogReader:
             tag = parts[0]
             rest = parts[1] if len(parts) > 1 else b""
             if tag in _RECORD_TAGS or tag in (b"cairn:", b"loop", b"loop:") or (
-                tag.startswith(b"scan") and tag[4:-1].isdigit() and tag.endswith(b":")
-            ) or (version == 1 and tag.startswith(b"sick") and tag[4:-1].isdigit()
+                tag.startswith(b"scan") and _is_laser_no(tag[4:-1]) and tag.endswith(b":")
+            ) or (version == 1 and tag.startswith(b"sick") and _is_laser_no(tag[4:-1])
                   and tag.endswith(b":")) or (tag.startswith(b"reflector")):
                 self._pushback = item
                 break
             try:
                 if tag == b"version:":
-                    v = int(rest.split()[0])
+                    v = _int(rest.split()[0])
                     if v not in VERSIONS:
                         self._note(IssueCode.LOG_UNKNOWN_VERSION,
                                    f"version {v} is not one mapkit knows (1-4); read as version 4",
@@ -381,7 +418,7 @@ class LogReader:
                         v = 4
                     version = v
                 elif tag == b"useEncoderPose:":
-                    use_encoder = bool(int(rest.split()[0]))
+                    use_encoder = bool(_int(rest.split()[0]))
                 elif tag == b"locationTypes:":
                     location_types = tuple(_decode(t) for t in rest.split())
                 elif _laser_tag(tag, b"sick", b"pose:") or _laser_tag(tag, b"scan", b"pose:"):
@@ -482,17 +519,17 @@ class LogReader:
                         self._drop_incomplete(lineno, "a new #scan record starts")
                         p = self._pending
                     p.start_line = lineno
-                    p.scan_id = int(s[5:])
+                    p.scan_id = _int(s[5:])
                 continue
             parts = s.split(None, 1)
             tag = parts[0]
             rest = parts[1] if len(parts) > 1 else b""
-            if tag[-1:] == b":" and tag.startswith(b"scan") and tag[4:-1].isdigit():
+            if tag[-1:] == b":" and tag.startswith(b"scan") and _is_laser_no(tag[4:-1]):
                 rec = self._finish_scan(int(tag[4:-1]), rest, lineno, line, has_nl, pairs=True)
                 if rec is not None:
                     yield rec
                 continue
-            if (tag[-1:] == b":" and tag.startswith(b"sick") and tag[4:-1].isdigit()):
+            if tag[-1:] == b":" and tag.startswith(b"sick") and _is_laser_no(tag[4:-1]):
                 k = int(tag[4:-1])
                 if version == 1:
                     rec = self._finish_scan(k, rest, lineno, line, has_nl, pairs=False)
@@ -507,7 +544,7 @@ class LogReader:
                     p = self._pending
                 p.start_line = lineno
                 try:
-                    p.scan_id = int(rest.split()[0])
+                    p.scan_id = _int(rest.split()[0])
                 except (ValueError, IndexError):
                     self._fail(IssueCode.LOG_BAD_VALUE, f"{_decode(tag)} expects an integer",
                                lineno, line, has_nl)
@@ -540,19 +577,19 @@ class LogReader:
                     v = _small(rest)
                     if len(v) not in (2, 3):
                         raise ValueError(f"expects 3 numbers (Vel RotVel LatVel), got {len(v)}")
-                    if not all(map(math.isfinite, v)):
-                        self._fail(IssueCode.LOG_NON_FINITE, "velocities: NaN or infinite value",
-                                   lineno, line, has_nl)
-                        p.bad = True
-                        continue
-                    self._velocities = (float(v[0]), float(v[1]),
-                                        float(v[2]) if len(v) == 3 else math.nan)
                 except ValueError as err:
                     msg = str(err) if "expects" in str(err) else "values that are not numbers"
                     self._fail(IssueCode.LOG_BAD_VALUE, f"velocities: {msg}", lineno, line, has_nl)
                     p.bad = True
+                    continue
+                if not all(map(math.isfinite, v)):
+                    self._fail(IssueCode.LOG_NON_FINITE, "velocities: NaN or infinite value",
+                               lineno, line, has_nl)
+                    p.bad = True
+                    continue
+                self._velocities = (v[0], v[1], v[2] if len(v) == 3 else math.nan)
                 continue
-            if tag.startswith(b"reflector") and tag[9:-1].isdigit() and tag[-1:] == b":":
+            if tag.startswith(b"reflector") and _is_laser_no(tag[9:-1]) and tag[-1:] == b":":
                 self._array_line(p.reflectors, int(tag[9:-1]), rest, lineno, line, has_nl,
                                  "reflector")
                 continue
@@ -761,9 +798,15 @@ def _printable(s: bytes) -> bool:
     return text.isprintable()
 
 
+def _is_laser_no(digits: bytes) -> bool:
+    """A laser number in a tag (``scan12:``): 1 to 9 ASCII digits. A longer run is no laser
+    number: such a tag is kept as an unknown tag (as text, nothing lost)."""
+    return 0 < len(digits) <= 9 and digits.isdigit()
+
+
 def _laser_tag(tag: bytes, prefix: bytes, suffix: bytes) -> bool:
     return (tag.startswith(prefix) and tag.endswith(suffix)
-            and tag[len(prefix):-len(suffix)].isdigit())
+            and _is_laser_no(tag[len(prefix):-len(suffix)]))
 
 
 def _laser_no(tag: bytes) -> int:
@@ -951,9 +994,21 @@ def _f2(v: float) -> str:
     return "%.2f" % v
 
 
+_INT64_SAFE = 2.0**62  # |values| below this convert to int64 exactly
+
+
+def _rounded(a: np.ndarray[Any, Any]) -> list[Any]:
+    """Values rounded half to even (as ``%.0f``), as ints; as ``%.0f`` text beyond 64 bits."""
+    flat = np.asarray(a, dtype=np.float64).reshape(-1)
+    if len(flat) and not np.abs(flat).max() < _INT64_SAFE:  # huge (a 50-digit number reads 1e50)
+        return ["%.0f" % v for v in flat.tolist()]
+    out: list[Any] = np.rint(flat).astype(np.int64).tolist()
+    return out
+
+
 def _ints(a: np.ndarray[Any, Any]) -> str:
     """Integers (rounded half to even, as ``%.0f``) joined by single spaces."""
-    return " ".join(map(str, np.rint(a).astype(np.int64).tolist()))
+    return " ".join(map(str, _rounded(a)))
 
 
 _PAIR_FORMATS: dict[int, str] = {}
@@ -964,14 +1019,19 @@ def _pairs(xy: np.ndarray[Any, Any]) -> str:
     n = len(xy)
     fmt = _PAIR_FORMATS.get(n)
     if fmt is None:
-        fmt = _PAIR_FORMATS[n] = " %d %d " * n
-    return fmt % tuple(np.rint(xy).astype(np.int64).reshape(-1).tolist())
+        fmt = _PAIR_FORMATS[n] = " %s %s " * n
+    return fmt % tuple(_rounded(xy))
 
 
 def _time_text(t: float, version: int) -> str:
-    total = int(round(t * 1000))
-    sec, ms = divmod(abs(total), 1000)
-    sign = "-" if total < 0 else ""
+    if abs(t) < 1e15:
+        total = int(round(t * 1000))
+        sec, ms = divmod(abs(total), 1000)
+        sign = "-" if total < 0 else ""
+    else:  # t * 1000 could overflow to inf; a double this large has no milliseconds to speak of
+        whole, frac = divmod(abs(t), 1.0)
+        sec, ms = int(whole) + (frac >= 0.9995), round(frac * 1000) % 1000
+        sign = "-" if t < 0 else ""
     return f"{sign}{sec}.{ms:03d}" if version >= 4 else f"{sign}{sec}.{ms}"
 
 

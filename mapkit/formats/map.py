@@ -29,6 +29,7 @@ from mapkit._atomic import atomic_open
 from mapkit._typing import PathLike
 from mapkit.diagnostics import Issue, IssueCode
 from mapkit.errors import MapFormatError
+from mapkit.formats._numbers import aria_double, aria_int, c_int
 from mapkit.formats._rows import (
     RowReader,
     RowSink,
@@ -61,15 +62,14 @@ __all__ = [
 
 _WS = " \t\x0b\x0c"
 _TOKEN = re.compile(r'"[^\n]*?"(?=[ \t\x0b\x0c]|$)|"[^\n]*|[^ \t\x0b\x0c]+')
-_STRTOL = re.compile(r"^[+-]?[0-9]+$|^\+?0[xX][0-9a-fA-F]+$")
-_STRTOD = re.compile(
-    r"^[+-]?(?:(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?|inf(?:inity)?|nan)$", re.I
-)
+_ASCII_LOWER = str.maketrans("ABCDEFGHIJKLMNOPQRSTUVWXYZ", "abcdefghijklmnopqrstuvwxyz")
 _CAT_LOWER = {c.lower(): c for c in CATEGORIES}
 _INFO_LOWER = {k.lower() + ":": k for k in INFO_KEYWORDS}
 _INACTIVE_INFO_LOWER = {"_" + k.lower() + ":": k for k in INFO_KEYWORDS}
 _OBJECT_KEYWORDS = {"cairn:": "objects", "_cairn:": "inactive_objects", "childcairn:": "child_objects"}
-_MAX_TOKENS = 511
+_MAX_TOKENS = 511  # ARIA's argument builder keeps 511 arguments per line
+_MAX_ARG_BYTES = 9_999  # ... copied from at most 9,999 bytes of argument text
+_LINE_BUFFER = 12_000  # header lines are read with fgets() into a 12,000-byte buffer
 _MAX_SPAN_MM = 2_000_000
 
 
@@ -79,6 +79,11 @@ def _decode(b: bytes) -> str:
 
 def _encode(s: str) -> bytes:
     return s.encode("utf-8", "surrogateescape")
+
+
+def _lower(s: str) -> str:
+    """ASCII-only lower case, as C's ``tolower``/``strcasecmp`` in the C locale."""
+    return s.translate(_ASCII_LOWER)
 
 
 def _unquote(tok: str) -> str:
@@ -164,14 +169,14 @@ class _Parser:
         """(lower-case tag, scan index, "points"|"lines"), longest first for prefix matching."""
         out = []
         for i, s in enumerate(self.scans):
-            p = "" if not s.prefix else s.prefix + "_"
-            out.append(((p + "data").lower().encode(), i, "points"))
-            out.append(((p + "lines").lower().encode(), i, "lines"))
+            p = b"" if not s.prefix else _encode(s.prefix) + b"_"
+            out.append(((p + b"data").lower(), i, "points"))  # bytes.lower(): ASCII only
+            out.append(((p + b"lines").lower(), i, "lines"))
         out.sort(key=lambda t: -len(t[0]))
         return out
 
     def match_tag(self, line: bytes) -> tuple[int, str] | None:
-        low = line[:64].lower()
+        low = line[: len(self._tags[0][0])].lower()  # the longest tag comes first
         for tag, idx, kind in self._tags:
             if low.startswith(tag):
                 return idx, kind
@@ -195,14 +200,15 @@ class _Parser:
             pos = end + 1
             text = _decode(raw.replace(b"\r", b""))
             kw, _ = _split_keyword(text)
-            low = kw.lower()
+            low = _lower(kw)
             if low in _CAT_LOWER:
                 self.category = _CAT_LOWER[low]
                 self.intro_line = lineno
                 break
             if low.startswith("2d-map"):
                 raise MapFormatError(
-                    f"the map category {kw!r} is newer than mapkit supports (up to '2D-Map-Ex4')",
+                    f"the map category {_short(kw)!r} is newer than mapkit supports "
+                    "(up to '2D-Map-Ex4')",
                     source=self.source, line=lineno, text=text,
                 )
             if text.strip(_WS):
@@ -231,7 +237,7 @@ class _Parser:
             if not text.strip(_WS):
                 continue
             kw, rest = _split_keyword(text)
-            low = kw.lower()
+            low = _lower(kw)
             tag = self._header_tag(low)
             if tag is not None:
                 current = tag
@@ -250,16 +256,16 @@ class _Parser:
         return self.build()
 
     def _header_tag(self, low: str) -> tuple[int, str] | None:
+        key = _encode(low)
         for tag, idx, kind in self._tags:
-            if low == tag.decode():
+            if key == tag:
                 return idx, kind
         return None
 
     def header_line(self, lineno: int, kw: str, low: str, rest: str, text: str) -> None:
         args = tokenize(rest)
-        if len(args) > _MAX_TOKENS:
-            self.note(IssueCode.TOO_MANY_TOKENS, lineno, f"{len(args)} arguments; ARIA keeps {_MAX_TOKENS}")
-            args = args[:_MAX_TOKENS]
+        if len(args) >= _MAX_TOKENS or 4 * len(text) >= _MAX_ARG_BYTES:  # (+1: an unknown keyword)
+            self.long_line(lineno, kw, low, args, text)
         if low in _OBJECT_KEYWORDS:
             self.object_line(lineno, kw, _OBJECT_KEYWORDS[low], args, text)
             return
@@ -280,15 +286,43 @@ class _Parser:
             self.origin_line(lineno, args, text)
             return
         for scan in self.scans:
-            if scan.prefix and not low.startswith(scan.prefix.lower()):
+            if scan.prefix and not low.startswith(_lower(scan.prefix)):
                 continue
             key = low[len(scan.prefix):]
             if key in _SCAN_KEYS:
                 self.scan_key(lineno, scan, key, kw, args, text)
                 return
-        self.remainder.append(kw + " " + " ".join(args))
+        # ARIA splits an unknown line from its first character (after an opening quote) and
+        # writes the tokens back joined by single spaces: the keyword is one of them.
+        body = text.lstrip(_WS)
+        self.remainder.append(" ".join(tokenize(body[1:] if body.startswith('"') else body)))
         self.remainder_lines.append(lineno)
-        self.note(IssueCode.UNKNOWN_LINE, lineno, f"unknown keyword {kw!r} kept")
+        self.note(IssueCode.UNKNOWN_LINE, lineno, f"unknown keyword {_short(kw)!r} kept")
+
+    def long_line(self, lineno: int, kw: str, low: str, args: list[str], text: str) -> None:
+        """Report a header line longer than ARIA reads; mapkit keeps all of it."""
+        line_bytes = len(_encode(text))
+        body = text.lstrip(_WS)
+        known = low in _KNOWN_KEYWORDS or self._header_tag(low) is not None or any(
+            s.prefix and low.startswith(_lower(s.prefix)) and low[len(s.prefix):] in _SCAN_KEYS
+            for s in self.scans
+        )
+        # ARIA tokenises the arguments of a known keyword, and the whole line of an unknown one.
+        value = _encode(_split_keyword(text)[1].lstrip(_WS) if known else body)
+        ntok = len(args) + (0 if known else 1)
+        why = []
+        if line_bytes >= _LINE_BUFFER:
+            why.append(f"it is {line_bytes:,} bytes long: ARIA reads header lines in pieces of "
+                       f"{_LINE_BUFFER - 1:,} bytes and reads the rest as further lines")
+        if len(value) > _MAX_ARG_BYTES:
+            why.append(f"its arguments are {len(value):,} bytes: ARIA splits only the first "
+                       f"{_MAX_ARG_BYTES:,}")
+        if ntok > _MAX_TOKENS:
+            why.append(f"it has {ntok:,} arguments: ARIA keeps {_MAX_TOKENS}")
+        if why:
+            self.note(IssueCode.TOO_MANY_TOKENS, lineno,
+                      f"{_short(kw)} line: " + "; ".join(why) + " (mapkit keeps the whole line; "
+                      "ARIA will split or cut it)")
 
     # -- header keywords -----------------------------------------------------------------------
 
@@ -297,14 +331,20 @@ class _Parser:
         if (exact is not None and len(args) != exact) or len(args) < want:
             what = f"exactly {exact}" if exact is not None else "at least 1"
             self.fail(lineno, f"{kw} expects {what} integer{'s' if want > 1 else ''}, got "
-                      f"{len(args)} argument{'s' if len(args) != 1 else ''}: {' '.join(args)!r}", text)
+                      f"{len(args)} argument{'s' if len(args) != 1 else ''}: "
+                      f"{_short(' '.join(args))!r}", text)
             return None
         vals = []
         for a in args[:want]:
-            if not _STRTOL.match(a):
-                self.fail(lineno, f"{kw} expects integers, got {a!r}", text)
+            v = aria_int(a)
+            if v is None:
+                self.fail(lineno, f"{kw} expects integers, got {_short(a)!r}", text)
                 return None
-            vals.append(int(a, 0) if a.lstrip("+").lower().startswith("0x") else int(a))
+            iv = c_int(v)  # ARIA keeps strtol's long in an int
+            if iv != v:
+                self.note(IssueCode.NUMBER_OUT_OF_RANGE, lineno,
+                          f"{kw} {_short(a)} is beyond 32 bits: read as {iv}, as ARIA reads it")
+            vals.append(iv)
         return vals
 
     def scan_key(self, lineno: int, scan: _ScanState, key: str, kw: str, args: list[str], text: str) -> None:
@@ -329,11 +369,11 @@ class _Parser:
                 return
             value = v[0]
         elif key in ("pointsaresorted:", "linesaresorted:"):
-            if not args or args[0].lower() not in ("true", "false", "1", "0"):
+            if not args or _lower(args[0]) not in ("true", "false", "1", "0"):
                 self.fail(lineno, f"{canon} expects true, false, 1 or 0, got "
-                          f"{args[0] if args else 'nothing'!r}", text)
+                          f"{_short(args[0]) if args else 'nothing'!r}", text)
                 return
-            value = args[0].lower() in ("true", "1")
+            value = _lower(args[0]) in ("true", "1")
         else:  # display:
             if not args:
                 self.fail(lineno, f"{canon} expects a label", text)
@@ -347,7 +387,7 @@ class _Parser:
             self.fail(lineno, "Sources: expects at least one source name", text)
             return
         names = [_unquote(a) for a in args]
-        lowered = [x.lower() for x in names]
+        lowered = [_lower(x) for x in names]
         if any(not x for x in names) or len(set(lowered)) != len(lowered):
             self.note(IssueCode.BAD_SOURCES_LINE, lineno,
                       "Sources: has empty or duplicate names; ARIA ignores the line")
@@ -373,11 +413,12 @@ class _Parser:
         if not args:
             self.origin_lla = None
             return
-        if len(args) < 3 or not all(_STRTOD.match(a) for a in args[:3]):
+        vals = [aria_double(a) for a in args[:3]]
+        if len(args) < 3 or None in vals:
             self.fail(lineno, f"OriginLatLongAlt: expects 3 numbers (latitude longitude altitude), "
-                      f"got {' '.join(args)!r}", text)
+                      f"got {_short(' '.join(args))!r}", text)
             return
-        lat, lon, alt = (float(a) for a in args[:3])
+        lat, lon, alt = (float(v) for v in vals if v is not None)
         self.origin_lla = (lat, lon, alt)
         self.header_lines["OriginLatLongAlt:"] = lineno
 
@@ -387,17 +428,18 @@ class _Parser:
             self.fail(lineno, f"{label} expects at least 7 fields (Type X Y Theta Desc Icon Name), got "
                       f"{len(args)}", text)
             return
-        nums = [args[1], args[2], args[3]]
-        ft_tokens = args[7:11] if len(args) >= 11 else []
-        for tok in nums + ft_tokens:
-            if not _STRTOD.match(tok):
-                self.fail(lineno, f"{label} expects a number, got {tok!r}", text)
+        tokens = [args[1], args[2], args[3], *(args[7:11] if len(args) >= 11 else [])]
+        values = []
+        for tok in tokens:
+            v = aria_double(tok)  # strtod: hex, inf and overflow read as ARIA reads them
+            if v is None:
+                self.fail(lineno, f"{label} expects a number, got {_short(tok)!r}", text)
                 return
-        x, y, th = (float(t) for t in nums)
-        ft = tuple(float(t) for t in ft_tokens) if ft_tokens else None
-        bad = [v for v in (x, y, th, *(ft or ())) if not math.isfinite(v)]
-        if bad:
-            message = f"{label} {_unquote(args[6])!r} has a NaN or infinite coordinate or heading " \
+            values.append(v)
+        x, y, th = values[:3]
+        ft = (values[3], values[4], values[5], values[6]) if len(values) == 7 else None
+        if any(math.isnan(v) for v in values):  # infinities are kept, as ARIA keeps them
+            message = f"{label} {_short(_unquote(args[6]))!r} has a NaN coordinate or heading " \
                       "(ARIA crashes on it)"
             if self.strict:
                 raise MapFormatError(message, source=self.source, line=lineno, text=text)
@@ -421,7 +463,7 @@ class _Parser:
         if name.count('"') or desc.count('"'):
             self.note(IssueCode.LOSSY_QUOTE, lineno, "a quote inside a quoted field: ARIA splits the "
                       "field there; rewriting loses the original spelling", name)
-        obj = MapObject(args[0], x, y, th, name=name, description=desc, icon=args[5], from_to=ft)  # type: ignore[arg-type]
+        obj = MapObject(args[0], x, y, th, name=name, description=desc, icon=args[5], from_to=ft)
         self.objects[where].append(obj)
         self.object_lines[where].append(lineno)
 
@@ -498,7 +540,8 @@ class _Parser:
                 first = raw.split(None, 1)[0] if raw.split() else b""
                 if first.endswith(b":") and not raw[:1].isspace():
                     self.note(IssueCode.HEADER_LINE_AFTER_DATA, line_no,
-                              f"{_decode(first)} after the first data tag: ARIA ignores it "
+                              f"{_short(_decode(first))} after the first data tag: "
+                              "ARIA ignores it "
                               "(header lines must come before DATA/LINES)")
                 else:
                     self.note(IssueCode.BAD_DATA_ROW, line_no,
@@ -627,6 +670,17 @@ _SCAN_KEYS = {
     "linesaresorted:": "LinesAreSorted:",
     "display:": "Display:",
 }
+
+_KNOWN_KEYWORDS = {
+    *_OBJECT_KEYWORDS, *_INFO_LOWER, *_INACTIVE_INFO_LOWER, *_SCAN_KEYS,
+    "sources:", "originlatlongalt:",
+}
+
+
+def _short(text: str, limit: int = 60) -> str:
+    """Text for a message, cut to ``limit`` characters (a hostile line can be megabytes)."""
+    return text if len(text) <= limit else text[:limit] + f"... ({len(text):,} characters)"
+
 
 _NONNUMERIC_LINE = re.compile(rb"^(?![0-9-]).*$", re.M)
 _BACKGROUND_MD5_BYTES = 1 << 20
@@ -829,13 +883,19 @@ def _uses_templates(m: MapData) -> bool:
     return False
 
 
+def _printf(spec: str, v: float) -> str:
+    """C's printf of one double: as Python's %, but a NaN with its sign bit set is ``-nan``."""
+    text = spec % v
+    return "-" + text if math.isnan(v) and math.copysign(1.0, v) < 0 else text
+
+
 def _f0(v: float) -> str:
-    return "%.0f" % v
+    return _printf("%.0f", v)
 
 
 def _object_line(keyword: str, o: MapObject) -> str:
-    s = (f'{keyword} {o.type} {_f0(o.x)} {_f0(o.y)} {o.theta:f} "{o.description}" {o.icon} '
-         f'"{o.name}"')
+    th = _printf("%f", o.theta)
+    s = f'{keyword} {o.type} {_f0(o.x)} {_f0(o.y)} {th} "{o.description}" {o.icon} "{o.name}"'
     if o.from_to is not None:
         s += " " + " ".join(_f0(v) for v in o.from_to)
     return s
@@ -873,7 +933,7 @@ def iter_header_lines(m: MapData) -> Iterator[str]:
             yield f"{p}LinesAreSorted: {'true' if s.lines_sorted else 'false'}"
     if m.origin_lla is not None:
         lat, lon, alt = m.origin_lla
-        yield f"OriginLatLongAlt: {lat:f} {lon:f} {alt:f}"
+        yield "OriginLatLongAlt: " + " ".join(_printf("%f", v) for v in (lat, lon, alt))
     for key in INFO_KEYWORDS:
         for line in m.info.get(key, ()):
             yield f"{key}: " + " ".join(line)
@@ -903,10 +963,10 @@ def _map_chunks(m: MapData, pool: ThreadPoolExecutor | None) -> Iterator[bytes]:
     yield _encode("".join(line + "\n" for line in iter_header_lines(m)))
     for s in m.scans:
         if s.num_lines:
-            yield (_scan_prefix(s) + "_LINES\n" if _scan_prefix(s) else "LINES\n").encode()
+            yield _encode(_scan_prefix(s) + "_LINES\n" if _scan_prefix(s) else "LINES\n")
             yield from iter_format_rows(s.lines, pool)
     for s in m.scans:
-        yield (_scan_prefix(s) + "_DATA\n" if _scan_prefix(s) else "DATA\n").encode()
+        yield _encode(_scan_prefix(s) + "_DATA\n" if _scan_prefix(s) else "DATA\n")
         yield from iter_format_rows(s.points, pool)
 
 

@@ -88,6 +88,15 @@ class MapObject:
         return self.type
 
     @property
+    def is_finite(self) -> bool:
+        """True when every coordinate and the heading are finite numbers.
+
+        ARIA reads ``inf`` (and overflowing numbers) in object lines and writes them back; such
+        an object has no place in the world, so drawings, checks and edits leave it as it is.
+        """
+        return all(math.isfinite(v) for v in (self.x, self.y, self.theta, *(self.from_to or ())))
+
+    @property
     def is_point(self) -> bool:
         """True for objects without from/to corners."""
         return self.from_to is None
@@ -106,6 +115,8 @@ class MapObject:
         if self.from_to is None:
             return ((self.x, self.y),)
         fx, fy, tx, ty = self.from_to
-        c, s = math.cos(math.radians(self.theta)), math.sin(math.radians(self.theta))
+        t = math.radians(self.theta)
+        # An infinite heading (ARIA reads `inf`) rotates to nowhere: NaN corners, as numpy gives.
+        c, s = (math.cos(t), math.sin(t)) if math.isfinite(t) else (math.nan, math.nan)
         pts = ((fx, fy), (tx, fy), (tx, ty), (fx, ty))
         return tuple((c * px - s * py + 0.0, s * px + c * py + 0.0) for px, py in pts)

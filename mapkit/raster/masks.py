@@ -28,6 +28,7 @@ from numpy.typing import NDArray
 
 from mapkit._atomic import atomic_write
 from mapkit._typing import PathLike
+from mapkit.formats._numbers import aria_double
 from mapkit.model import MapData
 from mapkit.raster.bands import DEFAULT_BAND_CELLS, Progress, band_spans, halo_rows
 from mapkit.raster.errors import RasterError
@@ -190,11 +191,10 @@ def speed_zones(m: MapData, *, param: str | None = None) -> list[SpeedZone]:
             continue
         values = params.get(o.name.lower(), [])
         text = values[index] if index < len(values) else args[index][1]
-        try:
-            speed = float(text)
-        except ValueError:
+        speed = aria_double(text)  # a CairnInfo: value, read as ARIA reads it
+        if speed is None:
             continue
-        if speed > 0 and np.isfinite(speed):
+        if speed > 0 and np.isfinite(speed) and o.is_finite:
             out.append(SpeedZone(o.name, o.type, speed, np.array(o.corners(), dtype=np.float64)))
     return out
 

@@ -370,7 +370,11 @@ def burn_segments(
 
 def object_polygons(objects: Iterable[MapObject]) -> list[NDArray[np.float64]]:
     """World corners (mm) of rectangle objects, one ``(4, 2)`` array each (ARIA's rotation rule)."""
-    return [np.array(o.corners(), dtype=np.float64) for o in objects if o.from_to is not None]
+    return [
+        np.array(o.corners(), dtype=np.float64)
+        for o in objects
+        if o.from_to is not None and o.is_finite
+    ]
 
 
 def _convex_fill(

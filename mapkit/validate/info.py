@@ -2,26 +2,25 @@
 
 from __future__ import annotations
 
-import re
 from collections import defaultdict
 from dataclasses import dataclass
 
 from mapkit.diagnostics import IssueCode as C
+from mapkit.formats._numbers import aria_double, aria_int
 from mapkit.model import MapObject
 from mapkit.validate._context import Context, key_values, rule, unquote
 
 __all__ = ["ARG_TYPES", "ArgDesc", "arg_descs", "fits"]
 
 ARG_TYPES = ("int", "double", "string", "bool")
-_INT = re.compile(r"^[+-]?[0-9]+$")
-_DOUBLE = re.compile(
-    r"^[+-]?(?:(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?|inf(?:inity)?)$", re.I
-)
 _BOOL = ("true", "false", "1", "0")
 
 
 def fits(value: str, arg_type: str) -> bool:
     """Whether a value can be read as an ArgDesc type (``int``, ``double``, ``bool``, ``string``).
+
+    Numbers are read as ARIA reads them (``strtol``/``strtod`` on the whole value, any length in
+    linear time).
 
     Examples:
         >>> fits("12", "int"), fits("1.5", "int"), fits("inf", "double"), fits("yes", "bool")
@@ -29,16 +28,16 @@ def fits(value: str, arg_type: str) -> bool:
     """
     t = arg_type.lower()
     if t == "int":
-        return bool(_INT.match(value))
+        return aria_int(value) is not None
     if t == "double":
-        return bool(_DOUBLE.match(value))
+        return aria_double(value) is not None
     if t == "bool":
         return value.lower() in _BOOL
     return True
 
 
 def _number(value: str) -> float | None:
-    return float(value) if _DOUBLE.match(value) else None
+    return aria_double(value)
 
 
 @dataclass(frozen=True)

@@ -32,6 +32,8 @@ def in_rectangle(obj: MapObject, x: float, y: float) -> bool:
     """
     assert obj.from_to is not None
     fx, fy, tx, ty = obj.from_to
+    if not obj.is_finite:
+        return False  # an object at infinity (ARIA reads `inf`) is nowhere
     c, s = math.cos(math.radians(obj.theta)), math.sin(math.radians(obj.theta))
     u, v = c * x + s * y, -s * x + c * y  # rotate back by -theta
     return min(fx, tx) <= u <= max(fx, tx) and min(fy, ty) <= v <= max(fy, ty)
@@ -46,15 +48,23 @@ def _edges(obj: MapObject) -> np.ndarray[Any, Any]:
     return np.array([[*c[i], *c[(i + 1) % 4]] for i in range(4)], dtype=np.float64)
 
 
-@rule(C.NON_FINITE_OBJECT, C.UNWRITABLE_TEXT)
+@rule(C.NON_FINITE_OBJECT, C.INFINITE_OBJECT, C.UNWRITABLE_TEXT)
 def writable(ctx: Context) -> None:
     """Everything in the model can be written and read back as it is."""
     for i, o in enumerate(ctx.map.objects):
         vals = (o.x, o.y, o.theta, *(o.from_to or ()))
-        if not all(math.isfinite(v) for v in vals):
+        if any(math.isnan(v) for v in vals):
             ctx.add(
                 C.NON_FINITE_OBJECT,
-                f"{ctx.kind(o)} has a NaN or infinite coordinate or heading: ARIA crashes on it",
+                f"{ctx.kind(o)} has a NaN coordinate or heading: ARIA crashes on it",
+                line=ctx.object_line(i),
+                object=o.name,
+            )
+        elif not all(math.isfinite(v) for v in vals):
+            ctx.add(
+                C.INFINITE_OBJECT,
+                f"{ctx.kind(o)} has an infinite coordinate or heading: ARIA reads and writes it "
+                "as inf, but no robot can go there; it is left out of drawings and checks",
                 line=ctx.object_line(i),
                 object=o.name,
             )
@@ -315,8 +325,7 @@ def clearance(ctx: Context) -> None:
         (i, o)
         for i, o in enumerate(ctx.objects)
         if (ctx.is_goal(o) or ctx.is_dock(o) or ctx.is_home(o))
-        and math.isfinite(o.x)
-        and math.isfinite(o.y)
+        and o.is_finite
     ]
     if not targets:
         return
@@ -327,8 +336,11 @@ def clearance(ctx: Context) -> None:
     pts = ctx.all_points()
     dp, ip = nearest_points(pts, q, search)
     dl, il = nearest_segments(ctx.all_lines(), q, search)
-    areas = [o for o in ctx.objects if o.type == "ForbiddenArea" and o.from_to is not None]
-    flines = [o for o in ctx.objects if o.type == "ForbiddenLine" and o.from_to is not None]
+    # Objects at infinity (MK416) are nowhere: they neither forbid nor block anything.
+    areas = [o for o in ctx.objects if o.type == "ForbiddenArea" and o.from_to is not None
+             and o.is_finite]
+    flines = [o for o in ctx.objects if o.type == "ForbiddenLine" and o.from_to is not None
+              and o.is_finite]
     fseg = np.array([o.from_to for o in flines], dtype=np.float64).reshape(-1, 4)
     # All forbidden-area edges in one array; area k owns rows 4k..4k+3.
     aseg = np.concatenate([_edges(a) for a in areas]) if areas else np.zeros((0, 4))

@@ -281,12 +281,29 @@ def _mapkit(*args: str, **kw: object) -> subprocess.Popen[bytes]:
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, **kw)  # type: ignore[call-overload]
 
 
+def _wait_for(proc: subprocess.Popen[bytes], marker: bytes, timeout: float = 60.0) -> bytes:
+    """Read the process's stderr until ``marker`` shows (or it ends); what was read."""
+    import select
+
+    assert proc.stderr is not None
+    fd, seen, end = proc.stderr.fileno(), b"", time.monotonic() + timeout
+    while marker not in seen and time.monotonic() < end:
+        ready, _, _ = select.select([fd], [], [], 0.5)
+        if ready:
+            chunk = os.read(fd, 4096)
+            if not chunk:
+                break
+            seen += chunk
+    return seen
+
+
 def test_ctrl_c_exits_130_with_one_line(tmp_path: Path) -> None:
     proc = _mapkit("build", str(sample_path("building-labs.2d")), "-o", str(tmp_path / "b.map"))
-    time.sleep(2.5)  # started and working: the log is read, scans are being matched
-    assert proc.poll() is None, proc.communicate()
+    seen = _wait_for(proc, b"registering")  # started and working: scans are being matched
+    assert proc.poll() is None, (seen, proc.communicate())
     proc.send_signal(signal.SIGINT)
     _out, err = proc.communicate(timeout=60)
+    err = seen + err
     assert proc.returncode == 130, err.decode()
     assert err.decode().strip().splitlines()[-1] == "Error: interrupted"
     assert b"Traceback" not in err and not (tmp_path / "b.map").exists()

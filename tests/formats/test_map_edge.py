@@ -73,8 +73,11 @@ def test_t9_numpoints_zero_is_accepted() -> None:
         (b'_Cairn: Goal x 2 0 "" ICON "a"', r"bad.map:2: _Cairn: expects a number, got 'x'"),
         (b'ChildCairn: Goal 1 2 0 "" ICON "a" 1 2 3 four',
          r"bad.map:2: ChildCairn: expects a number, got 'four'"),
-        (b'Cairn: Goal 1 2 nan "" ICON "a"', r"bad.map:2: Cairn: 'a' has a NaN or infinite"),
-        (b'Cairn: Goal inf 2 0 "" ICON "a"', r"bad.map:2: Cairn: 'a' has a NaN or infinite"),
+        (b'Cairn: Goal 1 2 nan "" ICON "a"', r"bad.map:2: Cairn: 'a' has a NaN coordinate"),
+        (b'Cairn: Goal 1 -NaN(x1) 0 "" ICON "a"', r"bad.map:2: Cairn: 'a' has a NaN coordinate"),
+        (b"MinPos: +0x10 1", r"bad.map:2: MinPos: expects integers, got '\+0x10'"),
+        (b"MinPos: 0x 1", r"bad.map:2: MinPos: expects integers, got '0x'"),
+        (b'Cairn: Goal 1_000 2 0 "" ICON "a"', r"bad.map:2: Cairn: expects a number, got '1_000'"),
     ],
 )
 def test_t10_t11_fatal_header_lines(line: bytes, match: str) -> None:

@@ -208,8 +208,8 @@ def test_declared_type_with_parameters(tmp_path: Path, shared_dir: Path) -> None
 
 
 @pytest.mark.parametrize("edits, words", [
-    ([{"add-goal": {"name": "A", "x": 0}}], "missing argument(s) y"),
-    ([{"add-goal": {"name": "A", "x": 0, "y": 0, "colour": 1}}], "unknown argument(s) colour"),
+    ([{"add-goal": {"name": "A", "x": 0}}], "missing argument y"),
+    ([{"add-goal": {"name": "A", "x": 0, "y": 0, "colour": 1}}], "unknown argument colour"),
     ([{"teleport": {}}], "unknown operation 'teleport'"),
     ([{"remove": {"names": ["No such thing"]}}], "No such thing"),
     ([{"add-goal": {"name": "A", "x": 0, "y": 0}}, {"add-goal": {"name": "A", "x": 1, "y": 1}}],

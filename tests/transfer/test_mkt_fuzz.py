@@ -262,9 +262,9 @@ def test_fuzzed_frames_never_end_a_real_server(tmp_path, robot_dir, secret_file)
                     frames += 1
                     try:
                         link.receive(0.02)
-                    except MapkitError:
+                    except (MapkitError, OSError):
                         break
-            except MapkitError:
+            except (MapkitError, OSError):  # the server may end the session: a closed pipe
                 pass
             finally:
                 link.close()

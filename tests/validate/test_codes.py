@@ -62,6 +62,13 @@ CASES = [
     Case(C.TOO_MANY_TOKENS, insert_after(CLEAN, 15, "MetaInfo: " + " ".join(["x"] * 600)), line=16),
     Case(C.BOX_RECOMPUTED, edit(CLEAN, ("\nMinPos: 0 0", "\nMinPos: -5000000 0")), line=None),
     Case(C.LOSSY_QUOTE, goal('Cairn: Goal 3000 2000 0 "" ICON "say "hi" now"'), line=LINE["A"]),
+    # 2**32 + 20: strtol reads it whole, ARIA's int keeps 20 (and so does mapkit, with a warning).
+    Case(
+        C.NUMBER_OUT_OF_RANGE,
+        edit(CLEAN, ("Resolution: 20", "Resolution: 4294967316")),
+        line=LINE["Resolution"],
+        in_message="read as 20",
+    ),
     # 2xx: header consistency.
     Case(
         C.NUM_POINTS_MISMATCH, edit(CLEAN, ("NumPoints: 4", "NumPoints: 5")), line=LINE["NumPoints"]
@@ -276,6 +283,9 @@ CASES = [
         line=LINE["A"],
         object="Goal",
     ),
+    # ARIA reads INF (and numbers past the double range) in object lines and writes `inf`.
+    Case(C.INFINITE_OBJECT, goal('Cairn: Goal INF 2000 0 "" ICON "A"'), line=LINE["A"], object="A"),
+    Case(C.INFINITE_OBJECT, goal('Cairn: Goal 3000 2000 -1e999 "" ICON "A"'), line=LINE["A"]),
     # 6xx: info sections.
     Case(
         C.TYPE_WITHOUT_NAME,

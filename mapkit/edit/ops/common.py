@@ -52,6 +52,8 @@ def as_written(obj: MapObject) -> MapObject:
         >>> g.x, g.y, g.theta
         (2.0, 2.0, 0.123457)
     """
+    if not obj.is_finite:
+        return obj  # inf/nan: ARIA writes it as it is ("inf"), and rounding has no meaning
     ft = None
     if obj.from_to is not None:
         fx, fy, tx, ty = (float(round(v)) for v in obj.from_to)

@@ -148,7 +148,9 @@ def _object_overlaps(m: MapData, obj: MapObject, region: Region) -> bool:
     shape = m.object_shape(obj)
     geom = region.geometry()
     if shape == "point":
-        return bool(shapely.intersects_xy(geom, obj.x, obj.y))
+        return bool(shapely.intersects_xy(geom, obj.x, obj.y))  # False for inf or nan
+    if not obj.is_finite:
+        return False  # at infinity: outside every region
     if shape == "line":
         assert obj.from_to is not None
         fx, fy, tx, ty = obj.from_to
