@@ -9,6 +9,7 @@ beside the test's temporary folder and named in the failure.
 
 from __future__ import annotations
 
+import contextlib
 import random
 import time
 import traceback
@@ -117,10 +118,8 @@ def _log_sources() -> Iterator[tuple[str, bytes]]:
 
 
 def _check_map(data: bytes) -> None:
-    try:
+    with contextlib.suppress(MapkitError):
         mapkit.loads(data, source="fuzz.map")
-    except MapkitError:
-        pass
     try:
         m, issues = mapkit.recover(data, source="fuzz.map")
     except MapkitError:
@@ -140,10 +139,8 @@ def _check_map(data: bytes) -> None:
 
 
 def _check_log(data: bytes) -> None:
-    try:
+    with contextlib.suppress(MapkitError):
         dumps_log(loads_log(data, name="fuzz.2d"))
-    except MapkitError:
-        pass
     try:
         log, _issues = recover_log(data, name="fuzz.2d")
     except MapkitError:

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 import tracemalloc
 
 import numpy as np
@@ -15,8 +14,8 @@ from mapkit.formats.laser2d import (
     goal_event,
     goal_fields,
     iter_log,
-    log_summary,
     loads_log,
+    log_summary,
     loop_event,
     read_log,
     recover_log,
@@ -52,7 +51,7 @@ def test_t25_v4_reading_to_global_point() -> None:
 @pytest.mark.parametrize("version", [2, 3])
 def test_v2_v3_pairs_are_robot_frame_offsets(version: int) -> None:
     """B.5: in v2/v3 a pair is the hit in the robot frame minus the mount offset (not rotated)."""
-    head = ("LaserOdometryLog\nversion: %d\nsick1pose: 100 0 90.00\nsick1conf: -90 90 2\n" % version)
+    head = f"LaserOdometryLog\nversion: {version}\nsick1pose: 100 0 90.00\nsick1conf: -90 90 2\n"
     body = ("scan1Id: 1\ntime: 5.7\n" + ("robot: 1000 0 90.00 0 0\n" if version == 2 else
             "velocities: 0.00 0.00 0.00\nrobot: 1000 0 90.00\nrobotGlobal: 1000 0 90.00\n")
             + "scan1: 500 0  0 0 \n")
@@ -170,7 +169,7 @@ def test_bad_records_strict_and_tolerant(bad: str, line: int, code: IssueCode, m
     with pytest.raises(LogFormatError, match=rf"^bad\.2d:{first_bad}: .*{message}"):
         read_log(data, name="bad.2d")
     log, issues = recover_log(data, name="bad.2d")
-    assert [s.scan_id for s in log.scans][0] == 0 and log.scans[-1].scan_id == 9
+    assert log.scans[0].scan_id == 0 and log.scans[-1].scan_id == 9
     assert any(i.code == code and i.location.line == first_bad for i in issues), issues
 
 
@@ -237,7 +236,7 @@ def test_iter_log_streams_in_bounded_memory(tmp_path) -> None:
     tracemalloc.start()
     reader = iter_log(path)
     count = 0
-    for rec in reader:
+    for _rec in reader:
         count += 1
     peak = tracemalloc.get_traced_memory()[1]
     tracemalloc.stop()

@@ -5,8 +5,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from hypothesis import given
-from hypothesis import strategies as st
+from hypothesis import given, strategies as st
 from hypothesis.extra import numpy as hnp
 
 from mapkit.formats.laser2d import dumps_log, goal_event, loads_log, loop_event
@@ -114,7 +113,7 @@ def test_rotated_mount_v2_v3_keeps_world_points(log: LaserLog) -> None:
     back = loads_log(text)
     assert dumps_log(back) == text
     laser, laser_back = log.header.laser(1), back.header.laser(1)
-    for a, b in zip(log.scans, back.scans):
+    for a, b in zip(log.scans, back.scans, strict=True):
         pa, pb = a.global_points(laser), b.global_points(laser_back)
         assert pa.shape == pb.shape
         assert np.all(np.abs(pa - pb) < 1.0)

@@ -89,7 +89,7 @@ def test_parse_agrees_with_aria(real_sample: Path, shared_dir: Path) -> None:
     for key, objs in (("objects", m.objects), ("inactive_objects", m.inactive_objects),
                       ("child_objects", m.child_objects)):
         assert len(objs) == len(dump[key])
-        for o, d in zip(objs, dump[key]):
+        for o, d in zip(objs, dump[key], strict=True):
             _check_object(o, d, m)
     for key, info in (("info", m.info), ("inactive_info", m.inactive_info)):
         expected = {k.rstrip(":").lstrip("_"): [tuple(x["args"]) for x in v] for k, v in dump[key].items()}

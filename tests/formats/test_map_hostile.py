@@ -151,7 +151,7 @@ def test_object_and_origin_numbers_with_many_digits_in_linear_time(digits: int) 
     ).encode()
     m = mapkit.loads(text)
     assert m.origin_lla == (float("inf"), 1.0, 0.0)
-    assert [(o.x, o.y, o.theta) for o in m.objects][0] == (float("inf"), float("-inf"), float("inf"))
+    assert (m.objects[0].x, m.objects[0].y, m.objects[0].theta) == (float("inf"), float("-inf"), float("inf"))
     # atoi's strtol saturates (and the rows, wider than 2 km, are sorted as ARIA 2.9.4 does)
     assert sorted(m.points.tolist()) == [[1, -(2**63)], [2**63 - 1, 1]]
     bad = f'2D-Map\nCairn: Goal 1{d}x 1 0 "" ICON "g"\nOriginLatLongAlt: {d} 1{d}x 1\nDATA\n'

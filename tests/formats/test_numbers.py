@@ -8,8 +8,7 @@ import math
 import time
 
 import pytest
-from hypothesis import given
-from hypothesis import strategies as st
+from hypothesis import given, strategies as st
 
 from mapkit.formats._numbers import (
     LONG_MAX,

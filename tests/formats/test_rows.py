@@ -12,13 +12,11 @@ from collections.abc import Iterator
 
 import numpy as np
 import pytest
-from hypothesis import example, given
-from hypothesis import strategies as st
+from hypothesis import example, given, strategies as st
 from hypothesis.extra import numpy as hnp
 
 import mapkit
-from mapkit.formats import _rows
-from mapkit.formats import map as mapformat
+from mapkit.formats import _rows, map as mapformat
 from mapkit.formats._rows import (
     RowReader,
     _format_rows_reference,

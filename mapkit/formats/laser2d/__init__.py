@@ -41,7 +41,7 @@ Examples:
     ... scanId: 0
     ... robot: 1000 0 90.00
     ... robotGlobal: 1000 0 90.00
-    ... scan1: 500 0  0 0 
+    ... scan1: 500 0  0 0\\x20
     ... # End of log
     ... '''
     >>> log = loads_log(text)
@@ -88,8 +88,8 @@ __all__ = [
     "goal_event",
     "goal_fields",
     "iter_log",
-    "log_summary",
     "loads_log",
+    "log_summary",
     "loop_event",
     "read_log",
     "recover_log",

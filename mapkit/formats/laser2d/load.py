@@ -54,7 +54,7 @@ def iter_log(source: PathLike | IO[bytes] | bytes, *, strict: bool = True,
         return LogReader(source, source=name or getattr(source, "name", "<stream>"),  # type: ignore[arg-type]
                          strict=strict)
     path = os.fspath(source)
-    fh = open(path, "rb", buffering=1 << 20)
+    fh = open(path, "rb", buffering=1 << 20)  # noqa: SIM115 (the reader owns and closes it)
     try:
         size = os.fstat(fh.fileno()).st_size
     except OSError:

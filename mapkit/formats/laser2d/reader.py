@@ -262,8 +262,7 @@ class LogReader:
                 self._fail(IssueCode.LOG_BAD_HEADER_LINE, f"{_decode(tag)} {what}",
                            lineno, line, has_nl)
         if version is None:
-            self._note(IssueCode.LOG_UNKNOWN_VERSION, "no 'version:' line; read as version 4"
-                       if confs or poses3 else "no 'version:' line; read as version 4", None)
+            self._note(IssueCode.LOG_UNKNOWN_VERSION, "no 'version:' line; read as version 4", None)
             version = 4
         self._version = version
         numbers = sorted(set(poses) | set(confs) | set(poses3) | set(confs_scan) | set(names)) or [1]

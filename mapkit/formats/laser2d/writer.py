@@ -30,11 +30,11 @@ __all__ = ["LogWriter", "dumps_log", "write_log"]
 
 
 def _f0(v: float) -> str:
-    return "%.0f" % v
+    return f"{v:.0f}"
 
 
 def _f2(v: float) -> str:
-    return "%.2f" % v
+    return f"{v:.2f}"
 
 
 _INT64_SAFE = 2.0**62  # |values| below this convert to int64 exactly
@@ -44,7 +44,7 @@ def _rounded(a: np.ndarray[Any, Any]) -> list[Any]:
     """Values rounded half to even (as ``%.0f``), as ints; as ``%.0f`` text beyond 64 bits."""
     flat = np.asarray(a, dtype=np.float64).reshape(-1)
     if len(flat) and not np.abs(flat).max() < _INT64_SAFE:  # huge (a 50-digit number reads 1e50)
-        return ["%.0f" % v for v in flat.tolist()]
+        return [f"{v:.0f}" for v in flat.tolist()]
     out: list[Any] = np.rint(flat).astype(np.int64).tolist()
     return out
 
@@ -68,7 +68,7 @@ def _pairs(xy: np.ndarray[Any, Any]) -> str:
 
 def _time_text(t: float, version: int) -> str:
     if abs(t) < 1e15:
-        total = int(round(t * 1000))
+        total = round(float(t) * 1000)
         sec, ms = divmod(abs(total), 1000)
         sign = "-" if total < 0 else ""
     else:  # t * 1000 could overflow to inf; a double this large has no milliseconds to speak of
