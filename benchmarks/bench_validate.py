@@ -26,8 +26,6 @@ from mapkit.validate import validate  # noqa: E402
 RADIUS = 300.0
 
 
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=3)

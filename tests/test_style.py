@@ -35,8 +35,10 @@ def _require(tool: str) -> None:
     except importlib.metadata.PackageNotFoundError:
         have = None
     if have != want:
-        message = (f"{tool} {want} is pinned in pyproject.toml, but this environment has "
-                   f"{have or 'none'}: .venv/bin/pip install -e '.[test]'")
+        message = (
+            f"{tool} {want} is pinned in pyproject.toml, but this environment has "
+            f"{have or 'none'}: .venv/bin/pip install -e '.[test]'"
+        )
         if IN_CI:
             pytest.fail(message)
         pytest.skip(message)
@@ -44,11 +46,14 @@ def _require(tool: str) -> None:
 
 def run(tool: str, *args: str) -> None:
     _require(tool)
-    proc = subprocess.run([sys.executable, "-m", tool, *args], cwd=ROOT, capture_output=True,
-                          text=True, timeout=600)
+    proc = subprocess.run(
+        [sys.executable, "-m", tool, *args], cwd=ROOT, capture_output=True, text=True, timeout=600
+    )
     if proc.returncode != 0:
-        pytest.fail(f"{tool} {' '.join(args)} (exit {proc.returncode}):\n"
-                    f"{proc.stdout}{proc.stderr}", pytrace=False)
+        pytest.fail(
+            f"{tool} {' '.join(args)} (exit {proc.returncode}):\n{proc.stdout}{proc.stderr}",
+            pytrace=False,
+        )
 
 
 def test_the_tools_are_pinned_exactly() -> None:

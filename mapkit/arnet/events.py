@@ -12,8 +12,16 @@ from dataclasses import dataclass, field
 
 from mapkit.arnet.packet import Fields
 
-__all__ = ["Accepted", "CommandInfo", "Data", "Event", "Introduced", "Ready", "Rejected",
-           "ServerClosed"]
+__all__ = [
+    "Accepted",
+    "CommandInfo",
+    "Data",
+    "Event",
+    "Introduced",
+    "Ready",
+    "Rejected",
+    "ServerClosed",
+]
 
 
 @dataclass(frozen=True)

@@ -75,8 +75,10 @@ class DemoResult:
         """JSON-ready form."""
         return {
             "folder": str(self.folder),
-            "artefacts": [{"path": str(a.path), "what": a.what, "sha256": a.sha256, "size": a.size}
-                          for a in self.artefacts],
+            "artefacts": [
+                {"path": str(a.path), "what": a.what, "sha256": a.sha256, "size": a.size}
+                for a in self.artefacts
+            ],
             "summary": self.summary,
             "seconds": {k: round(v, 3) for k, v in self.seconds.items()},
         }
@@ -142,8 +144,9 @@ def run_demo(
     built_path = out / "built.map"
     save(built.map, built_path)
     add(built_path, f"map built from {log_path.name}")
-    result.summary["build"] = {k: v for k, v in built.summary.items()
-                               if isinstance(v, (int, float, str))}
+    result.summary["build"] = {
+        k: v for k, v in built.summary.items() if isinstance(v, (int, float, str))
+    }
     finish()
 
     # 2. edit: a goal a metre ahead of home, a forbidden area a few metres from it
@@ -151,10 +154,19 @@ def run_demo(
     m = built.map
     home = next((o for o in m.objects if o.type == "RobotHome"), None)
     hx, hy = (home.x, home.y) if home is not None else (0.0, 0.0)
-    m = edit.add_goal(m, "Demo goal", hx + 1000, hy, heading=0.0,
-                      description="added by mapkit demo")
-    m = edit.forbid_area(m, hx + 3000, hy - 5000, hx + 4200, hy - 4200, name="Demo keep-out",
-                         angle=15.0, rotate_about_centre=True)
+    m = edit.add_goal(
+        m, "Demo goal", hx + 1000, hy, heading=0.0, description="added by mapkit demo"
+    )
+    m = edit.forbid_area(
+        m,
+        hx + 3000,
+        hy - 5000,
+        hx + 4200,
+        hy - 4200,
+        name="Demo keep-out",
+        angle=15.0,
+        rotate_about_centre=True,
+    )
     edited_path = out / "office.map"
     md5 = save(m, edited_path)
     add(edited_path, "the edited map (ARIA .map)")
@@ -164,8 +176,11 @@ def run_demo(
     # 3. validate
     finish = timed("validate")
     report = validate(edited_path)
-    result.summary["validate"] = {"errors": len(report.errors), "warnings": len(report.warnings),
-                                  "findings": [str(i) for i in report.issues]}
+    result.summary["validate"] = {
+        "errors": len(report.errors),
+        "warnings": len(report.warnings),
+        "findings": [str(i) for i in report.issues],
+    }
     finish()
 
     # 4. render
@@ -181,8 +196,12 @@ def run_demo(
     for p in ros.files():
         add(Path(p), "ROS map_server / Nav2 file")
     grid = ros.grid
-    result.summary["ros"] = {"width": grid.width, "height": grid.height,
-                             "resolution_m": grid.resolution, "origin_m": list(grid.origin)}
+    result.summary["ros"] = {
+        "width": grid.width,
+        "height": grid.height,
+        "resolution_m": grid.resolution,
+        "origin_m": list(grid.origin),
+    }
     finish()
 
     # 6. mesh
@@ -192,8 +211,11 @@ def run_demo(
     add(out / "walls.sdf", "Gazebo world")
     if not mesh.watertight:
         raise MapkitError("demo: the wall mesh is not watertight")
-    result.summary["mesh"] = {"watertight": mesh.watertight, "faces": mesh.faces,
-                              "source": mesh.source}
+    result.summary["mesh"] = {
+        "watertight": mesh.watertight,
+        "faces": mesh.faces,
+        "source": mesh.source,
+    }
     finish()
 
     # 7. transfer over loopback, authenticated, and back
@@ -202,18 +224,34 @@ def run_demo(
     robot = Path(tempfile.mkdtemp(prefix="robot-", dir=out))
     with MapServer(robot, host="127.0.0.1", port=0, secret=secret).start() as server:
         host, port = server.address[:2]
-        sent = send_file(edited_path, host, port, secret=secret, load=True,
-                         progress=lambda d, t: tick("transfer", d, 2 * t))
+        sent = send_file(
+            edited_path,
+            host,
+            port,
+            secret=secret,
+            load=True,
+            progress=lambda d, t: tick("transfer", d, 2 * t),
+        )
         fetched = out / "fetched.map"
-        fetch_file(host, sent["name"], fetched, port, secret=secret,
-                   progress=lambda d, t: tick("transfer", t + d, 2 * t))
+        fetch_file(
+            host,
+            sent["name"],
+            fetched,
+            port,
+            secret=secret,
+            progress=lambda d, t: tick("transfer", t + d, 2 * t),
+        )
     if _sha256(fetched) != _sha256(edited_path):
         raise MapkitError("demo: the fetched map's SHA-256 differs from the sent one")
     add(fetched, "the map fetched back from the server (SHA-256 verified)")
     if load(fetched).md5 != md5:
         raise MapkitError("demo: the fetched map's MD5 differs from the sent one")
-    result.summary["transfer"] = {"server": f"{host}:{port}", "name": sent["name"],
-                                  "loaded": bool(sent.get("loaded")), "verified": True}
+    result.summary["transfer"] = {
+        "server": f"{host}:{port}",
+        "name": sent["name"],
+        "loaded": bool(sent.get("loaded")),
+        "verified": True,
+    }
     for p in sorted(robot.rglob("*")):
         if p.is_file():
             os.unlink(p)

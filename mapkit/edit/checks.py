@@ -158,4 +158,3 @@ def check_type_name(value: Any) -> str:
     if not isinstance(value, str) or not _TYPE_TOKEN.match(value):
         raise EditError(f"object type {value!r} must be one word without spaces or quotes")
     return value
-

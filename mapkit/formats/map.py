@@ -66,7 +66,11 @@ _ASCII_LOWER = str.maketrans("ABCDEFGHIJKLMNOPQRSTUVWXYZ", "abcdefghijklmnopqrst
 _CAT_LOWER = {c.lower(): c for c in CATEGORIES}
 _INFO_LOWER = {k.lower() + ":": k for k in INFO_KEYWORDS}
 _INACTIVE_INFO_LOWER = {"_" + k.lower() + ":": k for k in INFO_KEYWORDS}
-_OBJECT_KEYWORDS = {"cairn:": "objects", "_cairn:": "inactive_objects", "childcairn:": "child_objects"}
+_OBJECT_KEYWORDS = {
+    "cairn:": "objects",
+    "_cairn:": "inactive_objects",
+    "childcairn:": "child_objects",
+}
 _MAX_TOKENS = 511  # ARIA's argument builder keeps 511 arguments per line
 _MAX_ARG_BYTES = 9_999  # ... copied from at most 9,999 bytes of argument text
 _LINE_BUFFER = 12_000  # header lines are read with fgets() into a 12,000-byte buffer
@@ -160,7 +164,9 @@ class _Parser:
             raise MapFormatError(message, source=self.source, line=lineno, text=text)
         self.note(IssueCode.BAD_HEADER_LINE, lineno, message)
 
-    def note(self, code: IssueCode, lineno: int | None, message: str, obj: str | None = None) -> None:
+    def note(
+        self, code: IssueCode, lineno: int | None, message: str, obj: str | None = None
+    ) -> None:
         self.issues.append(Issue.make(code, message, source=self.source, line=lineno, object=obj))
 
     # -- tags ---------------------------------------------------------------------------------
@@ -209,15 +215,26 @@ class _Parser:
                 raise MapFormatError(
                     f"the map category {_short(kw)!r} is newer than mapkit supports "
                     "(up to '2D-Map-Ex4')",
-                    source=self.source, line=lineno, text=text,
+                    source=self.source,
+                    line=lineno,
+                    text=text,
                 )
             if text.strip(_WS):
-                self.note(IssueCode.JUNK_BEFORE_INTRO, lineno, f"skipped before the intro line: {text[:60]!r}")
+                self.note(
+                    IssueCode.JUNK_BEFORE_INTRO,
+                    lineno,
+                    f"skipped before the intro line: {text[:60]!r}",
+                )
         if not self.category:
-            hint = " (it starts with a UTF-8 byte-order mark)" if data.startswith(b"\xef\xbb\xbf") else ""
+            hint = (
+                " (it starts with a UTF-8 byte-order mark)"
+                if data.startswith(b"\xef\xbb\xbf")
+                else ""
+            )
             raise MapFormatError(
                 f"not an ARIA map: no intro line '2D-Map' ... '2D-Map-Ex4' found{hint}",
-                source=self.source, line=None,
+                source=self.source,
+                line=None,
             )
         self._tags = self.tags()
         # Phase 1: header lines up to the first data tag.
@@ -231,7 +248,9 @@ class _Parser:
             if b"\r" in raw:
                 stripped = raw.rstrip(b"\r")
                 if b"\r" in stripped:
-                    self.note(IssueCode.CR_IN_HEADER, lineno, "CR inside the line deleted, as ARIA does")
+                    self.note(
+                        IssueCode.CR_IN_HEADER, lineno, "CR inside the line deleted, as ARIA does"
+                    )
                 raw = raw.replace(b"\r", b"")
             text = _decode(raw)
             if not text.strip(_WS):
@@ -248,9 +267,13 @@ class _Parser:
             if self.strict:
                 raise MapFormatError(
                     "no DATA or LINES section: a map must have at least one data tag (even an "
-                    "empty DATA)", source=self.source, line=None,
+                    "empty DATA)",
+                    source=self.source,
+                    line=None,
                 )
-            self.note(IssueCode.BAD_HEADER_LINE, None, "no DATA or LINES section (ARIA refuses the file)")
+            self.note(
+                IssueCode.BAD_HEADER_LINE, None, "no DATA or LINES section (ARIA refuses the file)"
+            )
         else:
             self.data_phase(pos, lineno, current)
         return self.build()
@@ -288,7 +311,7 @@ class _Parser:
         for scan in self.scans:
             if scan.prefix and not low.startswith(_lower(scan.prefix)):
                 continue
-            key = low[len(scan.prefix):]
+            key = low[len(scan.prefix) :]
             if key in _SCAN_KEYS:
                 self.scan_key(lineno, scan, key, kw, args, text)
                 return
@@ -303,36 +326,53 @@ class _Parser:
         """Report a header line longer than ARIA reads; mapkit keeps all of it."""
         line_bytes = len(_encode(text))
         body = text.lstrip(_WS)
-        known = low in _KNOWN_KEYWORDS or self._header_tag(low) is not None or any(
-            s.prefix and low.startswith(_lower(s.prefix)) and low[len(s.prefix):] in _SCAN_KEYS
-            for s in self.scans
+        known = (
+            low in _KNOWN_KEYWORDS
+            or self._header_tag(low) is not None
+            or any(
+                s.prefix and low.startswith(_lower(s.prefix)) and low[len(s.prefix) :] in _SCAN_KEYS
+                for s in self.scans
+            )
         )
         # ARIA tokenises the arguments of a known keyword, and the whole line of an unknown one.
         value = _encode(_split_keyword(text)[1].lstrip(_WS) if known else body)
         ntok = len(args) + (0 if known else 1)
         why = []
         if line_bytes >= _LINE_BUFFER:
-            why.append(f"it is {line_bytes:,} bytes long: ARIA reads header lines in pieces of "
-                       f"{_LINE_BUFFER - 1:,} bytes and reads the rest as further lines")
+            why.append(
+                f"it is {line_bytes:,} bytes long: ARIA reads header lines in pieces of "
+                f"{_LINE_BUFFER - 1:,} bytes and reads the rest as further lines"
+            )
         if len(value) > _MAX_ARG_BYTES:
-            why.append(f"its arguments are {len(value):,} bytes: ARIA splits only the first "
-                       f"{_MAX_ARG_BYTES:,}")
+            why.append(
+                f"its arguments are {len(value):,} bytes: ARIA splits only the first "
+                f"{_MAX_ARG_BYTES:,}"
+            )
         if ntok > _MAX_TOKENS:
             why.append(f"it has {ntok:,} arguments: ARIA keeps {_MAX_TOKENS}")
         if why:
-            self.note(IssueCode.TOO_MANY_TOKENS, lineno,
-                      f"{_short(kw)} line: " + "; ".join(why) + " (mapkit keeps the whole line; "
-                      "ARIA will split or cut it)")
+            self.note(
+                IssueCode.TOO_MANY_TOKENS,
+                lineno,
+                f"{_short(kw)} line: " + "; ".join(why) + " (mapkit keeps the whole line; "
+                "ARIA will split or cut it)",
+            )
 
     # -- header keywords -----------------------------------------------------------------------
 
-    def _ints(self, lineno: int, kw: str, args: list[str], text: str, exact: int | None) -> list[int] | None:
+    def _ints(
+        self, lineno: int, kw: str, args: list[str], text: str, exact: int | None
+    ) -> list[int] | None:
         want = exact if exact is not None else 1
         if (exact is not None and len(args) != exact) or len(args) < want:
             what = f"exactly {exact}" if exact is not None else "at least 1"
-            self.fail(lineno, f"{kw} expects {what} integer{'s' if want > 1 else ''}, got "
-                      f"{len(args)} argument{'s' if len(args) != 1 else ''}: "
-                      f"{_short(' '.join(args))!r}", text)
+            self.fail(
+                lineno,
+                f"{kw} expects {what} integer{'s' if want > 1 else ''}, got "
+                f"{len(args)} argument{'s' if len(args) != 1 else ''}: "
+                f"{_short(' '.join(args))!r}",
+                text,
+            )
             return None
         vals = []
         for a in args[:want]:
@@ -342,16 +382,24 @@ class _Parser:
                 return None
             iv = c_int(v)  # ARIA keeps strtol's long in an int
             if iv != v:
-                self.note(IssueCode.NUMBER_OUT_OF_RANGE, lineno,
-                          f"{kw} {_short(a)} is beyond 32 bits: read as {iv}, as ARIA reads it")
+                self.note(
+                    IssueCode.NUMBER_OUT_OF_RANGE,
+                    lineno,
+                    f"{kw} {_short(a)} is beyond 32 bits: read as {iv}, as ARIA reads it",
+                )
             vals.append(iv)
         return vals
 
-    def scan_key(self, lineno: int, scan: _ScanState, key: str, kw: str, args: list[str], text: str) -> None:
+    def scan_key(
+        self, lineno: int, scan: _ScanState, key: str, kw: str, args: list[str], text: str
+    ) -> None:
         canon = scan.prefix + _SCAN_KEYS[key]
         if canon in self.header_lines:
-            self.note(IssueCode.DUPLICATE_HEADER_KEY, lineno,
-                      f"{canon} given again (line {self.header_lines[canon]}); the last one wins")
+            self.note(
+                IssueCode.DUPLICATE_HEADER_KEY,
+                lineno,
+                f"{canon} given again (line {self.header_lines[canon]}); the last one wins",
+            )
         value: Any
         if key in ("minpos:", "maxpos:", "lineminpos:", "linemaxpos:"):
             v = self._ints(lineno, canon, args, text, 2)
@@ -370,8 +418,12 @@ class _Parser:
             value = v[0]
         elif key in ("pointsaresorted:", "linesaresorted:"):
             if not args or _lower(args[0]) not in ("true", "false", "1", "0"):
-                self.fail(lineno, f"{canon} expects true, false, 1 or 0, got "
-                          f"{_short(args[0]) if args else 'nothing'!r}", text)
+                self.fail(
+                    lineno,
+                    f"{canon} expects true, false, 1 or 0, got "
+                    f"{_short(args[0]) if args else 'nothing'!r}",
+                    text,
+                )
                 return
             value = _lower(args[0]) in ("true", "1")
         else:  # display:
@@ -389,8 +441,11 @@ class _Parser:
         names = [_unquote(a) for a in args]
         lowered = [_lower(x) for x in names]
         if any(not x for x in names) or len(set(lowered)) != len(lowered):
-            self.note(IssueCode.BAD_SOURCES_LINE, lineno,
-                      "Sources: has empty or duplicate names; ARIA ignores the line")
+            self.note(
+                IssueCode.BAD_SOURCES_LINE,
+                lineno,
+                "Sources: has empty or duplicate names; ARIA ignores the line",
+            )
             return
         defaults = [i for i, x in enumerate(lowered) if x == "sicklaser"]
         if len(self.scans) != 1 or self.scans[0].header or self.header_lines:
@@ -415,18 +470,30 @@ class _Parser:
             return
         vals = [aria_double(a) for a in args[:3]]
         if len(args) < 3 or None in vals:
-            self.fail(lineno, f"OriginLatLongAlt: expects 3 numbers (latitude longitude altitude), "
-                      f"got {_short(' '.join(args))!r}", text)
+            self.fail(
+                lineno,
+                f"OriginLatLongAlt: expects 3 numbers (latitude longitude altitude), "
+                f"got {_short(' '.join(args))!r}",
+                text,
+            )
             return
         lat, lon, alt = (float(v) for v in vals if v is not None)
         self.origin_lla = (lat, lon, alt)
         self.header_lines["OriginLatLongAlt:"] = lineno
 
     def object_line(self, lineno: int, kw: str, where: str, args: list[str], text: str) -> None:
-        label = {"objects": "Cairn:", "inactive_objects": "_Cairn:", "child_objects": "ChildCairn:"}[where]
+        label = {
+            "objects": "Cairn:",
+            "inactive_objects": "_Cairn:",
+            "child_objects": "ChildCairn:",
+        }[where]
         if len(args) < 7:
-            self.fail(lineno, f"{label} expects at least 7 fields (Type X Y Theta Desc Icon Name), got "
-                      f"{len(args)}", text)
+            self.fail(
+                lineno,
+                f"{label} expects at least 7 fields (Type X Y Theta Desc Icon Name), got "
+                f"{len(args)}",
+                text,
+            )
             return
         tokens = [args[1], args[2], args[3], *(args[7:11] if len(args) >= 11 else [])]
         values = []
@@ -439,30 +506,49 @@ class _Parser:
         x, y, th = values[:3]
         ft = (values[3], values[4], values[5], values[6]) if len(values) == 7 else None
         if any(math.isnan(v) for v in values):  # infinities are kept, as ARIA keeps them
-            message = f"{label} {_short(_unquote(args[6]))!r} has a NaN coordinate or heading " \
-                      "(ARIA crashes on it)"
+            message = (
+                f"{label} {_short(_unquote(args[6]))!r} has a NaN coordinate or heading "
+                "(ARIA crashes on it)"
+            )
             if self.strict:
                 raise MapFormatError(message, source=self.source, line=lineno, text=text)
-            self.note(IssueCode.NON_FINITE_NUMBER, lineno, message + "; object left out", _unquote(args[6]))
+            self.note(
+                IssueCode.NON_FINITE_NUMBER,
+                lineno,
+                message + "; object left out",
+                _unquote(args[6]),
+            )
             return
         desc = _unquote(args[4])
         if len(args) >= 11:
             if len(args) >= 12:
                 desc = _unquote(args[11])
             if len(args) > 12:
-                self.note(IssueCode.LOSSY_OBJECT_LINE, lineno,
-                          f"{len(args) - 12} extra field(s) after the description dropped, as ARIA does",
-                          _unquote(args[6]))
+                self.note(
+                    IssueCode.LOSSY_OBJECT_LINE,
+                    lineno,
+                    f"{len(args) - 12} extra field(s) after the description dropped, as ARIA does",
+                    _unquote(args[6]),
+                )
         elif len(args) > 7:
             desc = _unquote(args[7])
             if len(args) > 8:
-                self.note(IssueCode.LOSSY_OBJECT_LINE, lineno,
-                          f"{len(args)} fields: not a line or rectangle (needs 4 corner numbers); "
-                          "ARIA drops fields 9-10", _unquote(args[6]))
+                self.note(
+                    IssueCode.LOSSY_OBJECT_LINE,
+                    lineno,
+                    f"{len(args)} fields: not a line or rectangle (needs 4 corner numbers); "
+                    "ARIA drops fields 9-10",
+                    _unquote(args[6]),
+                )
         name = _unquote(args[6])
         if name.count('"') or desc.count('"'):
-            self.note(IssueCode.LOSSY_QUOTE, lineno, "a quote inside a quoted field: ARIA splits the "
-                      "field there; rewriting loses the original spelling", name)
+            self.note(
+                IssueCode.LOSSY_QUOTE,
+                lineno,
+                "a quote inside a quoted field: ARIA splits the "
+                "field there; rewriting loses the original spelling",
+                name,
+            )
         obj = MapObject(args[0], x, y, th, name=name, description=desc, icon=args[5], from_to=ft)
         self.objects[where].append(obj)
         self.object_lines[where].append(lineno)
@@ -478,7 +564,7 @@ class _Parser:
         late_note = None
         if n > pos and not data.endswith(b"\n"):
             end = max(pos, data.rfind(b"\n", pos, n) + 1)
-            if data[end:end + 1].isdigit() or data[end:end + 1] == b"-":
+            if data[end : end + 1].isdigit() or data[end : end + 1] == b"-":
                 late_note = len(self.issues)
         # The section is read in chunks cut at LF. A chunk of canonical rows (what ARIA writes) is
         # parsed in one vectorised step; any other chunk (a tag, a blank line, a row ARIA skips)
@@ -511,7 +597,8 @@ class _Parser:
                 issue = Issue.make(
                     IssueCode.LAST_ROW_WITHOUT_NEWLINE,
                     "the last data row has no newline: ARIA drops it, mapkit keeps it",
-                    source=self.source, line=line,
+                    source=self.source,
+                    line=line,
                 )
                 self.issues.insert(late_note, issue)
             tail = b"\n" * 8 + data[end:] + b"\n"
@@ -539,13 +626,19 @@ class _Parser:
             elif raw.strip(b" \t\r\x0b\x0c"):
                 first = raw.split(None, 1)[0] if raw.split() else b""
                 if first.endswith(b":") and not raw[:1].isspace():
-                    self.note(IssueCode.HEADER_LINE_AFTER_DATA, line_no,
-                              f"{_short(_decode(first))} after the first data tag: "
-                              "ARIA ignores it "
-                              "(header lines must come before DATA/LINES)")
+                    self.note(
+                        IssueCode.HEADER_LINE_AFTER_DATA,
+                        line_no,
+                        f"{_short(_decode(first))} after the first data tag: "
+                        "ARIA ignores it "
+                        "(header lines must come before DATA/LINES)",
+                    )
                 else:
-                    self.note(IssueCode.BAD_DATA_ROW, line_no,
-                              f"data row {_decode(raw[:40])!r} is skipped (ARIA skips it silently)")
+                    self.note(
+                        IssueCode.BAD_DATA_ROW,
+                        line_no,
+                        f"data row {_decode(raw[:40])!r} is skipped (ARIA skips it silently)",
+                    )
             seg_start = m.end() + 1
             seg_line = line_no + 1
         if seg_start < end:
@@ -571,9 +664,11 @@ class _Parser:
         sink = self.sink(current, max(end, self.data_end) - start)
         bad, nrows = reader.parse(start, end, 2 if kind == "points" else 4, sink)
         for b in bad:
-            self.note(IssueCode.BAD_DATA_ROW, first_line + b,
-                      f"{'DATA' if kind == 'points' else 'LINES'} row skipped "
-                      "(ARIA skips it silently)")
+            self.note(
+                IssueCode.BAD_DATA_ROW,
+                first_line + b,
+                f"{'DATA' if kind == 'points' else 'LINES'} row skipped (ARIA skips it silently)",
+            )
         return nrows
 
     # -- build the model ----------------------------------------------------------------------
@@ -590,23 +685,44 @@ class _Parser:
         for i, st, pts, lns in built:
             h = st.header
             header = ScanHeader(
-                min_pos=h.get("minpos:"), max_pos=h.get("maxpos:"), num_points=h.get("numpoints:"),
-                points_sorted=h.get("pointsaresorted:"), resolution=h.get("resolution:"),
-                line_min_pos=h.get("lineminpos:"), line_max_pos=h.get("linemaxpos:"),
-                num_lines=h.get("numlines:"), lines_sorted=h.get("linesaresorted:"),
+                min_pos=h.get("minpos:"),
+                max_pos=h.get("maxpos:"),
+                num_points=h.get("numpoints:"),
+                points_sorted=h.get("pointsaresorted:"),
+                resolution=h.get("resolution:"),
+                line_min_pos=h.get("lineminpos:"),
+                line_max_pos=h.get("linemaxpos:"),
+                num_lines=h.get("numlines:"),
+                lines_sorted=h.get("linesaresorted:"),
                 display=h.get("display:"),
             )
-            pmin, pmax = _aria_box(pts.reshape(-1, 2), header.min_pos, header.max_pos,
-                                   header.num_points, self.sink((i, "points")).box())
-            lmin, lmax = _aria_box(lns.reshape(-1, 2), header.line_min_pos, header.line_max_pos,
-                                   header.num_lines, self.sink((i, "lines")).box())
+            pmin, pmax = _aria_box(
+                pts.reshape(-1, 2),
+                header.min_pos,
+                header.max_pos,
+                header.num_points,
+                self.sink((i, "points")).box(),
+            )
+            lmin, lmax = _aria_box(
+                lns.reshape(-1, 2),
+                header.line_min_pos,
+                header.line_max_pos,
+                header.num_lines,
+                self.sink((i, "lines")).box(),
+            )
             scan = Scan(
                 name=st.name,
                 display=header.display if header.display is not None else st.name,
-                points=pts, lines=lns,
+                points=pts,
+                lines=lns,
                 resolution=0 if header.resolution is None else header.resolution,
-                points_sorted=bool(header.points_sorted), lines_sorted=bool(header.lines_sorted),
-                min_pos=pmin, max_pos=pmax, line_min_pos=lmin, line_max_pos=lmax, header=header,
+                points_sorted=bool(header.points_sorted),
+                lines_sorted=bool(header.lines_sorted),
+                min_pos=pmin,
+                max_pos=pmax,
+                line_min_pos=lmin,
+                line_max_pos=lmax,
+                header=header,
             )
             corners = [c for c in (pmin, pmax, lmin, lmax) if c is not None]
             if corners:
@@ -645,15 +761,23 @@ class _Parser:
     def recompute_wide(self, scans: list[Scan]) -> list[Scan]:
         """ARIA 2.9.4's 2 km rule: recompute the boxes from the rows and sort them."""
         out = [s.with_data(sort=True) for s in scans]
-        self.note(IssueCode.BOX_RECOMPUTED, None,
-                  "the header's bounding box spans more than 2 km: boxes recomputed from the data and "
-                  "the data sorted, as ARIA 2.9.4 does")
+        self.note(
+            IssueCode.BOX_RECOMPUTED,
+            None,
+            "the header's bounding box spans more than 2 km: boxes recomputed from the data and "
+            "the data sorted, as ARIA 2.9.4 does",
+        )
         for s in out:
             b = s.data_bounds()
-            if b is not None and (b[1][0] - b[0][0] > _MAX_SPAN_MM or b[1][1] - b[0][1] > _MAX_SPAN_MM):
-                self.note(IssueCode.BOX_RECOMPUTED, None,
-                          "the data itself spans more than 2 km: ARIA 2.9.4 refuses this map "
-                          "(ARIA 2.9.1 and mapkit load it)")
+            if b is not None and (
+                b[1][0] - b[0][0] > _MAX_SPAN_MM or b[1][1] - b[0][1] > _MAX_SPAN_MM
+            ):
+                self.note(
+                    IssueCode.BOX_RECOMPUTED,
+                    None,
+                    "the data itself spans more than 2 km: ARIA 2.9.4 refuses this map "
+                    "(ARIA 2.9.1 and mapkit load it)",
+                )
                 break
         return out
 
@@ -672,8 +796,12 @@ _SCAN_KEYS = {
 }
 
 _KNOWN_KEYWORDS = {
-    *_OBJECT_KEYWORDS, *_INFO_LOWER, *_INACTIVE_INFO_LOWER, *_SCAN_KEYS,
-    "sources:", "originlatlongalt:",
+    *_OBJECT_KEYWORDS,
+    *_INFO_LOWER,
+    *_INACTIVE_INFO_LOWER,
+    *_SCAN_KEYS,
+    "sources:",
+    "originlatlongalt:",
 }
 
 

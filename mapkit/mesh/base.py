@@ -63,5 +63,3 @@ class MeshExport:
     volume: float
     bounds: tuple[tuple[float, float, float], tuple[float, float, float]]
     home: HomePose | None
-
-

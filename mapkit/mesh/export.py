@@ -49,8 +49,11 @@ def _mesh_bytes(mesh: trimesh.Trimesh, fmt: str) -> bytes:
         mesh.unmerge_vertices()
         data = mesh.export(file_type="dae")
         text = data.decode("utf-8") if isinstance(data, bytes) else data
-        fixed = text.replace("<up_axis>Y_UP</up_axis>",
-                             '<unit name="meter" meter="1"/>\n    <up_axis>Z_UP</up_axis>', 1)
+        fixed = text.replace(
+            "<up_axis>Y_UP</up_axis>",
+            '<unit name="meter" meter="1"/>\n    <up_axis>Z_UP</up_axis>',
+            1,
+        )
         if fixed == text:
             raise MeshError("cannot write COLLADA: the exporter's <up_axis> was not found")
         return fixed.encode("utf-8")
@@ -64,7 +67,8 @@ def _mesh_format(path: PathLike) -> str:
     if fmt is None:
         raise UnsupportedFormatError(
             f"cannot write a mesh to {os.fspath(path)!r}: meshes are "
-            f"{', '.join(MESH_FORMATS)}, not {suffix or '(no suffix)'!r}")
+            f"{', '.join(MESH_FORMATS)}, not {suffix or '(no suffix)'!r}"
+        )
     return fmt
 
 
@@ -115,19 +119,27 @@ def export_mesh(
         text = world_sdf(uri, bounds=bounds, home=home, name=stem, source=src)  # type: ignore[arg-type]
         atomic_write(world_path, text.encode("utf-8"))
     return MeshExport(
-        path=os.fspath(path), format=fmt, world=world_path, source=_pick_source(m, source),
-        vertices=len(mesh.vertices), faces=len(mesh.faces), watertight=bool(mesh.is_watertight),
-        volume=float(mesh.volume), bounds=bounds, home=home,  # type: ignore[arg-type]
+        path=os.fspath(path),
+        format=fmt,
+        world=world_path,
+        source=_pick_source(m, source),
+        vertices=len(mesh.vertices),
+        faces=len(mesh.faces),
+        watertight=bool(mesh.is_watertight),
+        volume=float(mesh.volume),
+        bounds=bounds,
+        home=home,  # type: ignore[arg-type]
     )
 
 
 def _writer(m: MapData, path: PathLike) -> str:
     r = export_mesh(m, path)
     (x0, y0, _), (x1, y1, z1) = r.bounds
-    return (f"wrote {r.path} ({r.format.upper()}, {r.faces} triangles, walls from {r.source}, "
-            f"{x1 - x0:.2f} x {y1 - y0:.2f} x {z1:.2f} m)")
+    return (
+        f"wrote {r.path} ({r.format.upper()}, {r.faces} triangles, walls from {r.source}, "
+        f"{x1 - x0:.2f} x {y1 - y0:.2f} x {z1:.2f} m)"
+    )
 
 
 for _suffix in MESH_FORMATS:
     register_writer(_suffix, _writer)
-

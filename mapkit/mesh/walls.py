@@ -36,9 +36,11 @@ def _pick_source(m: MapData, source: str) -> str:
         source = "lines" if n_lines else "points"
     if (source == "lines" and not n_lines) or (source == "points" and not n_points):
         where = m.provenance.source if m.provenance else "the map"
-        raise MeshError(f"{where} has no {source.upper() if source == 'lines' else source} "
-                        f"to make walls from ({plural(n_points, 'point')}, "
-                        f"{plural(n_lines, 'line')})")
+        raise MeshError(
+            f"{where} has no {source.upper() if source == 'lines' else source} "
+            f"to make walls from ({plural(n_points, 'point')}, "
+            f"{plural(n_lines, 'line')})"
+        )
     return source
 
 
@@ -68,8 +70,9 @@ def _cell_boxes(points_mm: np.ndarray[Any, Any], resolution: float) -> Any:
     from mapkit.raster import burn_points, grid_for_bounds
 
     lo, hi = points_mm.min(axis=0), points_mm.max(axis=0)
-    grid = grid_for_bounds(((float(lo[0]), float(lo[1])), (float(hi[0]), float(hi[1]))),
-                           resolution, 0.0)
+    grid = grid_for_bounds(
+        ((float(lo[0]), float(lo[1])), (float(hi[0]), float(hi[1]))), resolution, 0.0
+    )
     occ = burn_points(grid, points_mm)
     padded = np.zeros((occ.shape[0], occ.shape[1] + 2), dtype=np.int8)
     padded[:, 1:-1] = occ
@@ -77,8 +80,12 @@ def _cell_boxes(points_mm: np.ndarray[Any, Any], resolution: float) -> Any:
     rows, starts = np.nonzero(step == 1)
     _, ends = np.nonzero(step == -1)  # same order: both scan the rows in turn
     (ox, oy), r = grid.origin_mm, grid.resolution_mm
-    return shapely.box((ox + starts * r) / 1000.0, (oy + rows * r) / 1000.0,
-                       (ox + ends * r) / 1000.0, (oy + (rows + 1) * r) / 1000.0)
+    return shapely.box(
+        (ox + starts * r) / 1000.0,
+        (oy + rows * r) / 1000.0,
+        (ox + ends * r) / 1000.0,
+        (oy + (rows + 1) * r) / 1000.0,
+    )
 
 
 def footprint(
@@ -154,8 +161,9 @@ def extrude(shape: Any, height: float) -> trimesh.Trimesh:
     boundary = edges[~np.isin(key, edges[:, 1] * n + edges[:, 0])]
     i, j = boundary[:, 0], boundary[:, 1]
     walls = np.concatenate([np.stack([i, j, j + n], axis=1), np.stack([i, j + n, i + n], axis=1)])
-    vertices = np.concatenate([np.column_stack([verts, np.zeros(n)]),
-                               np.column_stack([verts, np.full(n, float(height))])])
+    vertices = np.concatenate(
+        [np.column_stack([verts, np.zeros(n)]), np.column_stack([verts, np.full(n, float(height))])]
+    )
     all_faces = np.concatenate([faces[:, ::-1], faces + n, walls])
     return trimesh.Trimesh(vertices=vertices, faces=all_faces, process=False)
 
@@ -205,8 +213,7 @@ def home_pose(m: MapData) -> HomePose | None:
                 cx, cy = np.mean(np.asarray(o.corners()), axis=0)
             else:
                 cx, cy = o.x, o.y
-            return HomePose(o.type, o.name, float(cx) / 1000.0, float(cy) / 1000.0,
-                            math.radians(o.theta))
+            return HomePose(
+                o.type, o.name, float(cx) / 1000.0, float(cy) / 1000.0, math.radians(o.theta)
+            )
     return None
-
-

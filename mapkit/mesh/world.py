@@ -69,18 +69,29 @@ def world_sdf(
     """
     root = ET.Element("sdf", {"version": "1.7"})
     world = _sub(root, "world", name=name)
-    world.append(ET.Comment(_comment_text(
-        f" Made by mapkit{' from ' + source if source else ''}. Units: metres, radians; "
-        f"the map's origin is the world's origin. ")))
+    world.append(
+        ET.Comment(
+            _comment_text(
+                f" Made by mapkit{' from ' + source if source else ''}. Units: metres, radians; "
+                f"the map's origin is the world's origin. "
+            )
+        )
+    )
     if home is None:
         world.append(ET.Comment(" The map has no RobotHome or Dock: no start pose for the robot. "))
     else:
         pose = f"{home.x:.3f} {home.y:.3f} 0 0 0 {home.yaw:.4f}"
-        world.append(ET.Comment(_comment_text(
-            f" Robot home: {home.type} {_quoted(home.name)} at x={home.x:.3f} m, y={home.y:.3f} m, "
-            f"yaw={home.yaw:.4f} rad ({math.degrees(home.yaw):.1f} deg). To start a robot "
-            f"there, add to this world:\n      <include>\n        <uri>model://YOUR_ROBOT</uri>"
-            f"\n        <pose>{pose}</pose>\n      </include>\n    ")))
+        world.append(
+            ET.Comment(
+                _comment_text(
+                    f" Robot home: {home.type} {_quoted(home.name)} at x={home.x:.3f} m, "
+                    f"y={home.y:.3f} m, "
+                    f"yaw={home.yaw:.4f} rad ({math.degrees(home.yaw):.1f} deg). To start a robot "
+                    f"there, add to this world:\n      <include>\n        <uri>model://YOUR_ROBOT</uri>"
+                    f"\n        <pose>{pose}</pose>\n      </include>\n    "
+                )
+            )
+        )
     sun = _sub(world, "light", type="directional", name="sun")
     _sub(sun, "cast_shadows", "true")
     _sub(sun, "pose", "0 0 10 0 0 0")

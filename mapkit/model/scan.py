@@ -69,8 +69,9 @@ def _ro(a: Any, dtype: Any, shape_tail: tuple[int, ...]) -> np.ndarray[Any, Any]
     if arr.size == 0:
         arr = arr.reshape((0, *shape_tail))
     if arr.shape[1:] != shape_tail or arr.ndim != 1 + len(shape_tail):
-        raise ValueError(f"expected an array of shape (N, {', '.join(map(str, shape_tail))}), "
-                         f"got {arr.shape}")
+        raise ValueError(
+            f"expected an array of shape (N, {', '.join(map(str, shape_tail))}), got {arr.shape}"
+        )
     arr.flags.writeable = False
     return arr
 
@@ -311,11 +312,17 @@ class LaserScan:
         return laser_to_robot(self.laser_points(laser, max_range=max_range), laser.pose)
 
     def global_points(
-        self, laser: LaserConfig, *, pose: Sequence[float] | None = None, max_range: float | None = None
+        self,
+        laser: LaserConfig,
+        *,
+        pose: Sequence[float] | None = None,
+        max_range: float | None = None,
     ) -> FloatArray:
-        """The valid hit points in the world frame, through ``pose`` (default: the odometry pose)."""
-        return robot_to_world(self.robot_points(laser, max_range=max_range),
-                              self.robot if pose is None else pose)
+        """The valid hit points in the world frame, through ``pose`` (default: the odometry
+        pose)."""
+        return robot_to_world(
+            self.robot_points(laser, max_range=max_range), self.robot if pose is None else pose
+        )
 
     def equals(self, other: LaserScan) -> bool:
         """Value equality (arrays compared element by element, NaN equal to NaN)."""
@@ -328,10 +335,14 @@ class LaserScan:
             if a is not None and not np.array_equal(a, b):
                 return False
         return (
-            self.scan_id == other.scan_id and self.laser == other.laser
-            and self.robot == other.robot and self.robot_global == other.robot_global
-            and self.robot_raw == other.robot_raw and self.other_poses == other.other_poses
-            and _same(self.time, other.time) and _same_tuple(self.velocities, other.velocities)
+            self.scan_id == other.scan_id
+            and self.laser == other.laser
+            and self.robot == other.robot
+            and self.robot_global == other.robot_global
+            and self.robot_raw == other.robot_raw
+            and self.other_poses == other.other_poses
+            and _same(self.time, other.time)
+            and _same_tuple(self.velocities, other.velocities)
             and self.extra == other.extra
         )
 
@@ -387,8 +398,16 @@ class LogEvent:
             return NotImplemented
         return all(
             getattr(self, f) == getattr(other, f)
-            for f in ("kind", "text", "robot", "robot_global", "robot_raw", "other_poses",
-                      "name", "action")
+            for f in (
+                "kind",
+                "text",
+                "robot",
+                "robot_global",
+                "robot_raw",
+                "other_poses",
+                "name",
+                "action",
+            )
         ) and _same(self.time, other.time)
 
     __hash__ = None  # type: ignore[assignment]
@@ -441,15 +460,21 @@ class LaserLog:
         """
         rows = []
         for s in self.scans:
-            p = s.robot_global if which == "robot_global" and s.robot_global is not None else s.robot
+            p = (
+                s.robot_global
+                if which == "robot_global" and s.robot_global is not None
+                else s.robot
+            )
             rows.append(p)
         return np.array(rows, dtype=np.float64).reshape(-1, 3)
 
     def equals(self, other: LaserLog) -> bool:
         """Value equality of header, records and the end mark (the source is ignored)."""
         return (
-            isinstance(other, LaserLog) and self.header == other.header
-            and self.complete == other.complete and len(self.records) == len(other.records)
+            isinstance(other, LaserLog)
+            and self.header == other.header
+            and self.complete == other.complete
+            and len(self.records) == len(other.records)
             and all(a == b for a, b in zip(self.records, other.records, strict=True))
         )
 

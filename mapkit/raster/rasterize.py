@@ -95,8 +95,12 @@ def map_bounds(m: MapData, *, objects: bool = True) -> _Bounds | None:
     for scan in m.scans:
         for arr, xs, ys in ((scan.points, [0], [1]), (scan.lines, [0, 2], [1, 3])):
             if len(arr):
-                lo = np.minimum(lo, [min(arr[:, i].min() for i in xs), min(arr[:, i].min() for i in ys)])
-                hi = np.maximum(hi, [max(arr[:, i].max() for i in xs), max(arr[:, i].max() for i in ys)])
+                lo = np.minimum(
+                    lo, [min(arr[:, i].min() for i in xs), min(arr[:, i].min() for i in ys)]
+                )
+                hi = np.maximum(
+                    hi, [max(arr[:, i].max() for i in xs), max(arr[:, i].max() for i in ys)]
+                )
     if objects and m.objects:
         xy = np.array([c for o in m.objects for c in o.corners()], dtype=np.float64)
         xy = xy[np.all(np.isfinite(xy), axis=1)]
@@ -111,7 +115,8 @@ def map_bounds(m: MapData, *, objects: bool = True) -> _Bounds | None:
 def grid_for_bounds(
     bounds_mm: _Bounds | None, resolution: float = 0.05, margin_m: float = 0.5
 ) -> OccupancyGrid:
-    """The all-unknown grid covering a box plus a margin, its origin on a multiple of the resolution.
+    """The all-unknown grid covering a box plus a margin, its origin on a multiple of the
+    resolution.
 
     The maximum bound is always inside the last cell (no off-by-one): ``width`` is
     ``floor((xmax + margin - origin) / resolution) + 1``.
@@ -184,10 +189,17 @@ def _mask_for(
         return np.zeros((grid.height - row0, grid.width) if row0 else grid.data.shape, dtype=bool)
     if row0 == 0 and out.shape == grid.data.shape and out.dtype == np.bool_:
         return out
-    if not (out.dtype == np.bool_ and out.ndim == 2 and out.shape[1] == grid.width
-            and row0 >= 0 and row0 + out.shape[0] <= grid.height):
-        raise ValueError(f"out must be a bool array of shape {grid.data.shape}, or a band of its "
-                         f"rows from row0 ({row0}) with {grid.width} columns")
+    if not (
+        out.dtype == np.bool_
+        and out.ndim == 2
+        and out.shape[1] == grid.width
+        and row0 >= 0
+        and row0 + out.shape[0] <= grid.height
+    ):
+        raise ValueError(
+            f"out must be a bool array of shape {grid.data.shape}, or a band of its "
+            f"rows from row0 ({row0}) with {grid.width} columns"
+        )
     return out
 
 
@@ -210,7 +222,10 @@ def _set(
 
 
 def burn_points(
-    grid: OccupancyGrid, points_mm: ArrayLike, out: NDArray[np.bool_] | None = None, *,
+    grid: OccupancyGrid,
+    points_mm: ArrayLike,
+    out: NDArray[np.bool_] | None = None,
+    *,
     row0: int = 0,
 ) -> NDArray[np.bool_]:
     """Mark the cell under each point.
@@ -283,8 +298,17 @@ def segment_cells(grid: OccupancyGrid, segments_mm: ArrayLike) -> NDArray[np.int
     out = [_straight_cells(ilo[simple], ihi[simple], n[simple])]
     general = ~simple
     if general.any():
-        out.append(_crossing_cells(a[general], b[general], d[general], lo[general],
-                                   ilo[general], ihi[general], n[general]))
+        out.append(
+            _crossing_cells(
+                a[general],
+                b[general],
+                d[general],
+                lo[general],
+                ilo[general],
+                ihi[general],
+                n[general],
+            )
+        )
     return np.concatenate(out)
 
 
@@ -342,7 +366,10 @@ def _crossing_cells(
 
 
 def burn_segments(
-    grid: OccupancyGrid, segments_mm: ArrayLike, out: NDArray[np.bool_] | None = None, *,
+    grid: OccupancyGrid,
+    segments_mm: ArrayLike,
+    out: NDArray[np.bool_] | None = None,
+    *,
     row0: int = 0,
 ) -> NDArray[np.bool_]:
     """Mark every cell a segment passes through (no gaps at any angle).
@@ -377,9 +404,7 @@ def object_polygons(objects: Iterable[MapObject]) -> list[NDArray[np.float64]]:
     ]
 
 
-def _convex_fill(
-    mask: NDArray[np.bool_], polys_uv: NDArray[np.float64], row0: int = 0
-) -> None:
+def _convex_fill(mask: NDArray[np.bool_], polys_uv: NDArray[np.float64], row0: int = 0) -> None:
     """Set cells whose centre lies in (or on) a convex polygon; ``polys_uv`` is ``(P, K, 2)``.
 
     ``mask`` holds the grid's rows from ``row0`` (all of them when 0); the rows are computed in
@@ -427,7 +452,7 @@ def _convex_fill(
     diff = np.zeros((r1 - r0, w + 1), dtype=np.int32)
     np.add.at(diff, (rows - r0, c0), 1)
     np.add.at(diff, (rows - r0, c1 + 1), -1)
-    mask[r0 - row0:r1 - row0] |= np.cumsum(diff[:, :w], axis=1) > 0
+    mask[r0 - row0 : r1 - row0] |= np.cumsum(diff[:, :w], axis=1) > 0
 
 
 def burn_polygons(
@@ -438,7 +463,8 @@ def burn_polygons(
     outline: bool = True,
     row0: int = 0,
 ) -> NDArray[np.bool_]:
-    """Mark every cell whose centre lies in a convex polygon, and (``outline``) every cell its edges cross.
+    """Mark every cell whose centre lies in a convex polygon, and (``outline``) every cell its
+    edges cross.
 
     With the outline a polygon smaller than a cell still marks the cells it touches, so a keepout
     zone is never lost.
@@ -458,7 +484,8 @@ def burn_polygons(
         >>> g = grid_for_bounds(((0, 0), (500, 500)), 0.1, 0)
         >>> burn_polygons(g, [[[100, 100], [400, 100], [400, 300], [100, 300]]],
         ...               outline=False).astype(int)[::-1].tolist()
-        [[0, 0, 0, 0, 0, 0], [0, 0, 0, 0, 0, 0], [0, 0, 0, 0, 0, 0], [0, 1, 1, 1, 0, 0], [0, 1, 1, 1, 0, 0], [0, 0, 0, 0, 0, 0]]
+        [[0, 0, 0, 0, 0, 0], [0, 0, 0, 0, 0, 0], [0, 0, 0, 0, 0, 0], [0, 1, 1, 1, 0, 0],
+         [0, 1, 1, 1, 0, 0], [0, 0, 0, 0, 0, 0]]
     """
     mask = _mask_for(grid, out, row0)
     polys = [np.asarray(p, dtype=np.float64).reshape(-1, 2) for p in polygons_mm]
@@ -549,10 +576,10 @@ def free_from_rays(
         rays, hit = rays[near], hit[near]
     ended = np.zeros_like(mask)
     for i in range(0, len(rays), max(1, chunk)):  # one step per batch of rays
-        part = rays[i:i + chunk]
+        part = rays[i : i + chunk]
         cells = segment_cells(grid, part)
         _set(mask, cells[:, 0], cells[:, 1], row0)
-        burn_points(grid, part[hit[i:i + chunk], 2:4], out=ended, row0=row0)
+        burn_points(grid, part[hit[i : i + chunk], 2:4], out=ended, row0=row0)
     mask &= ~ended
     return mask
 
@@ -609,7 +636,8 @@ def hull_mask(mask: NDArray[np.bool_], extra_rc: ArrayLike | None = None) -> NDA
 
 
 def _row_extremes(mask: NDArray[np.bool_], row0: int = 0) -> NDArray[np.int64]:
-    """``(col, row)`` of the first and last marked cell of every row with one (rows from ``row0``)."""
+    """``(col, row)`` of the first and last marked cell of every row with one (rows from
+    ``row0``)."""
     rows = np.flatnonzero(mask.any(axis=1))
     if not len(rows):
         return np.zeros((0, 2), dtype=np.int64)
@@ -816,8 +844,14 @@ def rasterize(
     if grid.width * grid.height > MAX_CELLS:
         from mapkit.raster.bands import BandRaster
 
-        return BandRaster(m, free=free, inflate_mm=inflate_mm, rays_mm=rays_mm, like=grid,
-                          forbidden_as_walls=forbidden_as_walls).to_grid()
+        return BandRaster(
+            m,
+            free=free,
+            inflate_mm=inflate_mm,
+            rays_mm=rays_mm,
+            like=grid,
+            forbidden_as_walls=forbidden_as_walls,
+        ).to_grid()
     walls = wall_mask(m, grid, forbidden_as_walls=forbidden_as_walls)
     open_ = ~walls
     if free == "flood":

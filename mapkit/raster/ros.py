@@ -199,8 +199,11 @@ def _pixel_lut(
     values = levels.astype(np.uint8).view(np.int8).astype(np.int64)  # index -> cell value
     if mode == "raw":
         return levels.astype(np.uint8), opaque
-    kw: dict[str, Any] = {"negate": negate, "occupied_thresh": occupied_thresh,
-                          "free_thresh": free_thresh}
+    kw: dict[str, Any] = {
+        "negate": negate,
+        "occupied_thresh": occupied_thresh,
+        "free_thresh": free_thresh,
+    }
     # What each grey level reads back as, in both loaders (grey as written, before negate).
     ros1 = load_pixel_values(levels, mode, flavor="ros1", **kw).astype(np.int64)
     nav2 = load_pixel_values(levels, mode, flavor="nav2", **kw).astype(np.int64)
@@ -251,7 +254,9 @@ def _pixel_lut(
 
 
 def pixel_table(
-    mode: str, negate: bool = False, occupied_thresh: float = DEFAULT_OCCUPIED_THRESH,
+    mode: str,
+    negate: bool = False,
+    occupied_thresh: float = DEFAULT_OCCUPIED_THRESH,
     free_thresh: float = DEFAULT_FREE_THRESH,
 ) -> tuple[NDArray[np.uint8], NDArray[np.bool_]]:
     """Grey level and opacity written for each cell value (index ``value & 0xFF``), checked.
@@ -269,8 +274,13 @@ def pixel_table(
     return _pixel_lut(mode, negate, occupied_thresh, free_thresh)
 
 
-def check_scale(counts: NDArray[np.int64], lut: NDArray[np.uint8], negate: bool,
-                 occupied_thresh: float, free_thresh: float) -> None:
+def check_scale(
+    counts: NDArray[np.int64],
+    lut: NDArray[np.uint8],
+    negate: bool,
+    occupied_thresh: float,
+    free_thresh: float,
+) -> None:
     """Refuse unknown cells no grey level keeps unknown; warn for values the thresholds squash.
 
     ``counts`` is the number of cells of each value, indexed by ``value & 0xFF`` (256 entries):
@@ -280,28 +290,40 @@ def check_scale(counts: NDArray[np.int64], lut: NDArray[np.uint8], negate: bool,
         RasterError: When the grid has unknown cells and no grey level lies between the
             thresholds (ROS 1 would read them as free or occupied).
     """
-    kw: dict[str, Any] = {"negate": negate, "occupied_thresh": occupied_thresh,
-                          "free_thresh": free_thresh}
+    kw: dict[str, Any] = {
+        "negate": negate,
+        "occupied_thresh": occupied_thresh,
+        "free_thresh": free_thresh,
+    }
     values = np.arange(256).astype(np.uint8).view(np.int8).astype(np.int64)
     unknown = int(counts[(values < 0) | (values > 100)].sum())
     pending = f"thresholds free {free_thresh!r} / occupied {occupied_thresh!r}"
     if unknown:
-        clear = load_pixel_values(lut.astype(np.int64), "scale", alpha=np.zeros(256),
-                                  flavor="ros1", **kw)
+        clear = load_pixel_values(
+            lut.astype(np.int64), "scale", alpha=np.zeros(256), flavor="ros1", **kw
+        )
         if ((clear != -1) & ((values < 0) | (values > 100))).any():
             raise RasterError(
                 f"scale mode with {pending} leaves no grey level between them: ROS 1 map_server "
                 f"would read the {unknown:,} unknown cells as free or occupied; widen the "
-                "thresholds or use trinary mode")
+                "thresholds or use trinary mode"
+            )
     present = np.flatnonzero(counts[:101])
-    back = load_pixel_values(lut[present].astype(np.int64), "scale", flavor="ros1",
-                             **kw).astype(np.int64)
+    back = load_pixel_values(lut[present].astype(np.int64), "scale", flavor="ros1", **kw).astype(
+        np.int64
+    )
     off = np.abs(back - present)
     squashed = off > 1  # one grey level per value at best: 1 off is rounding, more is loss
     if squashed.any():
-        log_.warning("scale mode with %s: %d of the %d cell values in this grid read back more "
-                     "than 1 off in ROS 1 map_server (up to %d off); widen the thresholds to keep "
-                     "them", pending, int(squashed.sum()), len(present), int(off.max()))
+        log_.warning(
+            "scale mode with %s: %d of the %d cell values in this grid read back more "
+            "than 1 off in ROS 1 map_server (up to %d off); widen the thresholds to keep "
+            "them",
+            pending,
+            int(squashed.sum()),
+            len(present),
+            int(off.max()),
+        )
 
 
 def grid_to_image(
@@ -335,8 +357,13 @@ def grid_to_image(
     """
     lut, opaque = pixel_table(mode, negate, occupied_thresh, free_thresh)
     if mode == "scale":
-        check_scale(np.bincount(grid.data.view(np.uint8).ravel(), minlength=256), lut, negate,
-                    occupied_thresh, free_thresh)
+        check_scale(
+            np.bincount(grid.data.view(np.uint8).ravel(), minlength=256),
+            lut,
+            negate,
+            occupied_thresh,
+            free_thresh,
+        )
     idx = grid.data[::-1].view(np.uint8)
     grey = lut[idx]
     alpha = None
@@ -366,12 +393,14 @@ def _png_bytes(grey: NDArray[np.uint8], alpha: NDArray[np.uint8] | None, level: 
     raw = np.zeros((h, w * bpp + 1), dtype=np.uint8)  # filter byte 0 ("none") per row
     raw[:, 1:] = pix
     ihdr = struct.pack(">IIBBBBB", w, h, 8, color_type, 0, 0, 0)
-    return b"".join([
-        b"\x89PNG\r\n\x1a\n",
-        _png_chunk(b"IHDR", ihdr),
-        _png_chunk(b"IDAT", zlib.compress(raw.tobytes(), level)),
-        _png_chunk(b"IEND", b""),
-    ])
+    return b"".join(
+        [
+            b"\x89PNG\r\n\x1a\n",
+            _png_chunk(b"IHDR", ihdr),
+            _png_chunk(b"IDAT", zlib.compress(raw.tobytes(), level)),
+            _png_chunk(b"IEND", b""),
+        ]
+    )
 
 
 def write_image(
@@ -420,8 +449,11 @@ _PLAIN = re.compile(r"^[A-Za-z0-9_./][A-Za-z0-9_./+@-]*$")
 
 
 def _yaml_str(s: str) -> str:
-    return s if _PLAIN.match(s) and s.lower() not in ("true", "false", "null", "yes", "no", "on", "off") \
+    return (
+        s
+        if _PLAIN.match(s) and s.lower() not in ("true", "false", "null", "yes", "no", "on", "off")
         else json.dumps(s, ensure_ascii=False)
+    )
 
 
 def yaml_text(
@@ -499,14 +531,22 @@ def write_ros_map(
         RasterError: For a bad mode, format or thresholds, or unknown cells in a ``scale`` PGM.
     """
     yaml_p = Path(os.fspath(yaml_path))
-    grey, alpha = grid_to_image(grid, mode, negate=negate, occupied_thresh=occupied_thresh,
-                                free_thresh=free_thresh)
+    grey, alpha = grid_to_image(
+        grid, mode, negate=negate, occupied_thresh=occupied_thresh, free_thresh=free_thresh
+    )
     img_p, fmt = image_target(yaml_p, mode, image_format, image_path)
     if alpha is not None and fmt == "pgm":
         raise RasterError("scale mode with unknown cells needs transparency: write PNG, not PGM")
     write_image(img_p, grey, alpha, image_format=fmt, comment=pgm_comment(grid))
-    write_map_yaml(yaml_p, img_p, grid, mode=mode, negate=negate,
-                   occupied_thresh=occupied_thresh, free_thresh=free_thresh)
+    write_map_yaml(
+        yaml_p,
+        img_p,
+        grid,
+        mode=mode,
+        negate=negate,
+        occupied_thresh=occupied_thresh,
+        free_thresh=free_thresh,
+    )
     return RosMapFiles(yaml_p, img_p)
 
 
@@ -583,9 +623,11 @@ class RosMapInfo:
 
 _INT = re.compile(r"[-+]?(?:0[xX][0-9a-fA-F]+|0[0-7]*|[1-9][0-9]*)")
 _FLOAT = re.compile(r"[-+]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][-+]?[0-9]+)?")
-_SPECIAL_FLOATS = {**{s + v: math.inf for s in ("", "+") for v in (".inf", ".Inf", ".INF")},
-                   **{"-" + v: -math.inf for v in (".inf", ".Inf", ".INF")},
-                   **{v: math.nan for v in (".nan", ".NaN", ".NAN")}}
+_SPECIAL_FLOATS = {
+    **{s + v: math.inf for s in ("", "+") for v in (".inf", ".Inf", ".INF")},
+    **{"-" + v: -math.inf for v in (".inf", ".Inf", ".INF")},
+    **{v: math.nan for v in (".nan", ".NaN", ".NAN")},
+}
 #: Largest map YAML read (a real one is a few hundred bytes).
 MAX_YAML_BYTES = 1 << 16
 #: Deepest nesting of lists and mappings read (composing recurses once per level).
@@ -605,8 +647,13 @@ def _as_int(text: str) -> int | None:
     if len(t) > 40 or not _INT.fullmatch(t):  # overflows long before 40 characters
         return None
     body = t.lstrip("+-")
-    value = int(body, 16) if body[:2] in ("0x", "0X") else int(body, 8) if body[:1] == "0" \
+    value = (
+        int(body, 16)
+        if body[:2] in ("0x", "0X")
+        else int(body, 8)
+        if body[:1] == "0"
         else int(body)
+    )
     value = -value if t.startswith("-") else value
     return value if -(1 << 31) <= value < (1 << 31) else None
 
@@ -639,21 +686,26 @@ def _compose(data: bytes, src: str) -> Any:
             if isinstance(event, yaml.NodeEvent):
                 nodes += 1
                 if nodes > MAX_YAML_NODES:
-                    raise RosMapError(f"not a map YAML: over {MAX_YAML_NODES:,} values",
-                                      source=src)
+                    raise RosMapError(f"not a map YAML: over {MAX_YAML_NODES:,} values", source=src)
             if isinstance(event, yaml.CollectionStartEvent):
                 depth += 1
                 if depth > MAX_YAML_DEPTH:
                     mark = event.start_mark
-                    raise RosMapError(f"not a map YAML: nested over {MAX_YAML_DEPTH} levels",
-                                      source=src, line=None if mark is None else mark.line + 1)
+                    raise RosMapError(
+                        f"not a map YAML: nested over {MAX_YAML_DEPTH} levels",
+                        source=src,
+                        line=None if mark is None else mark.line + 1,
+                    )
             elif isinstance(event, yaml.CollectionEndEvent):
                 depth -= 1
         return yaml.compose(text, Loader=loader)
     except (yaml.YAMLError, UnicodeDecodeError) as err:
         line = getattr(getattr(err, "problem_mark", None), "line", None)
-        raise RosMapError(f"not valid YAML: {err}".splitlines()[0],
-                          source=src, line=None if line is None else line + 1) from err
+        raise RosMapError(
+            f"not valid YAML: {err}".splitlines()[0],
+            source=src,
+            line=None if line is None else line + 1,
+        ) from err
 
 
 def read_ros_yaml(path: PathLike, *, flavor: Flavor = "ros1") -> RosMapInfo:
@@ -683,22 +735,27 @@ def read_ros_yaml(path: PathLike, *, flavor: Flavor = "ros1") -> RosMapInfo:
         raise RosMapError(f"not a map YAML: larger than {MAX_YAML_BYTES:,} bytes", source=src)
     node = _compose(text, src)
     if not isinstance(node, yaml.MappingNode):
-        raise RosMapError("a map YAML is a mapping of keys (image, resolution, origin, ...)",
-                          source=src, line=1)
+        raise RosMapError(
+            "a map YAML is a mapping of keys (image, resolution, origin, ...)", source=src, line=1
+        )
     keys: dict[str, Any] = {}
     for k, v in node.value:
         if isinstance(k, yaml.ScalarNode):
             if k.value in keys:
-                raise RosMapError(f"key {k.value!r} is given twice (lines "
-                                  f"{keys[k.value].start_mark.line + 1} and "
-                                  f"{k.start_mark.line + 1})", source=src,
-                                  line=k.start_mark.line + 1)
+                raise RosMapError(
+                    f"key {k.value!r} is given twice (lines "
+                    f"{keys[k.value].start_mark.line + 1} and "
+                    f"{k.start_mark.line + 1})",
+                    source=src,
+                    line=k.start_mark.line + 1,
+                )
             keys[k.value] = v
 
     def need(key: str) -> Any:
         if key not in keys:
-            raise RosMapError(f"missing required key {key!r} (map_server fails with "
-                              "'bad conversion')", source=src)
+            raise RosMapError(
+                f"missing required key {key!r} (map_server fails with 'bad conversion')", source=src
+            )
         return keys[key]
 
     def scalar(key: str) -> tuple[str, int]:
@@ -720,8 +777,11 @@ def read_ros_yaml(path: PathLike, *, flavor: Flavor = "ros1") -> RosMapInfo:
         raise RosMapError("the image tag cannot be an empty string", source=src, line=line)
     resolution = number("resolution")
     if not (math.isfinite(resolution) and resolution > 0):
-        raise RosMapError(f"resolution must be a positive number, got {resolution!r}", source=src,
-                          line=keys["resolution"].start_mark.line + 1)
+        raise RosMapError(
+            f"resolution must be a positive number, got {resolution!r}",
+            source=src,
+            line=keys["resolution"].start_mark.line + 1,
+        )
     onode = need("origin")
     oline = onode.start_mark.line + 1
     if not isinstance(onode, yaml.SequenceNode):
@@ -731,8 +791,9 @@ def read_ros_yaml(path: PathLike, *, flavor: Flavor = "ros1") -> RosMapInfo:
         raise RosMapError("origin must hold numbers", source=src, line=oline)
     if len(nums) < 3 or (flavor == "nav2" and len(nums) != 3):
         need_n = "exactly 3" if flavor == "nav2" else "at least 3"
-        raise RosMapError(f"origin needs {need_n} numbers (x, y, yaw), got {len(nums)}",
-                          source=src, line=oline)
+        raise RosMapError(
+            f"origin needs {need_n} numbers (x, y, yaw), got {len(nums)}", source=src, line=oline
+        )
     ox, oy, yaw = (float(n) for n in nums[:3])  # type: ignore[arg-type]
     if not all(math.isfinite(v) for v in (ox, oy, yaw)):
         raise RosMapError("origin must be finite", source=src, line=oline)
@@ -741,28 +802,40 @@ def read_ros_yaml(path: PathLike, *, flavor: Flavor = "ros1") -> RosMapInfo:
     if negate is None and flavor == "nav2" and nvalue.strip().lower() in ("true", "false"):
         negate = int(nvalue.strip().lower() == "true")
     if negate is None:
-        raise RosMapError(f"negate must be an integer 0 or 1, got {nvalue!r} (map_server reads it "
-                          "as an int)", source=src, line=nline)
+        raise RosMapError(
+            f"negate must be an integer 0 or 1, got {nvalue!r} (map_server reads it as an int)",
+            source=src,
+            line=nline,
+        )
     occ = number("occupied_thresh")
     free = number("free_thresh")
     for key, value in (("occupied_thresh", occ), ("free_thresh", free)):
         if not math.isfinite(value):
-            raise RosMapError(f"{key} must be a finite number, got {value!r} (map_server's "
-                              "result is undefined)", source=src,
-                              line=keys[key].start_mark.line + 1)
+            raise RosMapError(
+                f"{key} must be a finite number, got {value!r} (map_server's result is undefined)",
+                source=src,
+                line=keys[key].start_mark.line + 1,
+            )
     mode = "trinary"
     if "mode" in keys:
         mvalue, mline = scalar("mode")
         if mvalue not in MODES:
-            raise RosMapError(f"mode must be trinary, scale or raw (case-sensitive), got {mvalue!r}",
-                              source=src, line=mline)
+            raise RosMapError(
+                f"mode must be trinary, scale or raw (case-sensitive), got {mvalue!r}",
+                source=src,
+                line=mline,
+            )
         mode = mvalue
     if mode == "scale" and occ == free:
-        raise RosMapError(f"scale mode divides by occupied_thresh - free_thresh, which is 0 here "
-                          f"({occ!r})", source=src, line=keys["free_thresh"].start_mark.line + 1)
+        raise RosMapError(
+            f"scale mode divides by occupied_thresh - free_thresh, which is 0 here ({occ!r})",
+            source=src,
+            line=keys["free_thresh"].start_mark.line + 1,
+        )
     img_path = Path(image) if os.path.isabs(image) else p.parent / image
-    return RosMapInfo(p, image, img_path, resolution, (ox, oy, yaw), int(negate != 0),
-                      occ, free, mode)
+    return RosMapInfo(
+        p, image, img_path, resolution, (ox, oy, yaw), int(negate != 0), occ, free, mode
+    )
 
 
 def pixel_values(img: _Image, info: RosMapInfo, *, flavor: Flavor = "ros1") -> NDArray[np.int8]:
@@ -774,10 +847,16 @@ def pixel_values(img: _Image, info: RosMapInfo, *, flavor: Flavor = "ros1") -> N
         int8 ``(h, w)`` in the image's row order (first row at the top).
     """
     ch = img.channels
-    kw: dict[str, Any] = {"negate": bool(info.negate), "occupied_thresh": info.occupied_thresh,
-                          "free_thresh": info.free_thresh, "flavor": flavor}
+    kw: dict[str, Any] = {
+        "negate": bool(info.negate),
+        "occupied_thresh": info.occupied_thresh,
+        "free_thresh": info.free_thresh,
+        "flavor": flavor,
+    }
     if flavor == "ros1":
-        data8 = ch if ch.dtype == np.uint8 else (ch >> 8).astype(np.uint8)  # libpng strips to 8 bits
+        data8 = (
+            ch if ch.dtype == np.uint8 else (ch >> 8).astype(np.uint8)
+        )  # libpng strips to 8 bits
         if img.maxval < 255 and not img.bilevel:
             data8 = (ch.astype(np.int64) * 255 // img.maxval).astype(np.uint8)  # SDL rescales
         n = data8.shape[2]
@@ -835,8 +914,11 @@ def open_map_image(info: RosMapInfo, *, flavor: Flavor = "ros1") -> ImageSource:
     """
     src = open_image(info.image_path)
     if flavor == "ros1" and src.pnm and src.maxval > 255:
-        raise RosMapError(f"16-bit PGM images (maxval {src.maxval}) fail to load in ROS 1 "
-                          "map_server; use 8-bit (or --flavor nav2)", source=str(info.image_path))
+        raise RosMapError(
+            f"16-bit PGM images (maxval {src.maxval}) fail to load in ROS 1 "
+            "map_server; use 8-bit (or --flavor nav2)",
+            source=str(info.image_path),
+        )
     return src
 
 
@@ -855,4 +937,3 @@ def read_ros_map(path: PathLike, *, flavor: Flavor = "ros1") -> OccupancyGrid:
     """
     info = read_ros_yaml(path, flavor=flavor)
     return image_to_grid(open_map_image(info, flavor=flavor).read_all(), info, flavor=flavor)
-

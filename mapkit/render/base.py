@@ -47,5 +47,3 @@ class Rendering:
     view: tuple[float, float, float, float]
     metres_per_pixel: float
     names_hidden: int = 0
-
-

@@ -76,8 +76,10 @@ def _layout(
         left, bottom, top, right = 62, 42, 34, 14 + legend_px
     axes_w = width - left - right
     if axes_w < 16:
-        raise RenderError(f"a width of {width} px leaves no room for the map; use at least "
-                          f"{left + right + 16} px or a thumbnail")
+        raise RenderError(
+            f"a width of {width} px leaves no room for the map; use at least "
+            f"{left + right + 16} px or a thumbnail"
+        )
     if height is None:
         tallest = 1.0 if thumbnail else 1.6  # taller maps get room at the sides
         axes_h = round(min(max(axes_w * dy / dx, 0.35 * axes_w), tallest * axes_w))
@@ -117,20 +119,26 @@ def _density_image(
 
         occ = binary_dilation(occ, structure=np.ones((k, k), dtype=bool))
     rgba = np.zeros((lay.axes_h, lay.axes_w, 4), dtype=np.uint8)
-    r, g, b = (int(COLORS["points"][i:i + 2], 16) for i in (1, 3, 5))
+    r, g, b = (int(COLORS["points"][i : i + 2], 16) for i in (1, 3, 5))
     rgba[occ] = (r, g, b, 255)
     return rgba
 
 
 def _darker(color: str, f: float = 0.6) -> str:
     """A darker shade of ``#rrggbb`` (for text on a light fill of that colour)."""
-    r, g, b = (int(int(color[i:i + 2], 16) * f) for i in (1, 3, 5))
+    r, g, b = (int(int(color[i : i + 2], 16) * f) for i in (1, 3, 5))
     return f"#{r:02x}{g:02x}{b:02x}"
 
 
 #: Where a name may go beside its anchor, in points: (dx, dy, horizontal alignment), tried in order.
-_NAME_SPOTS = ((5, 3, "left"), (5, -10, "left"), (-5, 3, "right"), (-5, -10, "right"),
-               (0, 7, "center"), (0, -14, "center"))
+_NAME_SPOTS = (
+    (5, 3, "left"),
+    (5, -10, "left"),
+    (-5, 3, "right"),
+    (-5, -10, "right"),
+    (0, 7, "center"),
+    (0, -14, "center"),
+)
 
 
 def _place_names(
@@ -161,7 +169,7 @@ def _place_names(
     if len(markers):
         px = ax.transData.transform(markers)
         for x, y in px[np.isfinite(px).all(axis=1)].astype(int):  # a few pixels around each
-            taken[max(y - 4, 0):max(y + 5, 0), max(x - 4, 0):max(x + 5, 0)] = True
+            taken[max(y - 4, 0) : max(y + 5, 0), max(x - 4, 0) : max(x + 5, 0)] = True
     anchors = ax.transData.transform(np.asarray([(n[1], n[2]) for n in names], dtype=float))
     # A light box rather than a stroked halo keeps names as text in SVG and PDF (searchable).
     box = {"boxstyle": "square,pad=0.1", "facecolor": "white", "edgecolor": "none", "alpha": 0.7}
@@ -179,9 +187,20 @@ def _place_names(
                 continue
             if not taken[y0:y1, x0:x1].any():
                 taken[y0:y1, x0:x1] = True
-                ax.annotate(label, (x, y), xytext=(dx, dy), textcoords="offset points", ha=ha,
-                            fontsize=fontsize, color=color, zorder=8, bbox=box, parse_math=False,
-                            gid="name", annotation_clip=True)
+                ax.annotate(
+                    label,
+                    (x, y),
+                    xytext=(dx, dy),
+                    textcoords="offset points",
+                    ha=ha,
+                    fontsize=fontsize,
+                    color=color,
+                    zorder=8,
+                    bbox=box,
+                    parse_math=False,
+                    gid="name",
+                    annotation_clip=True,
+                )
                 break
         else:
             hidden += 1
@@ -224,16 +243,33 @@ def _draw(
         res = max((s.resolution for s in m.scans), default=0)
         img = _density_image(pts, lay, float(res))
         if img is not None:
-            ax.imshow(img, origin="lower", extent=(x0, x1, y0, y1), interpolation="nearest",
-                      zorder=1, aspect="auto", gid="points")
-            handles.append(Line2D([], [], ls="", marker="s", ms=4, color=COLORS["points"],
-                                  label=f"points ({n_points:,})"))
+            ax.imshow(
+                img,
+                origin="lower",
+                extent=(x0, x1, y0, y1),
+                interpolation="nearest",
+                zorder=1,
+                aspect="auto",
+                gid="points",
+            )
+            handles.append(
+                Line2D(
+                    [],
+                    [],
+                    ls="",
+                    marker="s",
+                    ms=4,
+                    color=COLORS["points"],
+                    label=f"points ({n_points:,})",
+                )
+            )
     # LINES: one collection.
     n_lines = sum(s.num_lines for s in m.scans)
     if show_lines and n_lines:
         segs: Any = np.concatenate([s.lines for s in m.scans]).reshape(-1, 2, 2) / 1000.0
-        ax.add_collection(LineCollection(segs, colors=COLORS["lines"], linewidths=0.9, zorder=2,
-                                         gid="lines"))
+        ax.add_collection(
+            LineCollection(segs, colors=COLORS["lines"], linewidths=0.9, zorder=2, gid="lines")
+        )
         handles.append(Line2D([], [], color=COLORS["lines"], lw=1, label=f"lines ({n_lines:,})"))
 
     decl = m.declared_types()
@@ -254,20 +290,52 @@ def _draw(
             key: tuple[str, str]
             name_color = color = COLORS[kind]
             if kind == "forbidden_area":
-                ax.add_patch(Polygon(corners, closed=True, facecolor=_AREA_FILL,
-                                     edgecolor=_HATCH, hatch=_HATCH_PATTERN, lw=0, zorder=3))
-                patch = Polygon(corners, closed=True, facecolor="none", edgecolor=color, lw=1.2,
-                                zorder=4, gid=f"object:{i}")
+                ax.add_patch(
+                    Polygon(
+                        corners,
+                        closed=True,
+                        facecolor=_AREA_FILL,
+                        edgecolor=_HATCH,
+                        hatch=_HATCH_PATTERN,
+                        lw=0,
+                        zorder=3,
+                    )
+                )
+                patch = Polygon(
+                    corners,
+                    closed=True,
+                    facecolor="none",
+                    edgecolor=color,
+                    lw=1.2,
+                    zorder=4,
+                    gid=f"object:{i}",
+                )
                 key = (kind, _LEGEND_LABELS[kind])
                 name_color = COLORS["forbidden_name"]
             elif kind == "home_area":
-                patch = Polygon(corners, closed=True, facecolor="none", edgecolor=color, lw=1.4,
-                                ls="--", zorder=4, gid=f"object:{i}")
+                patch = Polygon(
+                    corners,
+                    closed=True,
+                    facecolor="none",
+                    edgecolor=color,
+                    lw=1.4,
+                    ls="--",
+                    zorder=4,
+                    gid=f"object:{i}",
+                )
                 key = (kind, _LEGEND_LABELS[kind])
             else:
                 color = _color(params.get(o.type, {}).get("Color0"), COLORS["sector"])
-                patch = Polygon(corners, closed=True, facecolor=color, alpha=0.25,
-                                edgecolor=color, lw=1.0, zorder=3, gid=f"object:{i}")
+                patch = Polygon(
+                    corners,
+                    closed=True,
+                    facecolor=color,
+                    alpha=0.25,
+                    edgecolor=color,
+                    lw=1.0,
+                    zorder=3,
+                    gid=f"object:{i}",
+                )
                 key = (kind + ":" + o.type, _label(o.type))
                 name_color = _darker(color)
             ax.add_patch(patch)
@@ -278,8 +346,9 @@ def _draw(
     for (rect_kind, type_label), (color, count) in rect_types.items():
         label = f"{type_label} ({count})"
         if rect_kind == "forbidden_area":
-            handles.append(Patch(facecolor=_AREA_FILL, edgecolor=color, hatch=_HATCH_PATTERN,
-                                 label=label))
+            handles.append(
+                Patch(facecolor=_AREA_FILL, edgecolor=color, hatch=_HATCH_PATTERN, label=label)
+            )
         elif rect_kind == "home_area":
             handles.append(Patch(facecolor="none", edgecolor=color, ls="--", label=label))
         else:
@@ -303,8 +372,11 @@ def _draw(
                 for seg in segs:
                     length = float(np.hypot(*(seg[1] - seg[0])))
                     names.append((6, *seg.mean(axis=0), f"{length:.2f} m", _darker(color)))
-        ax.add_collection(LineCollection(segs, colors=color, linewidths=lw, linestyles=ls,
-                                         zorder=5, gid=f"{kind}:{typ}"))
+        ax.add_collection(
+            LineCollection(
+                segs, colors=color, linewidths=lw, linestyles=ls, zorder=5, gid=f"{kind}:{typ}"
+            )
+        )
         handles.append(Line2D([], [], color=color, lw=lw, ls=ls, label=f"{label} ({len(group)})"))
         for o, seg in zip(group, segs, strict=True):
             if o.name:
@@ -325,26 +397,63 @@ def _draw(
         markers.append(xy)
         color = COLORS[kind]
         size = (4 if thumbnail else 7) if kind != "home" else (6 if thumbnail else 10)
-        ax.plot(xy[:, 0], xy[:, 1], ls="", marker=_MARKERS[kind], ms=size, mfc=color, mec="white",
-                mew=0.8, zorder=6, gid=kind)
+        ax.plot(
+            xy[:, 0],
+            xy[:, 1],
+            ls="",
+            marker=_MARKERS[kind],
+            ms=size,
+            mfc=color,
+            mec="white",
+            mew=0.8,
+            zorder=6,
+            gid=kind,
+        )
         if kind in ("goal_heading", "dock", "home"):
             th = np.radians([o.theta for o in group])
             direction = np.column_stack([np.cos(th), np.sin(th)]) * arrow_len
             markers.extend(xy + f * direction for f in (0.35, 0.7, 1.0))  # keep names off arrows
-            ax.quiver(xy[:, 0], xy[:, 1], arrow_len * np.cos(th), arrow_len * np.sin(th),
-                      angles="xy", scale_units="xy", scale=1, color=color, zorder=7,
-                      units="dots", width=1.6 if thumbnail else 2.2, headwidth=4, headlength=4.5,
-                      headaxislength=4, gid=f"{kind}-heading")
-        handles.append(Line2D([], [], ls="", marker=_MARKERS[kind], ms=6, mfc=color, mec="white",
-                              label=f"{_LEGEND_LABELS[kind]} ({len(group)})"))
-        names.extend((min(prio, 3), px, py, o.name, color)
-                     for o, (px, py) in zip(group, xy, strict=True) if o.name)
+            ax.quiver(
+                xy[:, 0],
+                xy[:, 1],
+                arrow_len * np.cos(th),
+                arrow_len * np.sin(th),
+                angles="xy",
+                scale_units="xy",
+                scale=1,
+                color=color,
+                zorder=7,
+                units="dots",
+                width=1.6 if thumbnail else 2.2,
+                headwidth=4,
+                headlength=4.5,
+                headaxislength=4,
+                gid=f"{kind}-heading",
+            )
+        handles.append(
+            Line2D(
+                [],
+                [],
+                ls="",
+                marker=_MARKERS[kind],
+                ms=6,
+                mfc=color,
+                mec="white",
+                label=f"{_LEGEND_LABELS[kind]} ({len(group)})",
+            )
+        )
+        names.extend(
+            (min(prio, 3), px, py, o.name, color)
+            for o, (px, py) in zip(group, xy, strict=True)
+            if o.name
+        )
 
     hidden = 0
     if show_names and names and not thumbnail:
         names.sort(key=lambda n: n[0])
-        hidden = _place_names(fig, ax, lay, names, small,
-                              np.concatenate(markers) if markers else np.zeros((0, 2)))
+        hidden = _place_names(
+            fig, ax, lay, names, small, np.concatenate(markers) if markers else np.zeros((0, 2))
+        )
 
     if thumbnail:
         ax.set_axis_off()
@@ -363,9 +472,16 @@ def _draw(
     if title:
         ax.set_title(_text(title), fontsize=9.5, loc="left", pad=6, parse_math=False)
     if legend and handles:
-        fig.legend(handles=handles, loc="upper left", fontsize=7.5, frameon=False,
-                   bbox_to_anchor=((lay.left + lay.axes_w + 10) / W, (lay.bottom + lay.axes_h) / H),
-                   borderaxespad=0, handlelength=1.8, labelspacing=0.6)
+        fig.legend(
+            handles=handles,
+            loc="upper left",
+            fontsize=7.5,
+            frameon=False,
+            bbox_to_anchor=((lay.left + lay.axes_w + 10) / W, (lay.bottom + lay.axes_h) / H),
+            borderaxespad=0,
+            handlelength=1.8,
+            labelspacing=0.6,
+        )
     return hidden
 
 
@@ -378,8 +494,16 @@ def _scale_bar(ax: Axes, lay: _Layout) -> None:
     bar = AuxTransformBox(ax.transData)
     h = 4 * lay.mpp
     for k in range(4):  # alternating black/white quarters, like a map's scale bar
-        bar.add_artist(Rectangle((k * length / 4, 0), length / 4, h, facecolor="black" if k % 2 == 0
-                                 else "white", edgecolor="black", lw=0.6))
+        bar.add_artist(
+            Rectangle(
+                (k * length / 4, 0),
+                length / 4,
+                h,
+                facecolor="black" if k % 2 == 0 else "white",
+                edgecolor="black",
+                lw=0.6,
+            )
+        )
     label = TextArea(_scale_label(length), textprops={"fontsize": 7.5})
     box = VPacker(children=[label, bar], align="center", pad=0, sep=2)
     anchored = AnchoredOffsetbox(loc="lower left", child=box, pad=0.4, borderpad=0.6, frameon=True)
@@ -438,9 +562,13 @@ def make_figure(
         raise RenderError(f"dpi must be between 10 and 1200, got {dpi}")
     objects = _visible_objects(m)
     legend = legend and not thumbnail and width >= _LEGEND_MIN_WIDTH
-    lay = _layout(_data_extent(m, [o for _, o in objects]), int(width),
-                  None if height is None else int(height), thumbnail=thumbnail,
-                  legend_px=170 if legend else 0)
+    lay = _layout(
+        _data_extent(m, [o for _, o in objects]),
+        int(width),
+        None if height is None else int(height),
+        thumbnail=thumbnail,
+        legend_px=170 if legend else 0,
+    )
     if title is None:
         src = os.path.basename(m.provenance.source) if m.provenance else ""
         title = f"{src}  ({m.category})" if src else m.category
@@ -458,9 +586,16 @@ def make_figure(
             fig = Figure(figsize=(lay.width / dpi, lay.height / dpi), dpi=dpi)
             FigureCanvasAgg(fig)
         fig.patch.set_facecolor("white")
-        hidden = _draw(fig, m, lay=lay, objects=objects, show_points=show_points,
-                       show_lines=show_lines, show_names=show_names, thumbnail=thumbnail,
-                       legend=legend, title=title or None)
+        hidden = _draw(
+            fig,
+            m,
+            lay=lay,
+            objects=objects,
+            show_points=show_points,
+            show_lines=show_lines,
+            show_names=show_names,
+            thumbnail=thumbnail,
+            legend=legend,
+            title=title or None,
+        )
     return fig, Rendering(None, None, lay.width, lay.height, float(dpi), lay.view, lay.mpp, hidden)
-
-

@@ -77,5 +77,3 @@ def _scale_label(length: float) -> str:
     if length >= 1:
         return f"{length:g} m"
     return f"{length * 100:g} cm" if length >= 0.01 else f"{length * 1000:g} mm"
-
-

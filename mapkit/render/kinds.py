@@ -45,8 +45,12 @@ _AREA_FILL = (0.84, 0.1, 0.11, 0.08)
 _HATCH = "#ec8a8c"
 _HATCH_PATTERN = "///"
 #: matplotlib settings for every picture (deterministic SVG ids, text kept as text, thin hatching).
-_RC: dict[Any, Any] = {"svg.hashsalt": "mapkit", "svg.fonttype": "none", "pdf.fonttype": 42,
-                       "hatch.linewidth": 0.7}
+_RC: dict[Any, Any] = {
+    "svg.hashsalt": "mapkit",
+    "svg.fonttype": "none",
+    "pdf.fonttype": 42,
+    "hatch.linewidth": 0.7,
+}
 
 _MARKERS = {
     "goal": "o",
@@ -128,5 +132,3 @@ def object_kind(m: MapData, obj: MapObject, declared: dict[str, str] | None = No
     if cls == "LocationType":
         return "location"
     return "other_point"
-
-

@@ -24,16 +24,20 @@ def _check_display() -> None:
     import matplotlib
 
     if os.name == "posix" and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
-        raise RenderError("cannot open a window: no display (DISPLAY is not set); write a file "
-                          "with -o OUT.png instead")
+        raise RenderError(
+            "cannot open a window: no display (DISPLAY is not set); write a file "
+            "with -o OUT.png instead"
+        )
     import matplotlib.pyplot as plt  # resolves the backend
 
     backend = plt.get_backend().lower()
     if backend in ("agg", "pdf", "svg", "ps", "pgf", "cairo", "template") or "inline" in backend:
-        raise RenderError(f"cannot open a window: matplotlib has no interactive backend here "
-                          f"(it uses {matplotlib.get_backend()!r}; install a GUI toolkit, e.g. "
-                          f"Tk: apt install python3-tk python3-pil.imagetk); write a file with "
-                          f"-o OUT.png instead")
+        raise RenderError(
+            f"cannot open a window: matplotlib has no interactive backend here "
+            f"(it uses {matplotlib.get_backend()!r}; install a GUI toolkit, e.g. "
+            f"Tk: apt install python3-tk python3-pil.imagetk); write a file with "
+            f"-o OUT.png instead"
+        )
 
 
 def render(
@@ -86,14 +90,23 @@ def render(
         if fmt is None:
             raise UnsupportedFormatError(
                 f"cannot draw {os.fspath(path)!r}: pictures are .png, .svg or .pdf, not "
-                f"{suffix or '(no suffix)'!r}")
+                f"{suffix or '(no suffix)'!r}"
+            )
     elif not show:
         raise RenderError("give an output file or show=True")
     if show:
         _check_display()
-    opts = dict(width=width, height=height, dpi=dpi, show_names=show_names,
-                show_points=show_points, show_lines=show_lines, legend=legend,
-                thumbnail=thumbnail, title=title)
+    opts = dict(
+        width=width,
+        height=height,
+        dpi=dpi,
+        show_names=show_names,
+        show_points=show_points,
+        show_lines=show_lines,
+        legend=legend,
+        thumbnail=thumbnail,
+        title=title,
+    )
     fig, info = make_figure(m, _pyplot=show, **opts)  # type: ignore[arg-type]
     if path is not None:
         import matplotlib

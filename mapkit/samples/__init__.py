@@ -1,4 +1,5 @@
-"""The maps and logs bundled with mapkit (``mapkit/sample_maps``), made by ``scripts/make_samples.py``."""
+"""The maps and logs bundled with mapkit (``mapkit/sample_maps``), made by
+``scripts/make_samples.py``."""
 
 from __future__ import annotations
 
@@ -25,7 +26,8 @@ def list_samples() -> list[str]:
 
 
 def sample_path(name: str) -> Path:
-    """Path of a bundled sample; ``office`` finds ``office.map``, ``office-loop`` ``office-loop.2d``.
+    """Path of a bundled sample; ``office`` finds ``office.map``, ``office-loop``
+    ``office-loop.2d``.
 
     Args:
         name: File name, or a map's name without ``.map``.

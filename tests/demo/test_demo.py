@@ -26,8 +26,16 @@ def demo_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict]:
 def test_every_artefact_listed_exists_with_its_checksum(demo_run: tuple[Path, dict]) -> None:
     out, data = demo_run
     names = {Path(a["path"]).name for a in data["artefacts"]}
-    assert {"built.map", "office.map", "office.png", "office.yaml", "office.pgm", "walls.stl",
-            "walls.sdf", "fetched.map"} <= names
+    assert {
+        "built.map",
+        "office.map",
+        "office.png",
+        "office.yaml",
+        "office.pgm",
+        "walls.stl",
+        "walls.sdf",
+        "fetched.map",
+    } <= names
     for a in data["artefacts"]:
         p = Path(a["path"])
         assert p.parent == out.resolve() or out.resolve() in p.parents
@@ -53,13 +61,17 @@ def test_pgm_matches_yaml(demo_run: tuple[Path, dict]) -> None:
     meta = yaml.safe_load((out / "office.yaml").read_text())
     assert meta["image"] == "office.pgm" and meta["negate"] == 0 and meta["mode"] == "trinary"
     raw = (out / "office.pgm").read_bytes()
-    header = [t for line in raw[:200].split(b"\n")[:4] if not line.startswith(b"#")
-              for t in line.split()]  # P5, comments, width height, maxval
+    header = [
+        t for line in raw[:200].split(b"\n")[:4] if not line.startswith(b"#") for t in line.split()
+    ]  # P5, comments, width height, maxval
     assert header[0] == b"P5"
     width, height, maxval = int(header[1]), int(header[2]), int(header[3])
-    assert (width, height, maxval) == (data["summary"]["ros"]["width"],
-                                       data["summary"]["ros"]["height"], 255)
-    pixels = np.frombuffer(raw[-width * height:], np.uint8)
+    assert (width, height, maxval) == (
+        data["summary"]["ros"]["width"],
+        data["summary"]["ros"]["height"],
+        255,
+    )
+    pixels = np.frombuffer(raw[-width * height :], np.uint8)
     assert set(np.unique(pixels).tolist()) <= {0, 205, 254}
     assert (pixels == 0).sum() > 100 and (pixels == 254).sum() > 1000
     keepout = yaml.safe_load((out / "office_keepout.yaml").read_text())

@@ -40,8 +40,9 @@ def check_closed(mesh: trimesh.Trimesh) -> None:
     assert mesh.volume > 0  # outward normals
 
 
-def check_bounds_around_lines(mesh: trimesh.Trimesh, lines_mm: np.ndarray, t: float,
-                              h: float) -> None:
+def check_bounds_around_lines(
+    mesh: trimesh.Trimesh, lines_mm: np.ndarray, t: float, h: float
+) -> None:
     """Square-ended boxes reach t/2 .. t/sqrt(2) beyond the extreme line ends."""
     ends = lines_mm.reshape(-1, 2) / 1000.0
     lo, hi = ends.min(axis=0), ends.max(axis=0)
@@ -74,8 +75,9 @@ segment = st.lists(st.integers(-20_000, 20_000), min_size=4, max_size=4)
 
 
 @given(st.lists(segment, min_size=1, max_size=25), st.floats(0.02, 0.3), st.floats(0.5, 5))
-def test_walls_from_any_lines_are_closed_and_fit_the_lines(lines: list[list[int]], t: float,
-                                                            h: float) -> None:
+def test_walls_from_any_lines_are_closed_and_fit_the_lines(
+    lines: list[list[int]], t: float, h: float
+) -> None:
     m = lines_map(lines)
     shape = footprint(m, thickness=t)
     mesh = extrude(shape, h)
@@ -88,8 +90,12 @@ def test_walls_from_any_lines_are_closed_and_fit_the_lines(lines: list[list[int]
     assert mesh.volume >= boxes.max() * h * (1 - 1e-6)
 
 
-@given(st.lists(st.tuples(st.integers(-5000, 5000), st.integers(-5000, 5000)), min_size=1,
-                max_size=200), st.sampled_from([0.02, 0.05, 0.1]))
+@given(
+    st.lists(
+        st.tuples(st.integers(-5000, 5000), st.integers(-5000, 5000)), min_size=1, max_size=200
+    ),
+    st.sampled_from([0.02, 0.05, 0.1]),
+)
 def test_walls_from_points_cover_every_point(pts: list[tuple[int, int]], res: float) -> None:
     m = MapData(scans=(Scan.from_arrays(pts),))
     shape = footprint(m, source="auto", resolution=res)
@@ -192,20 +198,24 @@ def test_no_walls_to_make() -> None:
         wall_mesh(lines_map([[0, 0, 1, 1]]), source="points")
 
 
-@pytest.mark.parametrize(("kw", "message"), [
-    ({"height": 0}, "height must be a positive number of metres, got 0"),
-    ({"thickness": -1}, "thickness must be a positive number of metres, got -1"),
-    ({"resolution": float("nan")}, "resolution must be a positive number"),
-    ({"source": "walls"}, "source must be 'auto', 'lines' or 'points', got 'walls'"),
-])
+@pytest.mark.parametrize(
+    ("kw", "message"),
+    [
+        ({"height": 0}, "height must be a positive number of metres, got 0"),
+        ({"thickness": -1}, "thickness must be a positive number of metres, got -1"),
+        ({"resolution": float("nan")}, "resolution must be a positive number"),
+        ({"source": "walls"}, "source must be 'auto', 'lines' or 'points', got 'walls'"),
+    ],
+)
 def test_bad_parameters(kw: dict, message: str) -> None:
     with pytest.raises(MeshError, match=message):
         wall_mesh(lines_map([[0, 0, 1000, 0]]), **kw)
 
 
 def test_bad_suffix(tmp_path: Path) -> None:
-    with pytest.raises(UnsupportedFormatError,
-                       match=r"meshes are \.stl, \.obj, \.glb, \.dae, not '\.ply'"):
+    with pytest.raises(
+        UnsupportedFormatError, match=r"meshes are \.stl, \.obj, \.glb, \.dae, not '\.ply'"
+    ):
         export_mesh(lines_map([[0, 0, 1000, 0]]), tmp_path / "w.ply")
     assert not list(tmp_path.iterdir())
 

@@ -90,10 +90,12 @@ def test_same_map_same_svg_bytes(tmp_path: Path) -> None:
 corner = st.integers(-50_000, 50_000)
 
 
-@given(fx=corner, fy=corner, tx=corner, ty=corner, theta=st.floats(-180, 180),
-       extra=st.integers(0, 3))
-def test_forbidden_area_outline_is_its_corners(fx: int, fy: int, tx: int, ty: int, theta: float,
-                                               extra: int) -> None:
+@given(
+    fx=corner, fy=corner, tx=corner, ty=corner, theta=st.floats(-180, 180), extra=st.integers(0, 3)
+)
+def test_forbidden_area_outline_is_its_corners(
+    fx: int, fy: int, tx: int, ty: int, theta: float, extra: int
+) -> None:
     """The drawn outline is exactly MapObject.corners() (ARIA's rotation about the origin)."""
     area = MapObject("ForbiddenArea", 0, 0, theta, from_to=(fx, fy, tx, ty))
     anchor = MapObject("FeedbackHandler", 0, 0, 0, from_to=(0, 0, 0, 0))  # not drawn
@@ -140,7 +142,14 @@ def test_heading_arrows_for_headed_objects_only() -> None:
 def test_object_kinds() -> None:
     m = small_map()
     assert [object_kind(m, o) for o in m.objects] == [
-        "goal", "goal_heading", "dock", "home", "forbidden_area", "forbidden_line", "sector"]
+        "goal",
+        "goal_heading",
+        "dock",
+        "home",
+        "forbidden_area",
+        "forbidden_line",
+        "sector",
+    ]
 
 
 def test_declared_sector_colour_is_used() -> None:
@@ -151,8 +160,13 @@ def test_declared_sector_colour_is_used() -> None:
     assert type_params(m)["Slow"] == {"Name": "Slow", "Color0": "0x123456"}
 
 
-@given(st.lists(st.tuples(st.integers(-20_000, 20_000), st.integers(-20_000, 20_000)),
-                min_size=1, max_size=300))
+@given(
+    st.lists(
+        st.tuples(st.integers(-20_000, 20_000), st.integers(-20_000, 20_000)),
+        min_size=1,
+        max_size=300,
+    )
+)
 def test_every_point_is_drawn(pts: list[tuple[int, int]]) -> None:
     m = MapData(scans=(Scan.from_arrays(pts, resolution=0),))
     fig, r = make_figure(m, width=400, height=300)
@@ -169,14 +183,17 @@ def test_every_point_is_drawn(pts: list[tuple[int, int]]) -> None:
         for dy in (-1, 0, 1):
             rows = np.clip(iy + dy, 0, lit.shape[0] - 1)
             near[rows, np.clip(ix + dx, 0, lit.shape[1] - 1)] = True
-    assert all(lit[max(y - 1, 0):y + 2, max(x - 1, 0):x + 2].any()
-               for x, y in zip(ix, iy, strict=True))
+    assert all(
+        lit[max(y - 1, 0) : y + 2, max(x - 1, 0) : x + 2].any() for x, y in zip(ix, iy, strict=True)
+    )
     assert not (lit & ~near).any()  # nothing drawn where there is no point
 
 
 def test_names_never_overlap_and_crowded_ones_are_counted() -> None:
-    goals = tuple(MapObject("Goal", 100 * (k % 10), 100 * (k // 10), name=f"Goal number {k}")
-                  for k in range(100))
+    goals = tuple(
+        MapObject("Goal", 100 * (k % 10), 100 * (k // 10), name=f"Goal number {k}")
+        for k in range(100)
+    )
     m = MapData(scans=(Scan.from_arrays(lines=[[0, 0, 20000, 20000]]),), objects=goals)
     fig, r = make_figure(m, width=600)
     names = artists_by_gid(fig).get("name", [])
@@ -184,14 +201,18 @@ def test_names_never_overlap_and_crowded_ones_are_counted() -> None:
     renderer = fig.canvas.get_renderer()
     boxes = [t.get_window_extent(renderer) for t in names]
     for i, a in enumerate(boxes):
-        for b in boxes[i + 1:]:
+        for b in boxes[i + 1 :]:
             assert not a.overlaps(b)
 
 
 def test_odd_names_are_drawn(tmp_path: Path) -> None:
-    m = MapData(objects=(MapObject("Goal", 0, 0, name="cost $5 and $6"),
-                         MapObject("Goal", 2000, 0, name="bad \udcff byte"),
-                         MapObject("_Odd", 0, 2000, name="under"),))
+    m = MapData(
+        objects=(
+            MapObject("Goal", 0, 0, name="cost $5 and $6"),
+            MapObject("Goal", 2000, 0, name="bad \udcff byte"),
+            MapObject("_Odd", 0, 2000, name="under"),
+        )
+    )
     render(m, tmp_path / "odd.svg", width=500)
     text = (tmp_path / "odd.svg").read_text(encoding="utf-8")
     assert "cost $5 and $6" in text and "bad \ufffd byte" in text
@@ -227,8 +248,9 @@ def test_convert_writes_pictures(tmp_path: Path) -> None:
 
 
 def test_bad_suffix(tmp_path: Path) -> None:
-    with pytest.raises(UnsupportedFormatError,
-                       match=r"pictures are \.png, \.svg or \.pdf, not '\.jpg'"):
+    with pytest.raises(
+        UnsupportedFormatError, match=r"pictures are \.png, \.svg or \.pdf, not '\.jpg'"
+    ):
         render(small_map(), tmp_path / "m.jpg")
     assert not (tmp_path / "m.jpg").exists()
 
@@ -238,12 +260,15 @@ def test_nowhere_to_draw() -> None:
         render(small_map())
 
 
-@pytest.mark.parametrize(("kw", "message"), [
-    ({"width": 10}, "width must be between 32 and 20000 px, got 10"),
-    ({"height": 99999}, "height must be between"),
-    ({"dpi": 5}, "dpi must be between 10 and 1200"),
-    ({"width": 60}, "a width of 60 px leaves no room for the map"),
-])
+@pytest.mark.parametrize(
+    ("kw", "message"),
+    [
+        ({"width": 10}, "width must be between 32 and 20000 px, got 10"),
+        ({"height": 99999}, "height must be between"),
+        ({"dpi": 5}, "dpi must be between 10 and 1200"),
+        ({"width": 60}, "a width of 60 px leaves no room for the map"),
+    ],
+)
 def test_bad_sizes(tmp_path: Path, kw: dict[str, Any], message: str) -> None:
     with pytest.raises(RenderError, match=message):
         render(small_map(), tmp_path / "m.png", **kw)
@@ -290,17 +315,23 @@ def x_display() -> Any:
     import time
 
     xvfb = shutil.which("Xvfb")
-    probe = subprocess.run([sys.executable, "-c", "import tkinter; from PIL import ImageTk"],
-                           capture_output=True)
+    probe = subprocess.run(
+        [sys.executable, "-c", "import tkinter; from PIL import ImageTk"], capture_output=True
+    )
     if xvfb is None or probe.returncode != 0:
-        pytest.skip("needs Xvfb and Tk for matplotlib "
-                    "(apt install xvfb python3-tk python3-pil.imagetk)")
+        pytest.skip(
+            "needs Xvfb and Tk for matplotlib (apt install xvfb python3-tk python3-pil.imagetk)"
+        )
     for number in range(90, 120):
-        if not (os.path.exists(f"/tmp/.X11-unix/X{number}")
-                or os.path.exists(f"/tmp/.X{number}-lock")):
+        if not (
+            os.path.exists(f"/tmp/.X11-unix/X{number}") or os.path.exists(f"/tmp/.X{number}-lock")
+        ):
             break
-    proc = subprocess.Popen([xvfb, f":{number}", "-screen", "0", "1280x1024x24", "-nolisten",
-                             "tcp"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    proc = subprocess.Popen(
+        [xvfb, f":{number}", "-screen", "0", "1280x1024x24", "-nolisten", "tcp"],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
     try:
         for _ in range(100):
             if os.path.exists(f"/tmp/.X11-unix/X{number}"):
@@ -319,8 +350,9 @@ def test_show_opens_a_window(x_display: str) -> None:
 
     env = {**os.environ, "DISPLAY": x_display}
     env.pop("MPLBACKEND", None)
-    res = subprocess.run([sys.executable, "-c", SHOW_SCRIPT], env=env, capture_output=True,
-                         text=True, timeout=120)
+    res = subprocess.run(
+        [sys.executable, "-c", SHOW_SCRIPT], env=env, capture_output=True, text=True, timeout=120
+    )
     assert res.returncode == 0, res.stderr
     backend, width, path = res.stdout.split()
     assert backend.lower() not in ("agg", "pdf", "svg") and width == "500" and path == "None"

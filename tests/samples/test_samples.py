@@ -1,4 +1,5 @@
-"""The bundled samples: up to date with their generator, canonical (as ARIA writes them), complete."""
+"""The bundled samples: up to date with their generator, canonical (as ARIA writes them),
+complete."""
 
 from __future__ import annotations
 
@@ -15,8 +16,11 @@ ROOT = Path(__file__).resolve().parents[2]
 
 
 def test_samples_match_their_generator() -> None:
-    result = subprocess.run([sys.executable, str(ROOT / "scripts" / "make_samples.py"), "--check"],
-                            capture_output=True, text=True)
+    result = subprocess.run(
+        [sys.executable, str(ROOT / "scripts" / "make_samples.py"), "--check"],
+        capture_output=True,
+        text=True,
+    )
     assert result.returncode == 0, result.stdout + result.stderr
 
 
@@ -32,7 +36,14 @@ def test_office_has_what_the_issue_asks_for() -> None:
     m = mapkit.load(sample_path("office"))
     types = [o.type for o in m.objects]
     assert m.scan.num_points > 1000 and m.scan.num_lines > 10
-    assert {"Goal", "GoalWithHeading", "RobotHome", "Dock", "ForbiddenArea", "ForbiddenLine"} <= set(types)
+    assert {
+        "Goal",
+        "GoalWithHeading",
+        "RobotHome",
+        "Dock",
+        "ForbiddenArea",
+        "ForbiddenLine",
+    } <= set(types)
     assert any(o.type == "ForbiddenArea" and o.theta not in (0.0, 180.0) for o in m.objects)
 
 

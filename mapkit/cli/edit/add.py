@@ -279,5 +279,3 @@ def add_object_cmd(
             allow_duplicate=allow_duplicate,
         ),
     )
-
-

@@ -193,5 +193,3 @@ def _reference_notes(names: Callable[[MapData], list[str]]) -> _Notes:
         ]
 
     return notes
-
-

@@ -262,5 +262,3 @@ def merge_cmd(
         lambda m: editing.merge(m, other_map, region=reg, on_clash=on_clash),
         _merge_notes(other_map, on_clash),
     )
-
-

@@ -161,5 +161,3 @@ def move_cmd(
         opts,
         lambda m: editing.move(m, name, x, y, by=by or None, heading=heading, type=type_),
     )
-
-

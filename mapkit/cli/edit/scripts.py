@@ -82,5 +82,3 @@ def edit_cmd(map_file: str, script: str, **opts: Any) -> None:
     base_dir = os.path.dirname(os.path.abspath(script))
     err(f"{plural(len(edits), 'edit')} from {script}")
     _apply(map_file, opts, lambda m: editing.apply_script(m, edits, base_dir=base_dir))
-
-

@@ -63,9 +63,9 @@ def add_object(
     rectangle is stored as ARIA stores it: corners in a frame turned by ``angle`` about the map
     origin. By default the box given is turned about its own centre (what a person drawing it
     means: the corners are computed so it stays where it was drawn); ``rotate_about="origin"``
-    turns the given corners about the map origin instead (ARIA's storage rule, the box moves). A goal type given a heading becomes its
-    ``...WithHeading`` form. Parameters (``MapInfo: ArgDesc``) are written to a ``CairnInfo:
-    Params`` line, missing ones with their defaults.
+    turns the given corners about the map origin instead (ARIA's storage rule, the box moves). A
+    goal type given a heading becomes its ``...WithHeading`` form. Parameters (``MapInfo:
+    ArgDesc``) are written to a ``CairnInfo: Params`` line, missing ones with their defaults.
 
     Args:
         m: The map.
@@ -366,5 +366,3 @@ def forbid_line(
         description=description,
         allow_duplicate=allow_duplicate,
     )
-
-

@@ -149,5 +149,3 @@ def _segment(line: Sequence[Any], what: str = "line") -> tuple[float, float, flo
 
 
 _SHAPE_WORDS = {"point": "a position", "rect": "an area", "line": "a line"}
-
-

@@ -192,5 +192,3 @@ def crop(m: MapData, region: Region, *, keep_objects: bool = False) -> MapData:
     gone_ids = {id(o) for o in gone}
     out = out.replace(objects=tuple(o for o in m.objects if id(o) not in gone_ids))
     return _drop_orphan_params(out, [o.name for o in gone])
-
-

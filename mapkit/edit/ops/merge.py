@@ -25,7 +25,6 @@ from mapkit.model import MapData, MapObject, Scan
 __all__ = ["CLASH_POLICIES", "merge", "merge_clashes"]
 
 
-
 #: What :func:`merge` does with an object of OTHER whose name a different BASE object has.
 CLASH_POLICIES = ("keep", "rename", "base", "other", "error")
 

@@ -232,5 +232,3 @@ def name_references(m: MapData, name: str) -> list[tuple[str, int, tuple[str, ..
             if any(unquote(tok) == name for tok in line[1:]):
                 out.append((key, j, line))
     return out
-
-

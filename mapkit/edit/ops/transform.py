@@ -122,5 +122,3 @@ def transform(
     return apply_motion(
         m, transform_motion(m, rotate=rotate, translate=translate, about=about, recenter=recenter)
     )
-
-

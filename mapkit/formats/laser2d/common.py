@@ -65,7 +65,9 @@ def _all_ints(rest: bytes) -> bool:
     n = rest.count(b"-")
     return n == 0 or (
         n == rest.count(b" -") + rest.count(b"\t-") + rest.startswith(b"-")
-        and b"- " not in rest and b"-\t" not in rest and b"--" not in rest
+        and b"- " not in rest
+        and b"-\t" not in rest
+        and b"--" not in rest
         and not rest.endswith(b"-")
     )
 
@@ -98,12 +100,15 @@ def _int(tok: bytes) -> int:
 def _time(tok: bytes) -> float:
     """``S.M`` with M milliseconds (ARIA's unpadded ``%ld.%ld``), else a decimal number."""
     s, dot, m = tok.partition(b".")
-    if (dot and 0 < len(m) <= 3 and m.isdigit() and len(s) <= 16
-            and (s.isdigit() or (s[:1] == b"-" and s[1:].isdigit()))):
+    if (
+        dot
+        and 0 < len(m) <= 3
+        and m.isdigit()
+        and len(s) <= 16
+        and (s.isdigit() or (s[:1] == b"-" and s[1:].isdigit()))
+    ):
         # (Longer seconds: milliseconds are below a double's precision; strtod reads them.)
         sec = int(s)
         ms = int(m)
         return (sec * 1000 + (ms if not s.startswith(b"-") else -ms)) / 1000.0
     return _float(tok)
-
-

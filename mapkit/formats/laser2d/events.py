@@ -28,24 +28,43 @@ def goal_fields(event: LogEvent) -> tuple[str, str, str, str]:
 
 
 def goal_event(
-    name: str, robot: Pose2D, *, time: float | None = None, robot_global: Pose2D | None = None,
+    name: str,
+    robot: Pose2D,
+    *,
+    time: float | None = None,
+    robot_global: Pose2D | None = None,
     type: str = "GoalWithHeading",
 ) -> LogEvent:
     """A goal event as ARIA's logger writes it (``cairn: GoalWithHeading "" ICON_... "name"``)."""
     icon = "ICON_" + type.upper()
-    return LogEvent("goal", f'cairn: {type} "" {icon} "{name}"', time=time, robot=Pose2D(*robot),
-                    robot_global=None if robot_global is None else Pose2D(*robot_global), name=name)
+    return LogEvent(
+        "goal",
+        f'cairn: {type} "" {icon} "{name}"',
+        time=time,
+        robot=Pose2D(*robot),
+        robot_global=None if robot_global is None else Pose2D(*robot_global),
+        name=name,
+    )
 
 
 def loop_event(
-    action: str, tag: str, robot: Pose2D, *, time: float | None = None,
+    action: str,
+    tag: str,
+    robot: Pose2D,
+    *,
+    time: float | None = None,
     robot_global: Pose2D | None = None,
 ) -> LogEvent:
-    """A loop marker (``loop: start 1`` / ``loop: stop 1``) as the robot's microcontroller logs it."""
+    """A loop marker (``loop: start 1`` / ``loop: stop 1``) as the robot's microcontroller logs
+    it."""
     if action not in ("start", "stop", "end"):
         raise ValueError(f"loop action must be start, stop or end, not {action!r}")
-    return LogEvent("loop", f"loop: {action} {tag}", time=time, robot=Pose2D(*robot),
-                    robot_global=None if robot_global is None else Pose2D(*robot_global),
-                    name=tag, action=action)
-
-
+    return LogEvent(
+        "loop",
+        f"loop: {action} {tag}",
+        time=time,
+        robot=Pose2D(*robot),
+        robot_global=None if robot_global is None else Pose2D(*robot_global),
+        name=tag,
+        action=action,
+    )

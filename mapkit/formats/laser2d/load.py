@@ -22,8 +22,9 @@ from mapkit.model.scan import (
 __all__ = ["iter_log", "loads_log", "log_summary", "read_log", "recover_log"]
 
 
-def iter_log(source: PathLike | IO[bytes] | bytes, *, strict: bool = True,
-             name: str | None = None) -> LogReader:
+def iter_log(
+    source: PathLike | IO[bytes] | bytes, *, strict: bool = True, name: str | None = None
+) -> LogReader:
     """Open a ``.2d`` log for streaming: the header is read now, records as you iterate.
 
     Args:
@@ -48,11 +49,15 @@ def iter_log(source: PathLike | IO[bytes] | bytes, *, strict: bool = True,
     """
     if isinstance(source, (bytes, bytearray, memoryview)):
         data = bytes(source)
-        return LogReader(io.BytesIO(data), source=name or "<bytes>", strict=strict,
-                         size=len(data), close=True)
+        return LogReader(
+            io.BytesIO(data), source=name or "<bytes>", strict=strict, size=len(data), close=True
+        )
     if hasattr(source, "readline"):
-        return LogReader(source, source=name or getattr(source, "name", "<stream>"),  # type: ignore[arg-type]
-                         strict=strict)
+        return LogReader(
+            source,
+            source=name or getattr(source, "name", "<stream>"),  # type: ignore[arg-type]
+            strict=strict,
+        )
     path = os.fspath(source)
     fh = open(path, "rb", buffering=1 << 20)  # noqa: SIM115 (the reader owns and closes it)
     try:
@@ -65,8 +70,9 @@ def iter_log(source: PathLike | IO[bytes] | bytes, *, strict: bool = True,
 def _collect(reader: LogReader) -> LaserLog:
     with reader:
         records = list(reader)
-    return LaserLog(header=reader.header, records=tuple(records), complete=reader.complete,
-                    source=reader.source)
+    return LaserLog(
+        header=reader.header, records=tuple(records), complete=reader.complete, source=reader.source
+    )
 
 
 def read_log(source: PathLike | IO[bytes] | bytes, *, name: str | None = None) -> LaserLog:
@@ -86,8 +92,9 @@ def read_log(source: PathLike | IO[bytes] | bytes, *, name: str | None = None) -
     return _collect(iter_log(source, strict=True, name=name))
 
 
-def recover_log(source: PathLike | IO[bytes] | bytes, *,
-                name: str | None = None) -> tuple[LaserLog, list[Issue]]:
+def recover_log(
+    source: PathLike | IO[bytes] | bytes, *, name: str | None = None
+) -> tuple[LaserLog, list[Issue]]:
     """Read a ``.2d`` log tolerantly: bad records are skipped and reported.
 
     Args:
@@ -113,8 +120,9 @@ def recover_log(source: PathLike | IO[bytes] | bytes, *,
     return log, reader.issues
 
 
-def log_summary(source: PathLike | IO[bytes] | bytes, *, strict: bool = True,
-                name: str | None = None) -> dict[str, Any]:
+def log_summary(
+    source: PathLike | IO[bytes] | bytes, *, strict: bool = True, name: str | None = None
+) -> dict[str, Any]:
     """What a log holds, read in one streaming pass (bounded memory, any length).
 
     Args:
@@ -168,9 +176,17 @@ def log_summary(source: PathLike | IO[bytes] | bytes, *, strict: bool = True,
     return {
         "file": reader.source,
         "version": h.version,
-        "lasers": [{"number": las.number, "name": las.name, "pose": list(las.pose),
-                    "first_angle": las.start, "last_angle": las.end, "readings": las.count}
-                   for las in h.lasers],
+        "lasers": [
+            {
+                "number": las.number,
+                "name": las.name,
+                "pose": list(las.pose),
+                "first_angle": las.start,
+                "last_angle": las.end,
+                "readings": las.count,
+            }
+            for las in h.lasers
+        ],
         "location_types": list(h.location_types),
         "scans": scans,
         "scans_per_laser": {str(k): v for k, v in sorted(per_laser.items())},
@@ -178,7 +194,9 @@ def log_summary(source: PathLike | IO[bytes] | bytes, *, strict: bool = True,
         "valid_fraction": round(valid / readings, 4) if readings else 0.0,
         "events": events,
         "goals": goals,
-        "time_span_s": round(t_last - t_first, 3) if t_first is not None and t_last is not None else None,
+        "time_span_s": round(t_last - t_first, 3)
+        if t_first is not None and t_last is not None
+        else None,
         "path_length_m": round(length / 1000.0, 3),
         "complete": reader.complete,
         "issues": [i.to_dict() for i in reader.issues],
@@ -189,5 +207,3 @@ def loads_log(text: str | bytes, *, name: str = "<string>") -> LaserLog:
     """Read a ``.2d`` log from text (strict); see :func:`read_log`."""
     data = text.encode("utf-8", "surrogateescape") if isinstance(text, str) else bytes(text)
     return read_log(data, name=name)
-
-

@@ -75,8 +75,15 @@ class LogReader:
         size: Total size in bytes when known, else ``None``.
     """
 
-    def __init__(self, fh: IO[bytes], *, source: str = "<stream>", strict: bool = True,
-                 size: int | None = None, close: bool = False) -> None:
+    def __init__(
+        self,
+        fh: IO[bytes],
+        *,
+        source: str = "<stream>",
+        strict: bool = True,
+        size: int | None = None,
+        close: bool = False,
+    ) -> None:
         self.source = source
         self.strict = strict
         self.issues: list[Issue] = []
@@ -152,13 +159,22 @@ class LogReader:
             if s:
                 yield item, s
 
-    def _fail(self, code: IssueCode, message: str, lineno: int, text: bytes | str = b"",
-              has_nl: bool = True) -> None:
+    def _fail(
+        self,
+        code: IssueCode,
+        message: str,
+        lineno: int,
+        text: bytes | str = b"",
+        has_nl: bool = True,
+    ) -> None:
         """Strict: raise. Tolerant: note the issue (and the record is dropped by the caller)."""
         if not has_nl:
             message += "; the file ends inside this line (truncated?)"
-            code = IssueCode.LOG_TRUNCATED if code in (
-                IssueCode.LOG_BAD_VALUE, IssueCode.LOG_WRONG_READING_COUNT) else code
+            code = (
+                IssueCode.LOG_TRUNCATED
+                if code in (IssueCode.LOG_BAD_VALUE, IssueCode.LOG_WRONG_READING_COUNT)
+                else code
+            )
         t = text if isinstance(text, str) else _decode(text)
         if len(t) > 120:
             t = t[:117] + "..."
@@ -176,13 +192,18 @@ class LogReader:
         while first is not None and not first[1].strip():
             first = self._next_line()
         if first is None:
-            raise LogFormatError("empty file: a .2d log starts with 'LaserOdometryLog'",
-                                 source=self.source, line=1)
+            raise LogFormatError(
+                "empty file: a .2d log starts with 'LaserOdometryLog'", source=self.source, line=1
+            )
         lineno, line, _ = first
         if line.strip().lstrip(b"\xef\xbb\xbf") != _INTRO:
             raise LogFormatError(
                 f"not a .2d laser log: expected 'LaserOdometryLog' on the first line, got "
-                f"{_decode(line[:40])!r}", source=self.source, line=lineno, text=_decode(line))
+                f"{_decode(line[:40])!r}",
+                source=self.source,
+                line=lineno,
+                text=_decode(line),
+            )
         version: int | None = None
         poses: dict[int, tuple[float, float, float]] = {}
         poses3: dict[int, tuple[float, float, float, float]] = {}
@@ -207,19 +228,29 @@ class LogReader:
             parts = s.split(None, 1)
             tag = parts[0]
             rest = parts[1] if len(parts) > 1 else b""
-            if tag in _RECORD_TAGS or tag in (b"cairn:", b"loop", b"loop:") or (
-                tag.startswith(b"scan") and _is_laser_no(tag[4:-1]) and tag.endswith(b":")
-            ) or (version == 1 and tag.startswith(b"sick") and _is_laser_no(tag[4:-1])
-                  and tag.endswith(b":")) or (tag.startswith(b"reflector")):
+            if (
+                tag in _RECORD_TAGS
+                or tag in (b"cairn:", b"loop", b"loop:")
+                or (tag.startswith(b"scan") and _is_laser_no(tag[4:-1]) and tag.endswith(b":"))
+                or (
+                    version == 1
+                    and tag.startswith(b"sick")
+                    and _is_laser_no(tag[4:-1])
+                    and tag.endswith(b":")
+                )
+                or (tag.startswith(b"reflector"))
+            ):
                 self._pushback = item
                 break
             try:
                 if tag == b"version:":
                     v = _int(rest.split()[0])
                     if v not in VERSIONS:
-                        self._note(IssueCode.LOG_UNKNOWN_VERSION,
-                                   f"version {v} is not one mapkit knows (1-4); read as version 4",
-                                   lineno)
+                        self._note(
+                            IssueCode.LOG_UNKNOWN_VERSION,
+                            f"version {v} is not one mapkit knows (1-4); read as version 4",
+                            lineno,
+                        )
                         v = 4
                     version = v
                 elif tag == b"useEncoderPose:":
@@ -245,27 +276,41 @@ class LogReader:
                     k = _laser_no(tag)
                     vals = _numbers(rest)
                     if len(vals) != 3:
-                        raise ValueError(f"expects 3 numbers (first angle, last angle, count), "
-                                         f"got {len(vals)}")
+                        raise ValueError(
+                            f"expects 3 numbers (first angle, last angle, count), got {len(vals)}"
+                        )
                     if not np.all(np.isfinite(vals)) or vals[2] != int(vals[2]) or vals[2] < 0:
                         raise ValueError("expects finite angles and a whole count")
                     (confs if tag.startswith(b"sick") else confs_scan)[k] = (
-                        float(vals[0]), float(vals[1]), int(vals[2]))
+                        float(vals[0]),
+                        float(vals[1]),
+                        int(vals[2]),
+                    )
                 elif _laser_tag(tag, b"sick", b"name:") or _laser_tag(tag, b"scan", b"name:"):
                     names.setdefault(_laser_no(tag), _decode(rest.strip()))
                 else:
                     extra.append(_decode(s))
-                    self._note(IssueCode.LOG_UNKNOWN_TAG,
-                               f"unknown header line {_decode(tag)!r} kept", lineno)
+                    self._note(
+                        IssueCode.LOG_UNKNOWN_TAG,
+                        f"unknown header line {_decode(tag)!r} kept",
+                        lineno,
+                    )
             except (ValueError, IndexError) as err:
-                what = str(err) if str(err).startswith("expects") else "has a value that is not a number"
-                self._fail(IssueCode.LOG_BAD_HEADER_LINE, f"{_decode(tag)} {what}",
-                           lineno, line, has_nl)
+                what = (
+                    str(err)
+                    if str(err).startswith("expects")
+                    else "has a value that is not a number"
+                )
+                self._fail(
+                    IssueCode.LOG_BAD_HEADER_LINE, f"{_decode(tag)} {what}", lineno, line, has_nl
+                )
         if version is None:
             self._note(IssueCode.LOG_UNKNOWN_VERSION, "no 'version:' line; read as version 4", None)
             version = 4
         self._version = version
-        numbers = sorted(set(poses) | set(confs) | set(poses3) | set(confs_scan) | set(names)) or [1]
+        numbers = sorted(set(poses) | set(confs) | set(poses3) | set(confs_scan) | set(names)) or [
+            1
+        ]
         lasers = []
         for k in numbers:
             if k in poses:
@@ -279,11 +324,25 @@ class LogReader:
                 # Robot-frame min and max; ranges written from the largest angle down.
                 lo, hi = min(a, b), max(a, b)
                 a, b = hi - pth, lo - pth
-            lasers.append(LaserConfig(number=k, pose=Pose2D(px, py, pth), start=a, end=b, count=n,
-                                      name=names.get(k, ""),
-                                      z=poses3[k][2] if k in poses3 else None))
-        return LogHeader(version=version, lasers=tuple(lasers), location_types=location_types,
-                         use_encoder_pose=use_encoder, comments=tuple(comments), extra=tuple(extra))
+            lasers.append(
+                LaserConfig(
+                    number=k,
+                    pose=Pose2D(px, py, pth),
+                    start=a,
+                    end=b,
+                    count=n,
+                    name=names.get(k, ""),
+                    z=poses3[k][2] if k in poses3 else None,
+                )
+            )
+        return LogHeader(
+            version=version,
+            lasers=tuple(lasers),
+            location_types=location_types,
+            use_encoder_pose=use_encoder,
+            comments=tuple(comments),
+            extra=tuple(extra),
+        )
 
     # -- records --
 
@@ -292,8 +351,11 @@ class LogReader:
         if las is None:
             if k not in self._warned_lasers:
                 self._warned_lasers.add(k)
-                self._note(IssueCode.LOG_UNKNOWN_LASER,
-                           f"scan{k}: but the header describes no laser {k}", lineno)
+                self._note(
+                    IssueCode.LOG_UNKNOWN_LASER,
+                    f"scan{k}: but the header describes no laser {k}",
+                    lineno,
+                )
             las = LaserConfig(number=k)
         return las
 
@@ -303,9 +365,11 @@ class LogReader:
     def _drop_incomplete(self, lineno: int, why: str) -> None:
         p = self._pending
         if not p.empty() and not p.bad:
-            self._fail(IssueCode.LOG_INCOMPLETE_RECORD,
-                       f"the record started on line {p.start_line} has no scanK: line ({why})",
-                       p.start_line)
+            self._fail(
+                IssueCode.LOG_INCOMPLETE_RECORD,
+                f"the record started on line {p.start_line} has no scanK: line ({why})",
+                p.start_line,
+            )
         self._reset(lineno)
 
     def _records(self) -> Iterator[LogRecord]:
@@ -350,8 +414,13 @@ class LogReader:
                 try:
                     p.scan_id = _int(rest.split()[0])
                 except (ValueError, IndexError):
-                    self._fail(IssueCode.LOG_BAD_VALUE, f"{_decode(tag)} expects an integer",
-                               lineno, line, has_nl)
+                    self._fail(
+                        IssueCode.LOG_BAD_VALUE,
+                        f"{_decode(tag)} expects an integer",
+                        lineno,
+                        line,
+                        has_nl,
+                    )
                     p.bad = True
                     p.scan_id = -1
                 continue
@@ -367,13 +436,23 @@ class LogReader:
                 try:
                     self._time = _time(rest.split()[0])
                 except (ValueError, IndexError):
-                    self._fail(IssueCode.LOG_BAD_VALUE,
-                               f"{_decode(tag)} expects seconds.milliseconds", lineno, line, has_nl)
+                    self._fail(
+                        IssueCode.LOG_BAD_VALUE,
+                        f"{_decode(tag)} expects seconds.milliseconds",
+                        lineno,
+                        line,
+                        has_nl,
+                    )
                     p.bad = True
                     continue
                 if not math.isfinite(self._time):
-                    self._fail(IssueCode.LOG_NON_FINITE, f"{_decode(tag)} NaN or infinite value",
-                               lineno, line, has_nl)
+                    self._fail(
+                        IssueCode.LOG_NON_FINITE,
+                        f"{_decode(tag)} NaN or infinite value",
+                        lineno,
+                        line,
+                        has_nl,
+                    )
                     p.bad = True
                 continue
             if tag == b"velocities:":
@@ -387,15 +466,21 @@ class LogReader:
                     p.bad = True
                     continue
                 if not all(map(math.isfinite, v)):
-                    self._fail(IssueCode.LOG_NON_FINITE, "velocities: NaN or infinite value",
-                               lineno, line, has_nl)
+                    self._fail(
+                        IssueCode.LOG_NON_FINITE,
+                        "velocities: NaN or infinite value",
+                        lineno,
+                        line,
+                        has_nl,
+                    )
                     p.bad = True
                     continue
                 self._velocities = (v[0], v[1], v[2] if len(v) == 3 else math.nan)
                 continue
             if tag.startswith(b"reflector") and _is_laser_no(tag[9:-1]) and tag[-1:] == b":":
-                self._array_line(p.reflectors, int(tag[9:-1]), rest, lineno, line, has_nl,
-                                 "reflector")
+                self._array_line(
+                    p.reflectors, int(tag[9:-1]), rest, lineno, line, has_nl, "reflector"
+                )
                 continue
             if tag == b"cairn:":
                 yield from self._event("goal", s, lineno)
@@ -403,45 +488,71 @@ class LogReader:
             if tag in (b"loop:", b"loop"):
                 words = rest.split()
                 if len(words) >= 1 and words[0] in (b"start", b"stop", b"end"):
-                    yield from self._event("loop", s, lineno, action=_decode(words[0]),
-                                           name=_decode(b" ".join(words[1:])))
+                    yield from self._event(
+                        "loop",
+                        s,
+                        lineno,
+                        action=_decode(words[0]),
+                        name=_decode(b" ".join(words[1:])),
+                    )
                     continue
             if tag == b"robot_id:" and version == 1:
                 continue
             if tag[-1:] == b":" and len(tag) > 1:
                 name = _decode(tag[:-1])
-                if name in ("robot", "robotGlobal", "robotRaw") or name in self.header.location_types:
+                if (
+                    name in ("robot", "robotGlobal", "robotRaw")
+                    or name in self.header.location_types
+                ):
                     self._pose_line(name, [rest], lineno, line, has_nl)
                     continue
                 # Unknown tag: part of the scan record, a tagged string, or an info line.
                 if p.scan_id is not None:
                     p.extra.append(_decode(s))
-                    self._note(IssueCode.LOG_UNKNOWN_TAG,
-                               f"unknown tag {_decode(tag)!r} in a scan record kept", lineno)
+                    self._note(
+                        IssueCode.LOG_UNKNOWN_TAG,
+                        f"unknown tag {_decode(tag)!r} in a scan record kept",
+                        lineno,
+                    )
                 elif p.poses:
                     yield from self._event("tag", s, lineno)
                 else:
-                    self._note(IssueCode.LOG_UNKNOWN_TAG,
-                               f"unknown tag {_decode(tag)!r} kept as an info line", lineno)
+                    self._note(
+                        IssueCode.LOG_UNKNOWN_TAG,
+                        f"unknown tag {_decode(tag)!r} kept as an info line",
+                        lineno,
+                    )
                     yield LogEvent("info", _decode(s), time=None, line=lineno)
                 continue
             if p.poses and p.scan_id is None and _printable(s):
                 yield from self._event("tag", s, lineno)
                 continue
-            self._fail(IssueCode.LOG_GARBAGE_LINE,
-                       "expected a tag ('word:' then values), a comment ('#...') or a loop marker",
-                       lineno, line, has_nl)
+            self._fail(
+                IssueCode.LOG_GARBAGE_LINE,
+                "expected a tag ('word:' then values), a comment ('#...') or a loop marker",
+                lineno,
+                line,
+                has_nl,
+            )
         if not self._pending.empty() and not self._pending.bad:
-            self._fail(IssueCode.LOG_TRUNCATED,
-                       f"the log ends inside the record started on line {self._pending.start_line} "
-                       f"(no scanK: line follows; truncated?)", self._pending.start_line)
+            self._fail(
+                IssueCode.LOG_TRUNCATED,
+                f"the log ends inside the record started on line {self._pending.start_line} "
+                f"(no scanK: line follows; truncated?)",
+                self._pending.start_line,
+            )
         if not self.complete:
-            self._note(IssueCode.LOG_NO_END_MARK, "no '# End of log' line: the logger did not "
-                       "shut down cleanly (or the file is truncated)", None)
+            self._note(
+                IssueCode.LOG_NO_END_MARK,
+                "no '# End of log' line: the logger did not "
+                "shut down cleanly (or the file is truncated)",
+                None,
+            )
         self._done = True
 
-    def _event(self, kind: str, s: bytes, lineno: int, *, action: str = "",
-               name: str = "") -> Iterator[LogEvent]:
+    def _event(
+        self, kind: str, s: bytes, lineno: int, *, action: str = "", name: str = ""
+    ) -> Iterator[LogEvent]:
         p = self._pending
         if p.bad:
             self._reset(lineno)
@@ -451,18 +562,27 @@ class LogReader:
             name = goal_fields(LogEvent("goal", text))[3]
         poses = p.poses
         ev = LogEvent(
-            kind, text, time=self._time if p.has_time else None, robot=poses.get("robot"),
-            robot_global=poses.get("robotGlobal"), robot_raw=poses.get("robotRaw"),
-            other_poses=tuple((k, poses[k]) for k in p.pose_order
-                              if k not in ("robot", "robotGlobal", "robotRaw")),
-            name=name, action=action, line=lineno)
+            kind,
+            text,
+            time=self._time if p.has_time else None,
+            robot=poses.get("robot"),
+            robot_global=poses.get("robotGlobal"),
+            robot_raw=poses.get("robotRaw"),
+            other_poses=tuple(
+                (k, poses[k]) for k in p.pose_order if k not in ("robot", "robotGlobal", "robotRaw")
+            ),
+            name=name,
+            action=action,
+            line=lineno,
+        )
         self._reset(lineno)
         if self._version < 4:
             self._time = None
         yield ev
 
-    def _pose_line(self, name: str, rest_parts: list[bytes], lineno: int, line: bytes,
-                   has_nl: bool) -> None:
+    def _pose_line(
+        self, name: str, rest_parts: list[bytes], lineno: int, line: bytes, has_nl: bool
+    ) -> None:
         p = self._pending
         if p.empty() and p.start_line == 0:
             p.start_line = lineno
@@ -470,8 +590,13 @@ class LogReader:
         try:
             v = _small(rest)
         except ValueError:
-            self._fail(IssueCode.LOG_BAD_VALUE, f"{name}: values that are not numbers",
-                       lineno, line, has_nl)
+            self._fail(
+                IssueCode.LOG_BAD_VALUE,
+                f"{name}: values that are not numbers",
+                lineno,
+                line,
+                has_nl,
+            )
             p.bad = True
             return
         if len(v) == 0 and name not in ("robot", "robotGlobal"):
@@ -480,13 +605,19 @@ class LogReader:
             p.poses[name] = None
             return
         if len(v) not in (3, 5):
-            self._fail(IssueCode.LOG_BAD_VALUE, f"{name}: expects 3 numbers (X Y Th), got {len(v)}",
-                       lineno, line, has_nl)
+            self._fail(
+                IssueCode.LOG_BAD_VALUE,
+                f"{name}: expects 3 numbers (X Y Th), got {len(v)}",
+                lineno,
+                line,
+                has_nl,
+            )
             p.bad = True
             return
         if not all(map(math.isfinite, v)):
-            self._fail(IssueCode.LOG_NON_FINITE, f"{name}: NaN or infinite value",
-                       lineno, line, has_nl)
+            self._fail(
+                IssueCode.LOG_NON_FINITE, f"{name}: NaN or infinite value", lineno, line, has_nl
+            )
             p.bad = True
             return
         if name not in p.poses:
@@ -495,34 +626,53 @@ class LogReader:
         if len(v) == 5 and name == "robot":
             p.v2_velocities = (float(v[3]), float(v[4]), math.nan)
 
-    def _array_line(self, store: dict[int, np.ndarray[Any, Any]], k: int, rest: bytes, lineno: int,
-                    line: bytes, has_nl: bool, what: str) -> None:
+    def _array_line(
+        self,
+        store: dict[int, np.ndarray[Any, Any]],
+        k: int,
+        rest: bytes,
+        lineno: int,
+        line: bytes,
+        has_nl: bool,
+        what: str,
+    ) -> None:
         p = self._pending
         if p.empty() and p.start_line == 0:
             p.start_line = lineno
         try:
             v = _numbers(rest)
         except ValueError:
-            self._fail(IssueCode.LOG_BAD_VALUE, f"{what}{k}: values that are not numbers",
-                       lineno, line, has_nl)
+            self._fail(
+                IssueCode.LOG_BAD_VALUE,
+                f"{what}{k}: values that are not numbers",
+                lineno,
+                line,
+                has_nl,
+            )
             p.bad = True
             return
         if not _finite(v):
-            self._fail(IssueCode.LOG_NON_FINITE, f"{what}{k}: NaN or infinite value",
-                       lineno, line, has_nl)
+            self._fail(
+                IssueCode.LOG_NON_FINITE, f"{what}{k}: NaN or infinite value", lineno, line, has_nl
+            )
             p.bad = True
             return
         las = self._laser(k, lineno)
         if las.count and len(v) != las.count:
-            self._fail(IssueCode.LOG_WRONG_READING_COUNT,
-                       f"{what}{k}: has {len(v)} readings, sick{k}conf: says {las.count}",
-                       lineno, line, has_nl)
+            self._fail(
+                IssueCode.LOG_WRONG_READING_COUNT,
+                f"{what}{k}: has {len(v)} readings, sick{k}conf: says {las.count}",
+                lineno,
+                line,
+                has_nl,
+            )
             p.bad = True
             return
         store[k] = v
 
-    def _finish_scan(self, k: int, rest: bytes, lineno: int, line: bytes, has_nl: bool, *,
-                     pairs: bool) -> LaserScan | None:
+    def _finish_scan(
+        self, k: int, rest: bytes, lineno: int, line: bytes, has_nl: bool, *, pairs: bool
+    ) -> LaserScan | None:
         p = self._pending
         version = self._version
         rec: LaserScan | None = None
@@ -533,28 +683,47 @@ class LogReader:
             try:
                 v = _numbers(rest)
             except ValueError:
-                self._fail(IssueCode.LOG_BAD_VALUE, f"{what}: values that are not numbers",
-                           lineno, line, has_nl)
+                self._fail(
+                    IssueCode.LOG_BAD_VALUE,
+                    f"{what}: values that are not numbers",
+                    lineno,
+                    line,
+                    has_nl,
+                )
                 return None
             if not _finite(v):
-                self._fail(IssueCode.LOG_NON_FINITE, f"{what}: NaN or infinite value",
-                           lineno, line, has_nl)
+                self._fail(
+                    IssueCode.LOG_NON_FINITE, f"{what}: NaN or infinite value", lineno, line, has_nl
+                )
                 return None
             las = self._laser(k, lineno)
             if pairs and len(v) % 2:
-                self._fail(IssueCode.LOG_WRONG_READING_COUNT,
-                           f"{what}: odd number of values ({len(v)}): expects x y pairs",
-                           lineno, line, has_nl)
+                self._fail(
+                    IssueCode.LOG_WRONG_READING_COUNT,
+                    f"{what}: odd number of values ({len(v)}): expects x y pairs",
+                    lineno,
+                    line,
+                    has_nl,
+                )
                 return None
             n = len(v) // 2 if pairs else len(v)
             if las.count and n != las.count:
-                self._fail(IssueCode.LOG_WRONG_READING_COUNT,
-                           f"{what}: has {n} readings, sick{k}conf: says {las.count}",
-                           lineno, line, has_nl)
+                self._fail(
+                    IssueCode.LOG_WRONG_READING_COUNT,
+                    f"{what}: has {n} readings, sick{k}conf: says {las.count}",
+                    lineno,
+                    line,
+                    has_nl,
+                )
                 return None
             if "robot" not in p.poses or p.poses["robot"] is None:
-                self._fail(IssueCode.LOG_INCOMPLETE_RECORD,
-                           f"{what}: the record has no robot: pose", lineno, line, has_nl)
+                self._fail(
+                    IssueCode.LOG_INCOMPLETE_RECORD,
+                    f"{what}: the record has no robot: pose",
+                    lineno,
+                    line,
+                    has_nl,
+                )
                 return None
             xy = None
             ranges = p.ranges.get(k)
@@ -579,13 +748,24 @@ class LogReader:
                 sid = 0
             self._v1_id = sid
             rec = LaserScan(
-                scan_id=sid, laser=k, robot=poses["robot"],  # type: ignore[arg-type]
-                time=self._time if version >= 2 else None, velocities=vel,
-                robot_global=poses.get("robotGlobal"), robot_raw=poses.get("robotRaw"),
-                other_poses=tuple((nm, poses[nm]) for nm in p.pose_order
-                                  if nm not in ("robot", "robotGlobal", "robotRaw")),
-                xy=xy, ranges=ranges, reflectors=p.reflectors.get(k), extra=tuple(p.extra),
-                line=lineno)
+                scan_id=sid,
+                laser=k,
+                robot=poses["robot"],  # type: ignore[arg-type]
+                time=self._time if version >= 2 else None,
+                velocities=vel,
+                robot_global=poses.get("robotGlobal"),
+                robot_raw=poses.get("robotRaw"),
+                other_poses=tuple(
+                    (nm, poses[nm])
+                    for nm in p.pose_order
+                    if nm not in ("robot", "robotGlobal", "robotRaw")
+                ),
+                xy=xy,
+                ranges=ranges,
+                reflectors=p.reflectors.get(k),
+                extra=tuple(p.extra),
+                line=lineno,
+            )
             return rec
         finally:
             self._reset(lineno)
@@ -609,12 +789,13 @@ def _is_laser_no(digits: bytes) -> bool:
 
 
 def _laser_tag(tag: bytes, prefix: bytes, suffix: bytes) -> bool:
-    return (tag.startswith(prefix) and tag.endswith(suffix)
-            and _is_laser_no(tag[len(prefix):-len(suffix)]))
+    return (
+        tag.startswith(prefix)
+        and tag.endswith(suffix)
+        and _is_laser_no(tag[len(prefix) : -len(suffix)])
+    )
 
 
 def _laser_no(tag: bytes) -> int:
     digits = bytes(ch for ch in tag[4:] if 48 <= ch <= 57)
     return int(digits)
-
-

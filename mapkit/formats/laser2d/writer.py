@@ -242,8 +242,10 @@ class LogWriter:
             if rec.time is not None and key != self._last_time:
                 out.append(f"logTime: {_time_text(rec.time, 4)}")
                 if rec.velocities is not None:
-                    out.append("velocities: " + " ".join(
-                        _f2(x if math.isfinite(x) else 0.0) for x in rec.velocities))
+                    out.append(
+                        "velocities: "
+                        + " ".join(_f2(x if math.isfinite(x) else 0.0) for x in rec.velocities)
+                    )
                 self._last_time = key
             out.append(f"scanId: {rec.scan_id}")
         elif v in (2, 3):
@@ -251,8 +253,10 @@ class LogWriter:
             if rec.time is not None:
                 out.append(f"time: {_time_text(rec.time, v)}")
             if v == 3 and rec.velocities is not None:
-                out.append("velocities: " + " ".join(
-                    _f2(x if math.isfinite(x) else 0.0) for x in rec.velocities))
+                out.append(
+                    "velocities: "
+                    + " ".join(_f2(x if math.isfinite(x) else 0.0) for x in rec.velocities)
+                )
         else:
             out.append(f"#scan{rec.scan_id}")
         out.extend(self._pose_lines(rec, with_vel=True))
@@ -322,8 +326,11 @@ def dumps_log(log: LaserLog, *, version: int | None = None) -> str:
 
 
 def write_log(
-    log: LaserLog | tuple[LogHeader, Iterable[LogRecord]], path: PathLike, *,
-    version: int | None = None, backup: bool = False,
+    log: LaserLog | tuple[LogHeader, Iterable[LogRecord]],
+    path: PathLike,
+    *,
+    version: int | None = None,
+    backup: bool = False,
 ) -> int:
     """Write a ``.2d`` log atomically; records may come from an iterator (streamed).
 

@@ -27,15 +27,27 @@ __all__ = ["fetch", "list_maps", "load_map", "push"]
 
 def _terminal(w: Watcher, secret: bytes | None, **kw: Any) -> Terminal:
     rp = rospy()
-    return Terminal(w.link, secret, peer=f"{socket.gethostname()}:{rp.get_name()}",
-                    stopped=rp.is_shutdown, **kw)
+    return Terminal(
+        w.link, secret, peer=f"{socket.gethostname()}:{rp.get_name()}", stopped=rp.is_shutdown, **kw
+    )
 
 
-def push(path: str, *, channel: str, secret: bytes | None, name: str | None = None,
-         robots: Iterable[str] = (), expect: int = 0, wait: float = 3.0, load: bool = False,
-         chunk_size: int = DEFAULT_CHUNK_SIZE, window: int = DEFAULT_WINDOW, rto: float = 1.0,
-         idle_timeout: float = 30.0,
-         progress: Callable[[int, int], None] | None = None) -> list[PushResult]:
+def push(
+    path: str,
+    *,
+    channel: str,
+    secret: bytes | None,
+    name: str | None = None,
+    robots: Iterable[str] = (),
+    expect: int = 0,
+    wait: float = 3.0,
+    load: bool = False,
+    chunk_size: int = DEFAULT_CHUNK_SIZE,
+    window: int = DEFAULT_WINDOW,
+    rto: float = 1.0,
+    idle_timeout: float = 30.0,
+    progress: Callable[[int, int], None] | None = None,
+) -> list[PushResult]:
     """Push a file to every robot on ``channel`` that accepts pushes, at once; each verifies it.
 
     Args:
@@ -62,8 +74,9 @@ def push(path: str, *, channel: str, secret: bytes | None, name: str | None = No
     """
     with open(path, "rb") as fh:
         data = fh.read()
-    offer = Offer.for_bytes(name or os.path.basename(path), data, chunk_size=chunk_size,
-                            mtime=os.stat(path).st_mtime)
+    offer = Offer.for_bytes(
+        name or os.path.basename(path), data, chunk_size=chunk_size, mtime=os.stat(path).st_mtime
+    )
     want = list(robots)
     w = Watcher(channel, window=window, chunk_size=chunk_size)
     try:
@@ -72,17 +85,20 @@ def push(path: str, *, channel: str, secret: bytes | None, name: str | None = No
         if not found or missing or len(found) < expect:
             extra = f" (missing: {', '.join(sorted(missing))})" if missing else ""
             accept = "robot accepts" if len(found) == 1 else "robots accept"
-            raise RosError(f"{len(found)} {accept} pushes on channel {channel!r}{extra}; "
-                           f"expected {max(expect, len(want), 1)}. Is `mapkit ros receive` or "
-                           "`mapkit ros serve` running there (same channel, same ROS master)?")
+            raise RosError(
+                f"{len(found)} {accept} pushes on channel {channel!r}{extra}; "
+                f"expected {max(expect, len(want), 1)}. Is `mapkit ros receive` or "
+                "`mapkit ros serve` running there (same channel, same ROS master)?"
+            )
         term = _terminal(w, secret, rto=rto, idle_timeout=idle_timeout)
         return term.push(found, data, offer, load=load, window=window, progress=progress)
     finally:
         w.link.close()
 
 
-def list_maps(channel: str, *, secret: bytes | None, robot: str | None = None,
-              timeout: float = 3.0) -> dict[str, Any]:
+def list_maps(
+    channel: str, *, secret: bytes | None, robot: str | None = None, timeout: float = 3.0
+) -> dict[str, Any]:
     """The maps a robot serves (LIST over an authenticated session), with its name."""
     w = Watcher(channel)
     try:
@@ -93,9 +109,16 @@ def list_maps(channel: str, *, secret: bytes | None, robot: str | None = None,
         w.link.close()
 
 
-def load_map(name: str, *, channel: str, secret: bytes | None, robot: str | None = None,
-             md5: str | None = None, rollback: bool = False,
-             timeout: float = 3.0) -> dict[str, Any]:
+def load_map(
+    name: str,
+    *,
+    channel: str,
+    secret: bytes | None,
+    robot: str | None = None,
+    md5: str | None = None,
+    rollback: bool = False,
+    timeout: float = 3.0,
+) -> dict[str, Any]:
     """Make a map on the robot its active one (and tell its map server); the new state."""
     payload: dict[str, Any] = {"name": name}
     if md5:
@@ -111,9 +134,18 @@ def load_map(name: str, *, channel: str, secret: bytes | None, robot: str | None
         w.link.close()
 
 
-def fetch(name: str, dest: str, *, channel: str, secret: bytes | None, robot: str | None = None,
-          if_changed: bool = True, chunk_size: int = DEFAULT_CHUNK_SIZE, timeout: float = 3.0,
-          progress: Callable[[int, int], None] | None = None) -> dict[str, Any]:
+def fetch(
+    name: str,
+    dest: str,
+    *,
+    channel: str,
+    secret: bytes | None,
+    robot: str | None = None,
+    if_changed: bool = True,
+    chunk_size: int = DEFAULT_CHUNK_SIZE,
+    timeout: float = 3.0,
+    progress: Callable[[int, int], None] | None = None,
+) -> dict[str, Any]:
     """Pull a map from a robot into ``dest`` (a file path), verified and written atomically.
 
     With ``if_changed`` nothing is transferred when ``dest`` already has the robot's content.
@@ -129,7 +161,8 @@ def fetch(name: str, dest: str, *, channel: str, secret: bytes | None, robot: st
     w = Watcher(channel, chunk_size=chunk_size)
     try:
         r = _one_robot(w, robot, "pull", timeout)
-        return _terminal(w, secret).fetch(r, name, dest, if_changed=if_changed,
-                                          chunk_size=chunk_size, progress=progress)
+        return _terminal(w, secret).fetch(
+            r, name, dest, if_changed=if_changed, chunk_size=chunk_size, progress=progress
+        )
     finally:
         w.link.close()

@@ -38,11 +38,13 @@ class Watcher:
     """A client link that collects robot announcements as they arrive (latched: late joiners
     see them too)."""
 
-    def __init__(self, channel: str, *, window: int = DEFAULT_WINDOW,
-                 chunk_size: int = DEFAULT_CHUNK_SIZE) -> None:
+    def __init__(
+        self, channel: str, *, window: int = DEFAULT_WINDOW, chunk_size: int = DEFAULT_CHUNK_SIZE
+    ) -> None:
         self.robots: dict[str, Robot] = {}
-        self.link = RosLink(channel, robot=False, window=window, chunk_size=chunk_size,
-                            on_announce=self._on)
+        self.link = RosLink(
+            channel, robot=False, window=window, chunk_size=chunk_size, on_announce=self._on
+        )
 
     def _on(self, doc: dict[str, Any]) -> None:
         r = _robot_from(doc)
@@ -59,8 +61,14 @@ class Watcher:
             return 0
         return sum(len(nodes) for name, nodes in pubs if name == topic)
 
-    def wait(self, *, timeout: float, expect: int = 0, feature: str | None = None,
-             names: Iterable[str] = ()) -> list[Robot]:
+    def wait(
+        self,
+        *,
+        timeout: float,
+        expect: int = 0,
+        feature: str | None = None,
+        names: Iterable[str] = (),
+    ) -> list[Robot]:
         """Robots announced within ``timeout`` (sooner once every announcing node, or ``expect``
         of them, or all ``names``, were heard), filtered by ``feature`` and ``names``."""
         want = set(names)
@@ -85,8 +93,9 @@ class Watcher:
         return robots
 
 
-def discover(channel: str, *, timeout: float = 3.0,
-             feature: str | None = None) -> list[dict[str, Any]]:
+def discover(
+    channel: str, *, timeout: float = 3.0, feature: str | None = None
+) -> list[dict[str, Any]]:
     """The announcements of the robot nodes on ``channel`` (the node must be started)."""
     w = Watcher(channel)
     try:
@@ -99,12 +108,15 @@ def _one_robot(w: Watcher, robot: str | None, feature: str, timeout: float) -> R
     robots = w.wait(timeout=timeout, feature=feature, names=[robot] if robot else ())
     if not robots:
         who = f"robot {robot!r}" if robot else "robot node"
-        raise RosError(f"no {who} serving {feature!r} on channel {w.link.channel!r} "
-                       f"(topic {rospy().resolve_name(w.link.topics['announce'])}); is "
-                       "`mapkit ros serve` running there?")
+        raise RosError(
+            f"no {who} serving {feature!r} on channel {w.link.channel!r} "
+            f"(topic {rospy().resolve_name(w.link.topics['announce'])}); is "
+            "`mapkit ros serve` running there?"
+        )
     if len(robots) > 1:
-        raise RosError("several robots serve this channel: " + ", ".join(r.robot for r in robots)
-                       + "; choose one with --robot")
+        raise RosError(
+            "several robots serve this channel: "
+            + ", ".join(r.robot for r in robots)
+            + "; choose one with --robot"
+        )
     return robots[0]
-
-

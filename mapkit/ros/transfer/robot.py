@@ -55,11 +55,19 @@ class _RobotSession:
     def __init__(self, node: RobotNode, conn: _Conn, now: float) -> None:
         self.node = node
         self.conn = conn
-        info = {"max_chunk": MAX_CHUNK_SIZE, "max_size": node.folder.max_size,
-                "features": list(node.features)}
-        self.hs = ServerHandshake(conn.channel, node.secret, insecure=node.insecure,
-                                  peer=node.robot, info=info,
-                                  idle_timeout=node.idle_timeout)
+        info = {
+            "max_chunk": MAX_CHUNK_SIZE,
+            "max_size": node.folder.max_size,
+            "features": list(node.features),
+        }
+        self.hs = ServerHandshake(
+            conn.channel,
+            node.secret,
+            insecure=node.insecure,
+            peer=node.robot,
+            info=info,
+            idle_timeout=node.idle_timeout,
+        )
         self.hs.start(now)
         self.active: Sender | Receiver | None = None
         self.dest: PartialFile | None = None
@@ -103,8 +111,12 @@ class _RobotSession:
                 log.warning("%s: refused: %s", self.conn.peer, self.hs.error)
                 self.closed = True
             elif self.hs.finished:
-                log.info("%s: session %016x (auth %s)", self.client, self.conn.channel.session,
-                         self.hs.auth)
+                log.info(
+                    "%s: session %016x (auth %s)",
+                    self.client,
+                    self.conn.channel.session,
+                    self.hs.auth,
+                )
             return out
         if self.hs.error is not None or self.closed:
             return []
@@ -159,8 +171,11 @@ class _RobotSession:
             log.info("%s: loaded %s", self.client, state["name"])
             return [Out(FrameType.LOADED, dump_json(state), ref=f.ref)]
         if t in (FrameType.OFFER, FrameType.GET, FrameType.LIST, FrameType.LOAD):
-            raise ProtocolError(f"this robot node does not serve {FrameType(t).name} (it offers "
-                                f"{', '.join(feats)})", Status.UNSUPPORTED)
+            raise ProtocolError(
+                f"this robot node does not serve {FrameType(t).name} (it offers "
+                f"{', '.join(feats)})",
+                Status.UNSUPPORTED,
+            )
         raise ProtocolError(f"unexpected frame type {t} between requests")
 
     def _release(self) -> None:
@@ -190,12 +205,23 @@ class _RobotSession:
             dest = self.node.folder.begin_write(offer)
         self.dest = dest
         # ack every quarter of the sender's window, so that the pipe never runs dry
-        rx = Receiver(offer, ref=f.ref, have=dest.have, window=max(4 * self.node.window, 64),
-                      ack_every=max(1, self.node.window // 4), idle_timeout=self.node.idle_timeout)
+        rx = Receiver(
+            offer,
+            ref=f.ref,
+            have=dest.have,
+            window=max(4 * self.node.window, 64),
+            ack_every=max(1, self.node.window // 4),
+            idle_timeout=self.node.idle_timeout,
+        )
         self.active = rx
         if dest.resumed:
-            log.info("%s: resuming %s with %d of %d chunks", self.client, offer.name, dest.resumed,
-                     offer.chunks)
+            log.info(
+                "%s: resuming %s with %d of %d chunks",
+                self.client,
+                offer.name,
+                dest.resumed,
+                offer.chunks,
+            )
         return rx.accept(now) + self._rx_events(now)
 
     def _rx_events(self, now: float) -> list[Out]:
@@ -211,12 +237,26 @@ class _RobotSession:
                 self._release()
                 dest.close(keep=True)
             else:
-                log.info("%s: received %s (%d bytes, SHA-256 %s, %d chunks resumed)", self.client,
-                         rx.offer.name, rx.offer.size, rx.offer.sha256, dest.resumed)
+                log.info(
+                    "%s: received %s (%d bytes, SHA-256 %s, %d chunks resumed)",
+                    self.client,
+                    rx.offer.name,
+                    rx.offer.size,
+                    rx.offer.sha256,
+                    dest.resumed,
+                )
                 o = rx.offer
-                self.node.received({"name": o.name, "size": o.size, "sha256": o.sha256,
-                                    "md5": o.md5, "robot": self.node.robot, "peer": self.client,
-                                    "resumed": dest.resumed})
+                self.node.received(
+                    {
+                        "name": o.name,
+                        "size": o.size,
+                        "sha256": o.sha256,
+                        "md5": o.md5,
+                        "robot": self.node.robot,
+                        "peer": self.client,
+                        "resumed": dest.resumed,
+                    }
+                )
         return out
 
     def _pull(self, f: Frame, now: float) -> list[Out]:
@@ -226,8 +266,9 @@ class _RobotSession:
         cs = min(cs, MAX_CHUNK_SIZE) if isinstance(cs, int) and cs > 0 else DEFAULT_CHUNK_SIZE
         self._release()
         fd, offer = self.node.folder.open_read(name if isinstance(name, str) else "", chunk_size=cs)
-        if (d.get("if_md5") and d.get("if_md5") == offer.md5) or \
-                (d.get("if_sha256") and d.get("if_sha256") == offer.sha256):
+        if (d.get("if_md5") and d.get("if_md5") == offer.md5) or (
+            d.get("if_sha256") and d.get("if_sha256") == offer.sha256
+        ):
             os.close(fd)
             out = [Out(FrameType.NOT_MODIFIED, dump_json(offer.json()), ref=f.ref)]
             self.answers[(f.type, f.ref)] = out
@@ -237,8 +278,14 @@ class _RobotSession:
         def read(i: int) -> bytes:
             return os.pread(fd, offer.chunk_len(i), i * offer.chunk_size)
 
-        tx = Sender(offer, read, ref=f.ref, window=self.node.window, rto=self.node.rto,
-                    idle_timeout=self.node.idle_timeout)
+        tx = Sender(
+            offer,
+            read,
+            ref=f.ref,
+            window=self.node.window,
+            rto=self.node.rto,
+            idle_timeout=self.node.idle_timeout,
+        )
         self.active = tx
         return tx.start(now)
 
@@ -259,8 +306,13 @@ class _RobotSession:
         if m.error is not None:
             log.warning("%s: transfer of %s failed: %s", self.client, m.offer.name, m.error)
         elif isinstance(m, Sender):
-            log.info("%s: sent %s (%d chunks sent, %d skipped)", self.client, m.offer.name,
-                     m.chunks_sent, m.chunks_skipped)
+            log.info(
+                "%s: sent %s (%d chunks sent, %d skipped)",
+                self.client,
+                m.offer.name,
+                m.chunks_sent,
+                m.chunks_skipped,
+            )
         if isinstance(m, Sender) or m.error is not None:
             self._release()
 
@@ -304,17 +356,32 @@ class RobotNode:
         on_received: Called with the VERIFIED info of each file received.
     """
 
-    def __init__(self, folder: MapFolder, link: RosLink, *, robot: str = "",
-                 secret: bytes | None = None, insecure: bool = False,
-                 features: Iterable[str] = FEATURES_SERVE, map_server: str | None = "change_map",
-                 idle_timeout: float = 30.0, window: int = DEFAULT_WINDOW, rto: float = 1.0,
-                 on_received: Callable[[dict[str, Any]], None] | None = None,
-                 handshake_timeout: float = 5.0, max_sessions: int = 64, max_pending: int = 32,
-                 per_node: int = 8, partial_ttl: float = DEFAULT_PARTIAL_TTL,
-                 sweep_interval: float = 60.0) -> None:
+    def __init__(
+        self,
+        folder: MapFolder,
+        link: RosLink,
+        *,
+        robot: str = "",
+        secret: bytes | None = None,
+        insecure: bool = False,
+        features: Iterable[str] = FEATURES_SERVE,
+        map_server: str | None = "change_map",
+        idle_timeout: float = 30.0,
+        window: int = DEFAULT_WINDOW,
+        rto: float = 1.0,
+        on_received: Callable[[dict[str, Any]], None] | None = None,
+        handshake_timeout: float = 5.0,
+        max_sessions: int = 64,
+        max_pending: int = 32,
+        per_node: int = 8,
+        partial_ttl: float = DEFAULT_PARTIAL_TTL,
+        sweep_interval: float = 60.0,
+    ) -> None:
         if secret is None and not insecure:
-            raise LocalTransferError("no shared secret: give --secret-file or MAPKIT_SECRET, or "
-                                     "--insecure to accept anyone")
+            raise LocalTransferError(
+                "no shared secret: give --secret-file or MAPKIT_SECRET, or "
+                "--insecure to accept anyone"
+            )
         self.folder = folder
         self.link = link
         self.robot = robot or socket.gethostname()
@@ -331,8 +398,12 @@ class RobotNode:
         # sessions still in their handshake are bounded per sending node and in all, and end
         # at their deadline: a flood of HELLOs cannot fill the robot's memory or its slots
         self.handshake_timeout = handshake_timeout
-        self.admission = Admission(max_sessions=max_sessions, max_pending=max_pending,
-                                   per_address=per_node, handshake_timeout=handshake_timeout)
+        self.admission = Admission(
+            max_sessions=max_sessions,
+            max_pending=max_pending,
+            per_address=per_node,
+            handshake_timeout=handshake_timeout,
+        )
         # interrupted transfers nobody resumed for partial_ttl seconds are deleted
         self.partial_ttl = partial_ttl
         self.sweep_interval = sweep_interval
@@ -341,8 +412,12 @@ class RobotNode:
     # announcement ----------------------------------------------------------------------------
     def announcement(self) -> dict[str, Any]:
         """What this node announces (latched): who it is, what it serves, its maps."""
-        doc: dict[str, Any] = {"robot": self.robot, "node": self.link.node,
-                               "features": list(self.features), "auth": self.secret is not None}
+        doc: dict[str, Any] = {
+            "robot": self.robot,
+            "node": self.link.node,
+            "features": list(self.features),
+            "auth": self.secret is not None,
+        }
         if "list" in self.features:
             listing = self.folder.listing()
             keys = ("name", "size", "sha256", "md5")
@@ -391,10 +466,14 @@ class RobotNode:
         for s in self.sessions.values():
             if s is new or s.dest is None or s.dest.name != name:
                 continue
-            if same_transfer(s.dest.offer, offer) or s.client == new.client \
-                    or now - s.last >= STALE:
-                log.info("%s: taking over %s from a silent session of %s", new.client, name,
-                         s.client)
+            if (
+                same_transfer(s.dest.offer, offer)
+                or s.client == new.client
+                or now - s.last >= STALE
+            ):
+                log.info(
+                    "%s: taking over %s from a silent session of %s", new.client, name, s.client
+                )
                 s.abort(f"taken over by a new session of {new.client}")
                 return True
         return False
@@ -419,8 +498,9 @@ class RobotNode:
                 for name in self.folder.expire_partials(self.partial_ttl):
                     log.info("deleted the abandoned partial file of %s", name)
             except OSError as err:
-                log.warning("cannot sweep %s for abandoned partial files: %s", self.folder.root,
-                            err)
+                log.warning(
+                    "cannot sweep %s for abandoned partial files: %s", self.folder.root, err
+                )
         for sid in self.admission.expired(now):
             self._forget(sid, f"no handshake within {self.handshake_timeout:g} s")
         for sid, s in list(self.sessions.items()):
@@ -445,8 +525,11 @@ class RobotNode:
     def _failed(self, sid: int | None, what: str) -> None:
         """Log an unexpected error met while handling ``what`` of session ``sid``, tell the
         client (REJECT ``internal``, untagged) and forget the session (its partial file stays)."""
-        log.exception("internal error while handling %s of session %s", what,
-                      "?" if sid is None else f"{sid:016x}")
+        log.exception(
+            "internal error while handling %s of session %s",
+            what,
+            "?" if sid is None else f"{sid:016x}",
+        )
         s = self.sessions.pop(sid, None) if sid is not None else None
         if sid is not None:
             self.admission.release(sid)
@@ -455,8 +538,9 @@ class RobotNode:
             with contextlib.suppress(Exception):
                 s._release()
             with contextlib.suppress(Exception):
-                s.conn.send([reject_out(LocalTransferError("internal error on the robot"),
-                                        plain=True)])
+                s.conn.send(
+                    [reject_out(LocalTransferError("internal error on the robot"), plain=True)]
+                )
 
     def _dispatch(self, src: str, data: bytes) -> None:
         sid = _session_id(data)
@@ -476,12 +560,26 @@ class RobotNode:
             return  # another node using this session id
         was_open = s.hs.finished and s.hs.error is None
         s.feed(data, now)
-        if not was_open and s.hs.finished and s.hs.error is None \
-                and not self.admission.authenticated(sid):
-            log.warning("%s: refused: %d sessions already", s.conn.peer,
-                        self.admission.max_sessions)
-            s.conn.send([reject_out(StoreError(f"this robot serves {self.admission.max_sessions} "
-                                               "sessions already; try again later", Status.BUSY))])
+        if (
+            not was_open
+            and s.hs.finished
+            and s.hs.error is None
+            and not self.admission.authenticated(sid)
+        ):
+            log.warning(
+                "%s: refused: %d sessions already", s.conn.peer, self.admission.max_sessions
+            )
+            s.conn.send(
+                [
+                    reject_out(
+                        StoreError(
+                            f"this robot serves {self.admission.max_sessions} "
+                            "sessions already; try again later",
+                            Status.BUSY,
+                        )
+                    )
+                ]
+            )
             self._forget(sid, "too many sessions")
 
     def run(self, until: Callable[[], bool] | None = None) -> None:
@@ -494,5 +592,3 @@ class RobotNode:
         finally:
             for s in self.sessions.values():
                 s._release()
-
-

@@ -51,5 +51,3 @@ class _Conn:
             if ev is None:
                 return out
             out.append(ev)
-
-

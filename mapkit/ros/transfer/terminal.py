@@ -45,8 +45,15 @@ Script = Generator[Any, None, None]
 class _ClientSession:
     """A terminal's session with one robot node, driven by a script (a generator of machines)."""
 
-    def __init__(self, link: RosLink, robot_node: str, secret: bytes | None, peer: str,
-                 idle_timeout: float = 30.0, rto: float = 1.0) -> None:
+    def __init__(
+        self,
+        link: RosLink,
+        robot_node: str,
+        secret: bytes | None,
+        peer: str,
+        idle_timeout: float = 30.0,
+        rto: float = 1.0,
+    ) -> None:
         channel = Channel(initiator=True, session=secrets.randbits(64) or 1, ordered=False)
         self.conn = _Conn(link, robot_node, channel)
         self.secret = secret
@@ -60,8 +67,13 @@ class _ClientSession:
         self.error: BaseException | None = None
 
     def handshake(self) -> ClientHandshake:
-        return ClientHandshake(self.conn.channel, self.secret, peer=self.peer, rto=self.rto,
-                               idle_timeout=self.idle_timeout)
+        return ClientHandshake(
+            self.conn.channel,
+            self.secret,
+            peer=self.peer,
+            rto=self.rto,
+            idle_timeout=self.idle_timeout,
+        )
 
     def begin(self, script: Script, now: float) -> None:
         self.script = script
@@ -120,8 +132,13 @@ class _ClientSession:
             self.conn.send([Out(FrameType.BYE, b"{}", ref=0xFFFF)])
 
 
-def _drive(link: Any, sessions: list[_ClientSession], *, tick: Callable[[], None] | None = None,
-           stopped: Callable[[], bool] | None = None) -> None:
+def _drive(
+    link: Any,
+    sessions: list[_ClientSession],
+    *,
+    tick: Callable[[], None] | None = None,
+    stopped: Callable[[], bool] | None = None,
+) -> None:
     """Run client sessions until each is done (every machine has its own timeouts)."""
     by_id = {s.conn.channel.session: s for s in sessions}
     while not all(s.done for s in sessions):
@@ -184,9 +201,16 @@ class Terminal:
         stopped: Returns True when the node is shutting down (then the transfer stops).
     """
 
-    def __init__(self, link: Any, secret: bytes | None, *, peer: str = "",
-                 idle_timeout: float = 30.0, rto: float = 1.0,
-                 stopped: Callable[[], bool] | None = None) -> None:
+    def __init__(
+        self,
+        link: Any,
+        secret: bytes | None,
+        *,
+        peer: str = "",
+        idle_timeout: float = 30.0,
+        rto: float = 1.0,
+        stopped: Callable[[], bool] | None = None,
+    ) -> None:
         self.link = link
         self.secret = secret
         self.peer = peer or socket.gethostname()
@@ -195,12 +219,20 @@ class Terminal:
         self.stopped = stopped
 
     def _session(self, robot: Robot) -> _ClientSession:
-        return _ClientSession(self.link, robot.node, self.secret, self.peer, self.idle_timeout,
-                              self.rto)
+        return _ClientSession(
+            self.link, robot.node, self.secret, self.peer, self.idle_timeout, self.rto
+        )
 
-    def push(self, robots: list[Robot], data: bytes, offer: Offer, *, load: bool = False,
-             window: int = DEFAULT_WINDOW,
-             progress: Callable[[int, int], None] | None = None) -> list[PushResult]:
+    def push(
+        self,
+        robots: list[Robot],
+        data: bytes,
+        offer: Offer,
+        *,
+        load: bool = False,
+        window: int = DEFAULT_WINDOW,
+        progress: Callable[[int, int], None] | None = None,
+    ) -> list[PushResult]:
         """Push ``data`` (described by ``offer``) to every robot at once; one result each."""
         view = memoryview(data)
         cs = offer.chunk_size
@@ -208,8 +240,14 @@ class Terminal:
         for r in robots:
             res = PushResult(r.robot, r.node)
             s = self._session(r)
-            tx = Sender(offer, lambda i: view[i * cs:(i + 1) * cs], ref=1, window=window,
-                        rto=self.rto, idle_timeout=self.idle_timeout)
+            tx = Sender(
+                offer,
+                lambda i: view[i * cs : (i + 1) * cs],
+                ref=1,
+                window=window,
+                rto=self.rto,
+                idle_timeout=self.idle_timeout,
+            )
             s.begin(_push_script(s, tx, res, r, offer, load), time.monotonic())
             results.append(res)
             sessions.append(s)
@@ -227,8 +265,9 @@ class Terminal:
                 res.error = str(_named(s.error, r))
         return results
 
-    def request(self, robot: Robot, ftype: FrameType, payload: dict[str, Any],
-                answers: Iterable[FrameType]) -> Frame:
+    def request(
+        self, robot: Robot, ftype: FrameType, payload: dict[str, Any], answers: Iterable[FrameType]
+    ) -> Frame:
         """One request (LIST, LOAD ...) in its own session; the answering frame.
 
         Raises:
@@ -236,8 +275,9 @@ class Terminal:
             TransferError: When it does not answer.
         """
         s = self._session(robot)
-        req = Request(ftype, payload, ref=1, answers=answers, rto=self.rto,
-                      idle_timeout=self.idle_timeout)
+        req = Request(
+            ftype, payload, ref=1, answers=answers, rto=self.rto, idle_timeout=self.idle_timeout
+        )
 
         def script() -> Script:
             yield s.handshake()
@@ -250,9 +290,16 @@ class Terminal:
         assert req.response is not None
         return req.response
 
-    def fetch(self, robot: Robot, name: str, dest: str, *, if_changed: bool = True,
-              chunk_size: int = DEFAULT_CHUNK_SIZE,
-              progress: Callable[[int, int], None] | None = None) -> dict[str, Any]:
+    def fetch(
+        self,
+        robot: Robot,
+        name: str,
+        dest: str,
+        *,
+        if_changed: bool = True,
+        chunk_size: int = DEFAULT_CHUNK_SIZE,
+        progress: Callable[[int, int], None] | None = None,
+    ) -> dict[str, Any]:
         """Pull ``name`` from ``robot`` into the file ``dest`` (see :func:`fetch`)."""
         from mapkit.transfer.server import validate_map_file
         from mapkit.transfer.store import file_digests
@@ -272,30 +319,66 @@ class Terminal:
 
         def script() -> Script:
             yield s.handshake()
-            get = Request(FrameType.GET, payload, ref=1,
-                          answers=[FrameType.OFFER, FrameType.NOT_MODIFIED], rto=self.rto,
-                          idle_timeout=self.idle_timeout)
+            get = Request(
+                FrameType.GET,
+                payload,
+                ref=1,
+                answers=[FrameType.OFFER, FrameType.NOT_MODIFIED],
+                rto=self.rto,
+                idle_timeout=self.idle_timeout,
+            )
             yield get
             assert get.response is not None
             offer = Offer.from_json(get.response.json())
             if get.response.type == FrameType.NOT_MODIFIED:
-                out.update(name=name, path=dest, size=offer.size, sha256=offer.sha256,
-                           md5=offer.md5, changed=False, resumed=0)
+                out.update(
+                    name=name,
+                    path=dest,
+                    size=offer.size,
+                    sha256=offer.sha256,
+                    md5=offer.md5,
+                    changed=False,
+                    resumed=0,
+                )
                 return
-            offer = Offer(target, offer.size, offer.sha256, offer.chunk_size, offer.md5, offer.kind,
-                          offer.mtime)
-            dfile = PartialFile.open(folder, target, offer,
-                                     validate=validate_map_file if kind_of(name) == "map" else None)
+            offer = Offer(
+                target,
+                offer.size,
+                offer.sha256,
+                offer.chunk_size,
+                offer.md5,
+                offer.kind,
+                offer.mtime,
+            )
+            dfile = PartialFile.open(
+                folder,
+                target,
+                offer,
+                validate=validate_map_file if kind_of(name) == "map" else None,
+            )
             state["dest"] = dfile
-            rx = Receiver(offer, ref=get.response.ref, have=dfile.have, window=64, ack_every=4,
-                          idle_timeout=self.idle_timeout)
+            rx = Receiver(
+                offer,
+                ref=get.response.ref,
+                have=dfile.have,
+                window=64,
+                ack_every=4,
+                idle_timeout=self.idle_timeout,
+            )
 
             def on_events(now: float) -> list[Out]:
                 outs = dfile.take(rx)
                 if rx.finished and rx.error is None:
                     state["dest"] = None
-                    out.update(name=name, path=dest, size=offer.size, sha256=offer.sha256,
-                               md5=offer.md5, changed=True, resumed=dfile.resumed)
+                    out.update(
+                        name=name,
+                        path=dest,
+                        size=offer.size,
+                        sha256=offer.sha256,
+                        md5=offer.md5,
+                        changed=True,
+                        resumed=dfile.resumed,
+                    )
                 if progress is not None:
                     progress(rx.bytes_received, offer.size)
                 return outs
@@ -322,8 +405,9 @@ def _named(err: BaseException, robot: Robot) -> BaseException:
     return err
 
 
-def _push_script(s: _ClientSession, tx: Sender, res: PushResult, robot: Robot, offer: Offer,
-                 load: bool) -> Script:
+def _push_script(
+    s: _ClientSession, tx: Sender, res: PushResult, robot: Robot, offer: Offer, load: bool
+) -> Script:
     try:
         yield s.handshake()
         yield tx
@@ -340,8 +424,14 @@ def _push_script(s: _ClientSession, tx: Sender, res: PushResult, robot: Robot, o
         res.error = f"the robot reported SHA-256 {tx.result.get('sha256')}, expected {offer.sha256}"
         return
     if load:
-        req = Request(FrameType.LOAD, {"name": offer.name, "md5": offer.md5}, ref=2,
-                      answers=[FrameType.LOADED], rto=s.rto, idle_timeout=s.idle_timeout)
+        req = Request(
+            FrameType.LOAD,
+            {"name": offer.name, "md5": offer.md5},
+            ref=2,
+            answers=[FrameType.LOADED],
+            rto=s.rto,
+            idle_timeout=s.idle_timeout,
+        )
         try:
             yield req
         except TransferError as err:
@@ -350,5 +440,3 @@ def _push_script(s: _ClientSession, tx: Sender, res: PushResult, robot: Robot, o
         assert req.response is not None
         res.loaded = True
         res.info["load"] = req.response.json()
-
-

@@ -15,7 +15,9 @@ __all__ = ["bitmap_from_ranges", "decode_bitmap", "encode_bitmap", "ranges_from_
 # -- bitmaps and ranges ---------------------------------------------------------------------------
 
 
-def ranges_from_bitmap(have: bytes | bytearray, start: int = 0, limit: int | None = None) -> list[list[int]]:
+def ranges_from_bitmap(
+    have: bytes | bytearray, start: int = 0, limit: int | None = None
+) -> list[list[int]]:
     """Half-open ``[a, b)`` ranges of set entries (value 1) in a byte-per-chunk bitmap.
 
     Examples:
@@ -47,10 +49,14 @@ def bitmap_from_ranges(n: int, ranges: Iterable[Any]) -> bytearray:
     """
     have = bytearray(n)
     for r in ranges:
-        if not (isinstance(r, list) and len(r) == 2 and all(isinstance(v, int) for v in r)
-                and 0 <= r[0] <= r[1] <= n):
+        if not (
+            isinstance(r, list)
+            and len(r) == 2
+            and all(isinstance(v, int) for v in r)
+            and 0 <= r[0] <= r[1] <= n
+        ):
             raise ProtocolError(f"bad chunk range {r!r} for {n} chunks")
-        have[r[0]:r[1]] = b"\x01" * (r[1] - r[0])
+        have[r[0] : r[1]] = b"\x01" * (r[1] - r[0])
     return have
 
 
@@ -96,5 +102,3 @@ def decode_bitmap(text: Any, n: int) -> bytearray:
     if any(bits[n:].translate(_FROM_01)):
         raise ProtocolError("chunk bitmap has bits set past the last chunk")
     return out
-
-

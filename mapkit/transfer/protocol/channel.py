@@ -125,8 +125,15 @@ class Channel:
         self._pool = BufferPool()
         self._highest = 0
         self._seen = 0  # bit k set: seq (highest - k) was seen
-        self.stats = {"frames_in": 0, "frames_out": 0, "damaged": 0, "garbage": 0,
-                      "duplicates": 0, "foreign": 0, "forged": 0}
+        self.stats = {
+            "frames_in": 0,
+            "frames_out": 0,
+            "damaged": 0,
+            "garbage": 0,
+            "duplicates": 0,
+            "foreign": 0,
+            "forged": 0,
+        }
 
     # keys -------------------------------------------------------------------------------------
     def install_keys(self, c2s: bytes, s2c: bytes, auth: str = "hmac-sha256") -> None:
@@ -162,8 +169,16 @@ class Channel:
         plain = out.plain or out.type in (FrameType.HELLO, FrameType.HELLO_ACK)
         key = None if plain else self._send_key
         self.stats["frames_out"] += 1
-        return encode_frame(out.type, out.payload, session=self.session, seq=self._seq,
-                            ref=out.ref, flags=out.flags, key=key, auth=self.auth)
+        return encode_frame(
+            out.type,
+            out.payload,
+            session=self.session,
+            seq=self._seq,
+            ref=out.ref,
+            flags=out.flags,
+            key=key,
+            auth=self.auth,
+        )
 
     def preparer(self) -> Callable[[_Bytes], Prepared]:
         """A function that does a payload's per-byte work for this channel's sending key and tag
@@ -186,7 +201,7 @@ class Channel:
         body = self._body
         if body is not None and self._body_fill < len(body):
             k = min(len(data), len(body) - self._body_fill)
-            body[self._body_fill:self._body_fill + k] = data[:k]
+            body[self._body_fill : self._body_fill + k] = data[:k]
             self._body_fill += k
             if k == len(data):
                 return
@@ -214,7 +229,7 @@ class Channel:
         body = self._body
         if body is not None and self._body_fill < len(body):
             with memoryview(body) as view:
-                n = recv(view[self._body_fill:])
+                n = recv(view[self._body_fill :])
             self._body_fill += n
             return n
         if self._scratch is None or len(self._scratch) != size:
@@ -269,26 +284,31 @@ class Channel:
             return self._finish_body()
         buf, pos = self._buf, self._pos
         if len(buf) - pos < HEADER_SIZE:
-            if len(buf) - pos >= 4 and buf[pos:pos + 4] != MAGIC:
+            if len(buf) - pos >= 4 and buf[pos : pos + 4] != MAGIC:
                 self._resync(pos + 1)
                 return _AGAIN
             return None
-        if buf[pos:pos + 4] != MAGIC:
+        if buf[pos : pos + 4] != MAGIC:
             self._resync(pos + 1)
             return _AGAIN
-        (_, version, ftype, flags, session, seq, ref, length, body_crc, head_crc) = HEADER.unpack_from(buf, pos)
+        (_, version, ftype, flags, session, seq, ref, length, body_crc, head_crc) = (
+            HEADER.unpack_from(buf, pos)
+        )
         with memoryview(buf) as view:
-            head_ok = zlib.crc32(view[pos:pos + 32]) == head_crc
+            head_ok = zlib.crc32(view[pos : pos + 32]) == head_crc
         if not head_ok:
             self._resync(pos + 1)
             return _AGAIN
         if version != VERSION:
-            raise ProtocolError(f"peer speaks MKT version {version}, this side only {VERSION}",
-                                Status.BAD_VERSION)
+            raise ProtocolError(
+                f"peer speaks MKT version {version}, this side only {VERSION}", Status.BAD_VERSION
+            )
         limit = self.max_payload if ftype == FrameType.DATA else MAX_CONTROL_PAYLOAD
         if length > max(limit, MAX_CONTROL_PAYLOAD):
-            raise ProtocolError(f"{_type_name(ftype)} frame of {length} bytes exceeds the limit of "
-                                f"{limit} bytes", Status.TOO_LARGE)
+            raise ProtocolError(
+                f"{_type_name(ftype)} frame of {length} bytes exceeds the limit of {limit} bytes",
+                Status.TOO_LARGE,
+            )
         tagged = bool(flags & Flag.AUTH)
         total = HEADER_SIZE + length + (TAG_SIZE if tagged else 0)
         start = pos + HEADER_SIZE
@@ -300,14 +320,14 @@ class Channel:
             body = self._pool.get(length)
             k = min(len(buf) - start, length)
             with memoryview(buf) as view:
-                body[:k] = view[start:start + k]
+                body[:k] = view[start : start + k]
             self._body, self._body_fill = body, k
             self._body_head = (head, ftype, flags, session, seq, ref, body_crc, tagged)
             self._pos = start + k
             return self._finish_body()
         with memoryview(buf) as view:
-            payload = bytes(view[start:start + length])
-            tag = bytes(view[start + length:pos + total])
+            payload = bytes(view[start : start + length])
+            tag = bytes(view[start + length : pos + total])
         self._pos = pos + total
         return self._check(head, ftype, flags, session, seq, ref, body_crc, tagged, payload, tag)
 
@@ -320,14 +340,24 @@ class Channel:
         n = TAG_SIZE if tagged else 0
         if len(self._buf) - self._pos < n:
             return None
-        tag = bytes(self._buf[self._pos:self._pos + n])
+        tag = bytes(self._buf[self._pos : self._pos + n])
         self._pos += n
         self._body, self._body_head, self._body_fill = None, None, 0
         return self._check(head, ftype, flags, session, seq, ref, body_crc, tagged, body, tag)
 
-    def _check(self, head: bytes, ftype: int, flags: int, session: int, seq: int, ref: int,
-               body_crc: int, tagged: bool, payload: bytes | bytearray,
-               tag: bytes) -> Event | object:
+    def _check(
+        self,
+        head: bytes,
+        ftype: int,
+        flags: int,
+        session: int,
+        seq: int,
+        ref: int,
+        body_crc: int,
+        tagged: bool,
+        payload: bytes | bytearray,
+        tag: bytes,
+    ) -> Event | object:
         """CRC, session, tag and replay checks of a whole frame already taken off the buffer."""
         handshake = ftype in (FrameType.HELLO, FrameType.HELLO_ACK)
         key = None if handshake else self._recv_key
@@ -349,29 +379,37 @@ class Channel:
             self.session = session
         elif session != self.session:
             if self.ordered:
-                raise ProtocolError(f"frame for session {session:016x} on session {self.session:016x}")
+                raise ProtocolError(
+                    f"frame for session {session:016x} on session {self.session:016x}"
+                )
             self.stats["foreign"] += 1
             return _AGAIN
         # authentication
         authentic = False
         if key is not None:
-            if tag_ok or (tagged and len(payload) < _TAG_FIRST and hmac.compare_digest(
-                    self._tagger(key, head[:MAC_HEADER], payload), tag)):
+            if tag_ok or (
+                tagged
+                and len(payload) < _TAG_FIRST
+                and hmac.compare_digest(self._tagger(key, head[:MAC_HEADER], payload), tag)
+            ):
                 authentic = True
             elif ftype == FrameType.REJECT and not tagged:
                 authentic = False  # an untagged refusal: delivered, marked as not authentic
             else:
                 what = "has no tag" if not tagged else "has a wrong tag"
                 if self.ordered or ftype in (FrameType.AUTH, FrameType.AUTH_OK):
-                    raise AuthenticationError(f"{_type_name(ftype)} frame (seq {seq}) {what}: "
-                                              "altered, forged, or sent with another secret")
+                    raise AuthenticationError(
+                        f"{_type_name(ftype)} frame (seq {seq}) {what}: "
+                        "altered, forged, or sent with another secret"
+                    )
                 self.stats["forged"] += 1
                 return _AGAIN
         # replay
         if not self._replay_ok(seq):
             if self.ordered:
-                raise ReplayError(f"replayed frame: {_type_name(ftype)} seq {seq} after seq "
-                                  f"{self._highest}")
+                raise ReplayError(
+                    f"replayed frame: {_type_name(ftype)} seq {seq} after seq {self._highest}"
+                )
             self.stats["duplicates"] += 1
             return _AGAIN
         self.stats["frames_in"] += 1
@@ -423,5 +461,3 @@ def crc32_strip(crc: int, tail: bytes) -> int:
         i = _CRC_TOP[s >> 24]
         s = (((s ^ _CRC_TABLE[i]) << 8) & 0xFFFFFFFF) | (i ^ b)
     return s ^ 0xFFFFFFFF
-
-

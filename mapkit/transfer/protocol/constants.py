@@ -5,7 +5,29 @@ from __future__ import annotations
 import enum
 import struct
 
-__all__ = ["AUTH_METHODS", "DEFAULT_CHUNK_SIZE", "DEFAULT_MAX_PAYLOAD", "DEFAULT_PORT", "HEADER", "HEADER_SIZE", "MAC_HEADER", "MAGIC", "MAX_CHUNKS", "MAX_CHUNK_SIZE", "MAX_CONTROL_PAYLOAD", "MAX_HANDSHAKE_PAYLOAD", "MAX_REFUSAL_PAYLOAD", "MIN_SECRET", "NONCE_SIZE", "SOFTWARE", "TAG_SIZE", "VERSION", "Flag", "FrameType", "Status"]
+__all__ = [
+    "AUTH_METHODS",
+    "DEFAULT_CHUNK_SIZE",
+    "DEFAULT_MAX_PAYLOAD",
+    "DEFAULT_PORT",
+    "HEADER",
+    "HEADER_SIZE",
+    "MAC_HEADER",
+    "MAGIC",
+    "MAX_CHUNKS",
+    "MAX_CHUNK_SIZE",
+    "MAX_CONTROL_PAYLOAD",
+    "MAX_HANDSHAKE_PAYLOAD",
+    "MAX_REFUSAL_PAYLOAD",
+    "MIN_SECRET",
+    "NONCE_SIZE",
+    "SOFTWARE",
+    "TAG_SIZE",
+    "VERSION",
+    "Flag",
+    "FrameType",
+    "Status",
+]
 
 
 MAGIC = b"MKT1"
@@ -93,4 +115,3 @@ class Status(enum.IntEnum):
     def reason(self) -> str:
         """The lower-case name used as ``reason`` on the wire, e.g. ``"bad_name"``."""
         return self.name.lower()
-

@@ -5,8 +5,14 @@ from __future__ import annotations
 from mapkit.errors import ChecksumError, LocalTransferError, RemoteTransferError
 from mapkit.transfer.protocol.constants import Status
 
-__all__ = ["AuthenticationError", "ProtocolError", "Rejected", "ReplayError", "TimeoutTransferError", "status_of"]
-
+__all__ = [
+    "AuthenticationError",
+    "ProtocolError",
+    "Rejected",
+    "ReplayError",
+    "TimeoutTransferError",
+    "status_of",
+]
 
 
 # -- errors -----------------------------------------------------------------------------------
@@ -55,7 +61,9 @@ class Rejected(RemoteTransferError):
             self.status = status
         self.reason = reason
         self.detail = detail
-        super().__init__(f"{peer} refused: {reason}: {detail}" if detail else f"{peer} refused: {reason}")
+        super().__init__(
+            f"{peer} refused: {reason}: {detail}" if detail else f"{peer} refused: {reason}"
+        )
 
 
 class TimeoutTransferError(LocalTransferError):
@@ -72,5 +80,3 @@ def status_of(err: BaseException) -> Status:
     if isinstance(err, ChecksumError):
         return Status.HASH_MISMATCH
     return Status.INTERNAL
-
-

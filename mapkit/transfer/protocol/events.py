@@ -48,8 +48,12 @@ class Frame:
         Raises:
             ProtocolError: When the payload is not a UTF-8 JSON object.
         """
-        return parse_json(self.payload, _type_name(self.type), SCHEMAS.get(self.type),
-                          max_size=_SMALL_PAYLOADS.get(self.type, MAX_CONTROL_PAYLOAD))
+        return parse_json(
+            self.payload,
+            _type_name(self.type),
+            SCHEMAS.get(self.type),
+            max_size=_SMALL_PAYLOADS.get(self.type, MAX_CONTROL_PAYLOAD),
+        )
 
 
 @dataclass(frozen=True, slots=True)
@@ -87,7 +91,7 @@ class Out:
 
 Event = Frame | Damaged
 
-# -- a receiver's events ---------------------------------------------------------------------------------
+# -- a receiver's events ---------------------------------------------------------------------------
 
 
 @dataclass(frozen=True, slots=True)
@@ -106,5 +110,3 @@ class TransferComplete:
     :meth:`Receiver.verified` or :meth:`Receiver.fail`."""
 
     offer: Offer
-
-

@@ -28,9 +28,12 @@ __all__ = ["Prepared", "dump_json", "encode_frame", "parse_json", "prepare_paylo
 
 # payloads that a peer can send before it proved anything are small: decoding them costs little
 _SMALL_PAYLOADS: dict[int, int] = {
-    FrameType.HELLO: MAX_HANDSHAKE_PAYLOAD, FrameType.HELLO_ACK: MAX_HANDSHAKE_PAYLOAD,
-    FrameType.AUTH: MAX_HANDSHAKE_PAYLOAD, FrameType.AUTH_OK: MAX_HANDSHAKE_PAYLOAD,
-    FrameType.REJECT: MAX_REFUSAL_PAYLOAD, FrameType.CANCEL: MAX_REFUSAL_PAYLOAD,
+    FrameType.HELLO: MAX_HANDSHAKE_PAYLOAD,
+    FrameType.HELLO_ACK: MAX_HANDSHAKE_PAYLOAD,
+    FrameType.AUTH: MAX_HANDSHAKE_PAYLOAD,
+    FrameType.AUTH_OK: MAX_HANDSHAKE_PAYLOAD,
+    FrameType.REJECT: MAX_REFUSAL_PAYLOAD,
+    FrameType.CANCEL: MAX_REFUSAL_PAYLOAD,
 }
 
 
@@ -46,9 +49,13 @@ def dump_json(obj: dict[str, Any]) -> bytes:
     return json.dumps(obj, separators=(",", ":"), ensure_ascii=False).encode("utf-8")
 
 
-def parse_json(payload: bytes | bytearray, what: str = "frame",
-               schema: Mapping[str, Any] | None = None, *,
-               max_size: int = MAX_CONTROL_PAYLOAD) -> dict[str, Any]:
+def parse_json(
+    payload: bytes | bytearray,
+    what: str = "frame",
+    schema: Mapping[str, Any] | None = None,
+    *,
+    max_size: int = MAX_CONTROL_PAYLOAD,
+) -> dict[str, Any]:
     """Parse a control payload with the bounded decoder (:mod:`mapkit.transfer.wirejson`):
     at most ``max_size`` bytes, 16 levels deep, 20-digit integers, finite numbers, valid
     Unicode, and the field types of ``schema`` (see :data:`~mapkit.transfer.wirejson.SCHEMAS`).
@@ -59,10 +66,11 @@ def parse_json(payload: bytes | bytearray, what: str = "frame",
     Examples:
         >>> parse_json(b'{"name":"a.map"}', "GET")
         {'name': 'a.map'}
-        >>> parse_json(b'[' * 100000, "HELLO")
-        Traceback (most recent call last):
-        ...
-        mapkit.transfer.protocol.errors.ProtocolError: HELLO payload refused: nested deeper than 16 levels
+        >>> try:
+        ...     parse_json(b'[' * 100000, "HELLO")
+        ... except ProtocolError as err:
+        ...     print(err)
+        HELLO payload refused: nested deeper than 16 levels
     """
     try:
         obj = decode_object(payload, max_size=max_size)
@@ -202,5 +210,3 @@ def encode_frame(
     head += struct.pack(">I", body_crc)
     head += struct.pack(">I", zlib.crc32(head))
     return head, payload, tag
-
-

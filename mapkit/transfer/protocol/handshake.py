@@ -28,7 +28,7 @@ from mapkit.transfer.protocol.machine import _Machine, reject_out, rejected_from
 __all__ = ["ClientHandshake", "ServerHandshake"]
 
 
-# -- handshake --------------------------------------------------------------------------------------
+# -- handshake -------------------------------------------------------------------------------------
 
 
 class ClientHandshake(_Machine):
@@ -49,9 +49,18 @@ class ClientHandshake(_Machine):
         auth: ``"none"``, or the tag algorithm the server chose once the handshake is done.
     """
 
-    def __init__(self, channel: Channel, secret: bytes | None, *, peer: str = "",
-                 nonce: bytes | None = None, rto: float = 1.0, max_tries: int = 5,
-                 idle_timeout: float = 30.0, auth_methods: Sequence[str] = AUTH_METHODS) -> None:
+    def __init__(
+        self,
+        channel: Channel,
+        secret: bytes | None,
+        *,
+        peer: str = "",
+        nonce: bytes | None = None,
+        rto: float = 1.0,
+        max_tries: int = 5,
+        idle_timeout: float = 30.0,
+        auth_methods: Sequence[str] = AUTH_METHODS,
+    ) -> None:
         super().__init__(rto=rto, max_tries=max_tries, idle_timeout=idle_timeout)
         self.channel = channel
         self.secret = secret
@@ -62,8 +71,15 @@ class ClientHandshake(_Machine):
         self.auth = methods[0] if secret is not None else "none"
         self.nonce = nonce or os.urandom(NONCE_SIZE)
         self.server: dict[str, Any] = {}
-        self._hello = dump_json({"versions": [VERSION], "nonce": self.nonce.hex(),
-                                 "auth": self.offered, "peer": peer, "software": SOFTWARE})
+        self._hello = dump_json(
+            {
+                "versions": [VERSION],
+                "nonce": self.nonce.hex(),
+                "auth": self.offered,
+                "peer": peer,
+                "software": SOFTWARE,
+            }
+        )
         self._pending: Out | None = None
         self._th = b""
         self._expect_proof = ""
@@ -96,16 +112,23 @@ class ClientHandshake(_Machine):
     def _handle(self, f: Frame, now: float) -> list[Out]:
         if f.type in (FrameType.REJECT, FrameType.CANCEL):
             raise rejected_from(f, "server")
-        if f.type == FrameType.HELLO_ACK and self._pending is not None \
-                and self._pending.type == FrameType.HELLO:
+        if (
+            f.type == FrameType.HELLO_ACK
+            and self._pending is not None
+            and self._pending.type == FrameType.HELLO
+        ):
             d = f.json()
             if d.get("version") != VERSION:
-                raise ProtocolError(f"server chose MKT version {d.get('version')!r}", Status.BAD_VERSION)
+                raise ProtocolError(
+                    f"server chose MKT version {d.get('version')!r}", Status.BAD_VERSION
+                )
             chosen = d.get("auth")
-            if chosen != self.offered and not (isinstance(self.offered, list)
-                                               and chosen in self.offered):
-                raise AuthenticationError(f"asked for auth {self.offered!r}, server answered "
-                                          f"{chosen!r}")
+            if chosen != self.offered and not (
+                isinstance(self.offered, list) and chosen in self.offered
+            ):
+                raise AuthenticationError(
+                    f"asked for auth {self.offered!r}, server answered {chosen!r}"
+                )
             self.auth = str(chosen)
             self.server = d
             self._th = hashlib.sha256(self._hello + f.payload).digest()
@@ -113,7 +136,9 @@ class ClientHandshake(_Machine):
             if self.secret is not None:
                 nonce_s = _unhex(d.get("nonce"), NONCE_SIZE, "HELLO_ACK nonce")
                 assert self.channel.session is not None
-                c2s, s2c = derive_keys(self.secret, self.channel.session, self.nonce, nonce_s, self._th)
+                c2s, s2c = derive_keys(
+                    self.secret, self.channel.session, self.nonce, nonce_s, self._th
+                )
                 self.channel.install_keys(c2s, s2c, self.auth)
                 proof = _proof(c2s, b"MKT1 client proof", self._th)
                 self._expect_proof = _proof(s2c, b"MKT1 server proof", self._th)
@@ -121,13 +146,21 @@ class ClientHandshake(_Machine):
             self._tries = 1
             self._arm(now)
             return [self._pending]
-        if f.type == FrameType.AUTH_OK and self._pending is not None \
-                and self._pending.type == FrameType.AUTH:
+        if (
+            f.type == FrameType.AUTH_OK
+            and self._pending is not None
+            and self._pending.type == FrameType.AUTH
+        ):
             if self.secret is not None:
                 got = f.json().get("proof")
-                if not (f.authentic and isinstance(got, str)
-                        and hmac.compare_digest(got, self._expect_proof)):
-                    raise AuthenticationError("the server could not prove it knows the shared secret")
+                if not (
+                    f.authentic
+                    and isinstance(got, str)
+                    and hmac.compare_digest(got, self._expect_proof)
+                ):
+                    raise AuthenticationError(
+                        "the server could not prove it knows the shared secret"
+                    )
             self._pending = None
             self._finish()
             return []
@@ -155,10 +188,19 @@ class ServerHandshake(_Machine):
         auth: ``"none"``, or the tag algorithm chosen (once the HELLO arrived).
     """
 
-    def __init__(self, channel: Channel, secret: bytes | None, *, insecure: bool = False,
-                 peer: str = "", info: dict[str, Any] | None = None, nonce: bytes | None = None,
-                 idle_timeout: float = 30.0, auth_methods: Sequence[str] = AUTH_METHODS,
-                 timeout: float | None = None) -> None:
+    def __init__(
+        self,
+        channel: Channel,
+        secret: bytes | None,
+        *,
+        insecure: bool = False,
+        peer: str = "",
+        info: dict[str, Any] | None = None,
+        nonce: bytes | None = None,
+        idle_timeout: float = 30.0,
+        auth_methods: Sequence[str] = AUTH_METHODS,
+        timeout: float | None = None,
+    ) -> None:
         super().__init__(rto=1.0, max_tries=1, idle_timeout=idle_timeout)
         self.timeout = timeout
         self._until: float | None = None
@@ -219,14 +261,22 @@ class ServerHandshake(_Machine):
             d = f.json()
             versions = d.get("versions")
             if not isinstance(versions, list) or VERSION not in versions:
-                raise ProtocolError(f"client offers MKT versions {versions!r}, this server speaks "
-                                    f"{VERSION}", Status.BAD_VERSION)
+                raise ProtocolError(
+                    f"client offers MKT versions {versions!r}, this server speaks {VERSION}",
+                    Status.BAD_VERSION,
+                )
             auth = self._choose(d.get("auth"))
             nonce_c = _unhex(d.get("nonce"), NONCE_SIZE, "HELLO nonce")
             self.client = d
             self._hello = bytes(f.payload)
-            ack = {"version": VERSION, "nonce": self.nonce.hex(), "auth": auth, "peer": self.peer,
-                   "software": SOFTWARE, **self.info}
+            ack = {
+                "version": VERSION,
+                "nonce": self.nonce.hex(),
+                "auth": auth,
+                "peer": self.peer,
+                "software": SOFTWARE,
+                **self.info,
+            }
             ack_payload = dump_json(ack)
             self._ack = Out(FrameType.HELLO_ACK, ack_payload, ref=f.ref)
             self._th = hashlib.sha256(self._hello + ack_payload).digest()
@@ -234,7 +284,9 @@ class ServerHandshake(_Machine):
             self.auth = auth
             if auth != "none":
                 assert self.secret is not None and self.channel.session is not None
-                c2s, s2c = derive_keys(self.secret, self.channel.session, nonce_c, self.nonce, self._th)
+                c2s, s2c = derive_keys(
+                    self.secret, self.channel.session, nonce_c, self.nonce, self._th
+                )
                 self.channel.install_keys(c2s, s2c, auth)
                 self._expect = _proof(c2s, b"MKT1 client proof", self._th)
                 proof = _proof(s2c, b"MKT1 server proof", self._th)
@@ -243,9 +295,12 @@ class ServerHandshake(_Machine):
         if f.type == FrameType.AUTH and self._ack is not None:
             if self._expect:
                 got = f.json().get("proof")
-                if not (f.authentic and isinstance(got, str) and hmac.compare_digest(got, self._expect)):
-                    raise AuthenticationError("the client's proof does not match: it uses another "
-                                              "shared secret")
+                if not (
+                    f.authentic and isinstance(got, str) and hmac.compare_digest(got, self._expect)
+                ):
+                    raise AuthenticationError(
+                        "the client's proof does not match: it uses another shared secret"
+                    )
             assert self._ok is not None
             self._finish()
             return [self._ok]
@@ -259,25 +314,30 @@ class ServerHandshake(_Machine):
             if not self.insecure:
                 raise AuthenticationError(
                     "this server requires authentication: give the shared secret "
-                    "(--secret-file or MAPKIT_SECRET)", Status.AUTH_REQUIRED)
+                    "(--secret-file or MAPKIT_SECRET)",
+                    Status.AUTH_REQUIRED,
+                )
             return "none"
         methods = [offered] if isinstance(offered, str) else offered
         if not (isinstance(methods, list) and methods and all(isinstance(m, str) for m in methods)):
             raise AuthenticationError(f"unknown auth method {offered!r}", Status.AUTH_REQUIRED)
         if self.secret is None:
-            raise AuthenticationError("this server has no shared secret (it runs with "
-                                      "--insecure): connect with --insecure", Status.AUTH_REQUIRED)
+            raise AuthenticationError(
+                "this server has no shared secret (it runs with "
+                "--insecure): connect with --insecure",
+                Status.AUTH_REQUIRED,
+            )
         for m in methods:
             if m in self.auth_methods:
                 return str(m)
-        raise AuthenticationError(f"no common auth method: the client offers {methods!r}, this "
-                                  f"server accepts {list(self.auth_methods)!r}",
-                                  Status.AUTH_REQUIRED)
+        raise AuthenticationError(
+            f"no common auth method: the client offers {methods!r}, this "
+            f"server accepts {list(self.auth_methods)!r}",
+            Status.AUTH_REQUIRED,
+        )
 
     def resend(self, f: Frame) -> list[Out]:
         """After the handshake: answer a repeated AUTH (the client missed AUTH_OK)."""
         if f.type == FrameType.AUTH and self._ok is not None:
             return [self._ok]
         return []
-
-

@@ -19,8 +19,9 @@ __all__ = ["derive_keys", "load_secret"]
 # -- keys and secrets ----------------------------------------------------------------------------
 
 
-def load_secret(*, path: str | os.PathLike[str] | None = None,
-                env: Mapping[str, str] | None = None) -> bytes | None:
+def load_secret(
+    *, path: str | os.PathLike[str] | None = None, env: Mapping[str, str] | None = None
+) -> bytes | None:
     """Read the pre-shared secret from a file, or else the ``MAPKIT_SECRET`` environment variable.
 
     Surrounding whitespace (the trailing newline of a file) is removed. The secret is never taken
@@ -60,8 +61,10 @@ def load_secret(*, path: str | os.PathLike[str] | None = None,
     else:
         return None
     if len(secret) < MIN_SECRET:
-        raise LocalTransferError(f"{where}: the secret has {len(secret)} bytes; use at least "
-                                 f"{MIN_SECRET} (e.g. `head -c 32 /dev/urandom | base64`)")
+        raise LocalTransferError(
+            f"{where}: the secret has {len(secret)} bytes; use at least "
+            f"{MIN_SECRET} (e.g. `head -c 32 /dev/urandom | base64`)"
+        )
     return secret
 
 
@@ -75,8 +78,9 @@ def _hkdf(secret: bytes, salt: bytes, info: bytes, length: int) -> bytes:
     return out[:length]
 
 
-def derive_keys(secret: bytes, session: int, nonce_c: bytes, nonce_s: bytes,
-                transcript: bytes) -> tuple[bytes, bytes]:
+def derive_keys(
+    secret: bytes, session: int, nonce_c: bytes, nonce_s: bytes, transcript: bytes
+) -> tuple[bytes, bytes]:
     """The two session keys ``(c2s, s2c)``: HKDF-SHA256 of the secret, salted with both nonces.
 
     Args:
@@ -89,7 +93,9 @@ def derive_keys(secret: bytes, session: int, nonce_c: bytes, nonce_s: bytes,
     Returns:
         Two 32-byte keys.
     """
-    okm = _hkdf(secret, nonce_c + nonce_s, b"MKT1 keys" + session.to_bytes(8, "big") + transcript, 64)
+    okm = _hkdf(
+        secret, nonce_c + nonce_s, b"MKT1 keys" + session.to_bytes(8, "big") + transcript, 64
+    )
     return okm[:32], okm[32:]
 
 
@@ -105,5 +111,3 @@ def _unhex(value: Any, size: int, what: str) -> bytes:
     if len(raw) != size:
         raise ProtocolError(f"{what} must be {size} bytes in hex")
     return raw
-
-

@@ -16,10 +16,20 @@ __all__ = ["reject_out", "rejected_from"]
 # -- machine plumbing -----------------------------------------------------------------------------
 
 
-def _reject(code: Status, message: str, ref: int = 0, *, plain: bool = False,
-            ftype: FrameType = FrameType.REJECT) -> Out:
-    return Out(ftype, dump_json({"code": int(code), "reason": code.reason, "message": message}),
-               ref=ref, plain=plain)
+def _reject(
+    code: Status,
+    message: str,
+    ref: int = 0,
+    *,
+    plain: bool = False,
+    ftype: FrameType = FrameType.REJECT,
+) -> Out:
+    return Out(
+        ftype,
+        dump_json({"code": int(code), "reason": code.reason, "message": message}),
+        ref=ref,
+        plain=plain,
+    )
 
 
 def rejected_from(frame: Frame, peer: str = "peer") -> Rejected:
@@ -39,10 +49,17 @@ def rejected_from(frame: Frame, peer: str = "peer") -> Rejected:
     return Rejected(code, reason, message, peer=peer)
 
 
-def reject_out(err: BaseException, ref: int = 0, *, plain: bool = False, cancel: bool = False) -> Out:
+def reject_out(
+    err: BaseException, ref: int = 0, *, plain: bool = False, cancel: bool = False
+) -> Out:
     """The REJECT (or CANCEL) frame that reports ``err`` to the peer."""
-    return _reject(status_of(err), str(err), ref, plain=plain,
-                   ftype=FrameType.CANCEL if cancel else FrameType.REJECT)
+    return _reject(
+        status_of(err),
+        str(err),
+        ref,
+        plain=plain,
+        ftype=FrameType.CANCEL if cancel else FrameType.REJECT,
+    )
 
 
 class _Machine:
@@ -94,8 +111,11 @@ class _Machine:
 
     def _idle(self, now: float, what: str) -> bool:
         if not self.finished and now >= self._last_heard + self.idle_timeout:
-            self._fail(TimeoutTransferError(f"no frame from the peer for {self.idle_timeout:g} s "
-                                            f"while {what}"))
+            self._fail(
+                TimeoutTransferError(
+                    f"no frame from the peer for {self.idle_timeout:g} s while {what}"
+                )
+            )
             return True
         return False
 
@@ -120,17 +140,18 @@ class _Machine:
         if self._timer is None or now < self._timer or out is None:
             return []
         if self._tries >= self.max_tries:
-            self._fail(TimeoutTransferError(f"no answer to {out.type.name} after {self._tries} tries"))
+            self._fail(
+                TimeoutTransferError(f"no answer to {out.type.name} after {self._tries} tries")
+            )
             return []
         self._tries += 1
         self._arm(now)
         return [out]
 
     def fail(self, err: TransferError, ref: int = 0) -> list[Out]:
-        """Give up with ``err`` (e.g. the application's disk is full); returns the CANCEL to send."""
+        """Give up with ``err`` (e.g. the application's disk is full); returns the CANCEL to
+        send."""
         if self.finished:
             return []
         self._fail(err)
         return [reject_out(err, ref, cancel=True)]
-
-

@@ -18,7 +18,7 @@ from mapkit.transfer.protocol.keys import _unhex
 __all__ = ["Offer", "kind_of"]
 
 
-# -- offer ------------------------------------------------------------------------------------------
+# -- offer -----------------------------------------------------------------------------------------
 
 
 def kind_of(name: str) -> str:
@@ -60,8 +60,14 @@ class Offer:
 
     def json(self) -> dict[str, Any]:
         """The OFFER payload."""
-        d: dict[str, Any] = {"name": self.name, "size": self.size, "sha256": self.sha256,
-                             "chunk_size": self.chunk_size, "chunks": self.chunks, "kind": self.kind}
+        d: dict[str, Any] = {
+            "name": self.name,
+            "size": self.size,
+            "sha256": self.sha256,
+            "chunk_size": self.chunk_size,
+            "chunks": self.chunks,
+            "kind": self.kind,
+        }
         if self.md5 is not None:
             d["md5"] = self.md5
         if self.mtime is not None:
@@ -81,30 +87,52 @@ class Offer:
         if not isinstance(size, int) or isinstance(size, bool) or size < 0:
             raise ProtocolError(f"OFFER size {size!r} is not a byte count")
         if not isinstance(cs, int) or isinstance(cs, bool) or not 1 <= cs <= max_chunk:
-            raise ProtocolError(f"OFFER chunk size {cs!r} is outside 1..{max_chunk}", Status.TOO_LARGE)
+            raise ProtocolError(
+                f"OFFER chunk size {cs!r} is outside 1..{max_chunk}", Status.TOO_LARGE
+            )
         _unhex(sha, 32, "OFFER sha256")
         kind = d.get("kind", kind_of(name))
         if kind != kind_of(name):
-            raise ProtocolError(f"OFFER kind {kind!r} does not match the name {name!r} "
-                                f"(a {kind_of(name)!r} by its suffix)")
+            raise ProtocolError(
+                f"OFFER kind {kind!r} does not match the name {name!r} "
+                f"(a {kind_of(name)!r} by its suffix)"
+            )
         md5 = d.get("md5")
         if md5 is not None:
             _unhex(md5, 16, "OFFER md5")
         elif kind == "map":
-            raise ProtocolError(f"OFFER of the map {name!r} has no md5 (required for maps: "
-                                "ARIA's map id)")
+            raise ProtocolError(
+                f"OFFER of the map {name!r} has no md5 (required for maps: ARIA's map id)"
+            )
         mtime = d.get("mtime")
-        offer = cls(name, size, str(sha).lower(), cs, str(md5).lower() if md5 else None, kind,
-                    mtime if isinstance(mtime, (int, float)) else None)
+        offer = cls(
+            name,
+            size,
+            str(sha).lower(),
+            cs,
+            str(md5).lower() if md5 else None,
+            kind,
+            mtime if isinstance(mtime, (int, float)) else None,
+        )
         if d.get("chunks", offer.chunks) != offer.chunks:
-            raise ProtocolError(f"OFFER says {d.get('chunks')} chunks, size/chunk_size gives {offer.chunks}")
+            raise ProtocolError(
+                f"OFFER says {d.get('chunks')} chunks, size/chunk_size gives {offer.chunks}"
+            )
         if offer.chunks > MAX_CHUNKS:
-            raise ProtocolError(f"OFFER has {offer.chunks} chunks, more than {MAX_CHUNKS}", Status.TOO_LARGE)
+            raise ProtocolError(
+                f"OFFER has {offer.chunks} chunks, more than {MAX_CHUNKS}", Status.TOO_LARGE
+            )
         return offer
 
     @classmethod
-    def for_bytes(cls, name: str, data: bytes, *, chunk_size: int = DEFAULT_CHUNK_SIZE,
-                  mtime: float | None = None) -> Offer:
+    def for_bytes(
+        cls,
+        name: str,
+        data: bytes,
+        *,
+        chunk_size: int = DEFAULT_CHUNK_SIZE,
+        mtime: float | None = None,
+    ) -> Offer:
         """An offer for bytes in memory (MD5 included for maps).
 
         Examples:
@@ -114,5 +142,3 @@ class Offer:
         kind = kind_of(name)
         md5 = hashlib.md5(data).hexdigest() if kind == "map" else None
         return cls(name, len(data), hashlib.sha256(data).hexdigest(), chunk_size, md5, kind, mtime)
-
-

@@ -46,9 +46,17 @@ class Receiver(_Machine):
         damaged: Damaged DATA frames seen.
     """
 
-    def __init__(self, offer: Offer, *, ref: int = 0, have: bytearray | None = None,
-                 window: int = 64, ack_every: int | None = None, idle_timeout: float = 30.0,
-                 sender_window: int | None = None) -> None:
+    def __init__(
+        self,
+        offer: Offer,
+        *,
+        ref: int = 0,
+        have: bytearray | None = None,
+        window: int = 64,
+        ack_every: int | None = None,
+        idle_timeout: float = 30.0,
+        sender_window: int | None = None,
+    ) -> None:
         super().__init__(rto=1.0, max_tries=1, idle_timeout=idle_timeout)
         self.offer = offer
         self.ref = ref
@@ -95,13 +103,18 @@ class Receiver(_Machine):
         return [Out(FrameType.ACCEPT, dump_json({"skip": True, **info}), ref=self.ref)]
 
     def _accept_out(self) -> Out:
-        return Out(FrameType.ACCEPT, dump_json({"have": encode_bitmap(self.have), "window": self.window}),
-                   ref=self.ref)
+        return Out(
+            FrameType.ACCEPT,
+            dump_json({"have": encode_bitmap(self.have), "window": self.window}),
+            ref=self.ref,
+        )
 
     def _ack_out(self, nack: list[int] | None = None) -> Out:
         self._unacked = 0
-        d: dict[str, Any] = {"next": self._next,
-                             "sack": ranges_from_bitmap(self.have, self._next, 32)}
+        d: dict[str, Any] = {
+            "next": self._next,
+            "sack": ranges_from_bitmap(self.have, self._next, 32),
+        }
         if nack:
             d["nack"] = nack
         return Out(FrameType.ACK, dump_json(d), ref=self.ref)
@@ -110,13 +123,20 @@ class Receiver(_Machine):
         """Take a frame from the sender."""
         self._heard(now)
         if isinstance(ev, Damaged):
-            if ev.type == FrameType.DATA and self.state == "data" and 0 <= ev.ref < self.offer.chunks \
-                    and not self.have[ev.ref]:
+            if (
+                ev.type == FrameType.DATA
+                and self.state == "data"
+                and 0 <= ev.ref < self.offer.chunks
+                and not self.have[ev.ref]
+            ):
                 self.damaged += 1
                 return [self._ack_out([ev.ref])]
             return []
         if self.finished:
-            if ev.type in (FrameType.DONE, FrameType.DATA, FrameType.OFFER) and self._final is not None:
+            if (
+                ev.type in (FrameType.DONE, FrameType.DATA, FrameType.OFFER)
+                and self._final is not None
+            ):
                 return [self._final]
             return []
         return self._guarded(ev, now, "sender")
@@ -142,8 +162,9 @@ class Receiver(_Machine):
         if not 0 <= i < self.offer.chunks:
             raise ProtocolError(f"DATA for chunk {i}, the file has {self.offer.chunks}")
         if len(f.payload) != self.offer.chunk_len(i):
-            raise ProtocolError(f"DATA for chunk {i} has {len(f.payload)} bytes, expected "
-                                f"{self.offer.chunk_len(i)}")
+            raise ProtocolError(
+                f"DATA for chunk {i} has {len(f.payload)} bytes, expected {self.offer.chunk_len(i)}"
+            )
         if self.have[i]:
             self.duplicates += 1
             return [self._ack_out()] if self.state == "data" else []

@@ -13,7 +13,7 @@ from mapkit.transfer.protocol.machine import _Machine, rejected_from
 __all__ = ["Request"]
 
 
-# -- requests -----------------------------------------------------------------------------------------
+# -- requests --------------------------------------------------------------------------------------
 
 
 class Request(_Machine):
@@ -29,9 +29,17 @@ class Request(_Machine):
         response: The answering frame once :attr:`finished` without error.
     """
 
-    def __init__(self, type: FrameType, payload: dict[str, Any], *, ref: int,
-                 answers: Iterable[FrameType], rto: float = 1.0, max_tries: int = 5,
-                 idle_timeout: float = 30.0) -> None:
+    def __init__(
+        self,
+        type: FrameType,
+        payload: dict[str, Any],
+        *,
+        ref: int,
+        answers: Iterable[FrameType],
+        rto: float = 1.0,
+        max_tries: int = 5,
+        idle_timeout: float = 30.0,
+    ) -> None:
         super().__init__(rto=rto, max_tries=max_tries, idle_timeout=idle_timeout)
         self.out = Out(type, dump_json(payload), ref=ref)
         self.ref = ref
@@ -64,5 +72,3 @@ class Request(_Machine):
             self.response = ev
             self._finish()
         return []
-
-

@@ -49,10 +49,17 @@ class Sender(_Machine):
         result: The VERIFIED payload, or ``{"skipped": True, ...}``.
     """
 
-    def __init__(self, offer: Offer,
-                 read_chunk: Callable[[int], bytes | bytearray | memoryview | Prepared], *,
-                 ref: int = 0, window: int = 16, rto: float = 1.0, max_tries: int = 8,
-                 idle_timeout: float = 30.0) -> None:
+    def __init__(
+        self,
+        offer: Offer,
+        read_chunk: Callable[[int], bytes | bytearray | memoryview | Prepared],
+        *,
+        ref: int = 0,
+        window: int = 16,
+        rto: float = 1.0,
+        max_tries: int = 8,
+        idle_timeout: float = 30.0,
+    ) -> None:
         super().__init__(rto=rto, max_tries=max_tries, idle_timeout=idle_timeout)
         self.offer = offer
         self.read_chunk = read_chunk
@@ -71,7 +78,9 @@ class Sender(_Machine):
         self.sent_indices: set[int] = set()
         self.bytes_acked = 0
         self.result: dict[str, Any] = {}
-        self._offer_out = Out(FrameType.OFFER, dump_json({**offer.json(), "window": self.window}), ref=ref)
+        self._offer_out = Out(
+            FrameType.OFFER, dump_json({**offer.json(), "window": self.window}), ref=ref
+        )
 
     def start(self, now: float) -> list[Out]:
         """The OFFER frame."""
@@ -111,8 +120,11 @@ class Sender(_Machine):
             self._acked_count = sum(have)
             self.chunks_skipped = self._acked_count
             self.bytes_acked = self._bytes_of_acked()
-            self._pending = deque(i for i in range(self.offer.chunks) if not have[i]) \
-                if self._acked_count else deque(range(self.offer.chunks))
+            self._pending = (
+                deque(i for i in range(self.offer.chunks) if not have[i])
+                if self._acked_count
+                else deque(range(self.offer.chunks))
+            )
             self.state = "data"
             self._timer = None
             self._tries = 0
@@ -151,8 +163,13 @@ class Sender(_Machine):
         # everything below `next` is held, and each sack range
         spans = [[0, nxt]]
         for r in d.get("sack", []):
-            if not (isinstance(r, list) and len(r) == 2 and isinstance(r[0], int)
-                    and isinstance(r[1], int) and 0 <= r[0] <= r[1] <= n):
+            if not (
+                isinstance(r, list)
+                and len(r) == 2
+                and isinstance(r[0], int)
+                and isinstance(r[1], int)
+                and 0 <= r[0] <= r[1] <= n
+            ):
                 raise ProtocolError(f"ACK has a bad range {r!r}")
             spans.append(r)
         acked = self.acked
@@ -188,12 +205,15 @@ class Sender(_Machine):
     def _send(self, i: int, now: float) -> Out:
         data = self.read_chunk(i)
         if len(data) != self.offer.chunk_len(i):
-            raise LocalTransferError(f"{self.offer.name}: chunk {i} has {len(data)} bytes, expected "
-                                     f"{self.offer.chunk_len(i)} (the file changed while sending?)")
+            raise LocalTransferError(
+                f"{self.offer.name}: chunk {i} has {len(data)} bytes, expected "
+                f"{self.offer.chunk_len(i)} (the file changed while sending?)"
+            )
         sends = self._sends.get(i, 0) + 1
         if sends > self.max_tries:
-            raise TimeoutTransferError(f"chunk {i} of {self.offer.name} not acknowledged after "
-                                       f"{self.max_tries} sends")
+            raise TimeoutTransferError(
+                f"chunk {i} of {self.offer.name} not acknowledged after {self.max_tries} sends"
+            )
         self._sends[i] = sends
         retx = sends > 1
         self._flight.pop(i, None)
@@ -238,12 +258,16 @@ class Sender(_Machine):
         if self.state in ("offer", "done"):
             if self._tries >= self.max_tries:
                 what = "OFFER" if self.state == "offer" else "DONE"
-                raise TimeoutTransferError(f"no answer to {what} for {self.offer.name} after "
-                                           f"{self._tries} tries")
+                raise TimeoutTransferError(
+                    f"no answer to {what} for {self.offer.name} after {self._tries} tries"
+                )
             self._tries += 1
             self._arm(now)
-            return [self._offer_out if self.state == "offer" else
-                    Out(FrameType.DONE, b"{}", ref=self.ref)]
+            return [
+                self._offer_out
+                if self.state == "offer"
+                else Out(FrameType.DONE, b"{}", ref=self.ref)
+            ]
         # data: resend every chunk sent before the timer's start
         self._tries += 1
         cutoff = now - self.rto * 0.5
@@ -254,5 +278,3 @@ class Sender(_Machine):
             out[-1] = Out(last.type, last.payload, ref=last.ref, flags=last.flags | Flag.ACKREQ)
         self._arm(now)
         return out + self._fill(now)
-
-
