@@ -127,8 +127,8 @@ def export_mesh(
         faces=len(mesh.faces),
         watertight=bool(mesh.is_watertight),
         volume=float(mesh.volume),
-        bounds=bounds,
-        home=home,  # type: ignore[arg-type]
+        bounds=bounds,  # type: ignore[arg-type]
+        home=home,
     )
 
 

@@ -54,7 +54,7 @@ def iter_log(
         )
     if hasattr(source, "readline"):
         return LogReader(
-            source,
+            source,  # type: ignore[arg-type]
             source=name or getattr(source, "name", "<stream>"),  # type: ignore[arg-type]
             strict=strict,
         )
