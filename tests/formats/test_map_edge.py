@@ -326,7 +326,7 @@ def test_save_is_atomic_when_writing_fails(tmp_path: Path, monkeypatch: pytest.M
         yield b"2D-Map\n"
         raise OSError(28, "No space left on device")
 
-    monkeypatch.setattr("mapkit.formats.map.iter_map_chunks", boom)
+    monkeypatch.setattr("mapkit.formats.map.writer.iter_map_chunks", boom)
     with pytest.raises(OSError, match="No space left"):
         mapkit.save(m, target)
     assert target.read_bytes() == b"old"

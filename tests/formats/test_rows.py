@@ -16,7 +16,7 @@ from hypothesis import example, given, strategies as st
 from hypothesis.extra import numpy as hnp
 
 import mapkit
-from mapkit.formats import _rows, map as mapformat
+from mapkit.formats import _rows
 from mapkit.formats._rows import (
     RowReader,
     _format_rows_reference,
@@ -24,6 +24,7 @@ from mapkit.formats._rows import (
     format_rows,
     parse_rows,
 )
+from mapkit.formats.map import parser as map_parser, writer as map_writer
 from tests.strategies import maps
 
 INT32 = st.integers(-(2**31), 2**31 - 1)
@@ -40,8 +41,8 @@ def small_chunks(threads: bool = True) -> Iterator[None]:
         (_rows, "_PARSE_CHUNK", 48),
         (_rows, "_MIN_SPLIT", 16),
         (_rows, "_FORMAT_CHUNK", 3),
-        (mapformat, "_DATA_CHUNK", 40),
-        (mapformat, "_PARALLEL_SPANS", 2 if threads else 1 << 40),
+        (map_parser, "_DATA_CHUNK", 40),
+        (map_parser, "_PARALLEL_SPANS", 2 if threads else 1 << 40),
     ]
     saved = [getattr(module, name) for module, name, _ in names]
     for module, name, value in names:
@@ -290,13 +291,13 @@ def test_format_accepts_read_only_and_strided_arrays() -> None:
 @contextlib.contextmanager
 def line_by_line() -> Iterator[None]:
     """The data phase without the vectorised path and without chunks (the original algorithm)."""
-    saved = (RowReader.fast, mapformat._DATA_CHUNK)
+    saved = (RowReader.fast, map_parser._DATA_CHUNK)
     RowReader.fast = lambda self, s, e, k: None  # type: ignore[method-assign]
-    mapformat._DATA_CHUNK = 1 << 40
+    map_parser._DATA_CHUNK = 1 << 40
     try:
         yield
     finally:
-        RowReader.fast, mapformat._DATA_CHUNK = saved  # type: ignore[method-assign]
+        RowReader.fast, map_parser._DATA_CHUNK = saved  # type: ignore[method-assign]
 
 
 def outcome(text: bytes) -> tuple[object, ...]:
@@ -371,14 +372,14 @@ def test_large_map_with_odd_rows_between_chunks() -> None:
 
 @given(m=maps())
 def test_threaded_writer_and_reader_round_trip(m: mapkit.MapData) -> None:
-    sequential = b"".join(mapformat._map_chunks(m, None))
-    saved = mapformat._PARALLEL_ROWS
-    mapformat._PARALLEL_ROWS = 1
+    sequential = b"".join(map_writer._map_chunks(m, None))
+    saved = map_writer._PARALLEL_ROWS
+    map_writer._PARALLEL_ROWS = 1
     try:
         with small_chunks(threads=True):
             text = mapkit.dumpb(m)
             back = mapkit.loads(text)
     finally:
-        mapformat._PARALLEL_ROWS = saved
+        map_writer._PARALLEL_ROWS = saved
     assert text == sequential
     assert back.equals(m)

@@ -1,46 +1,54 @@
-"""ARIA ``.map`` files: a lossless reader (strict and tolerant) and ARIA's canonical writer.
-
-The reader follows ARIA's two-phase parse (FORMATS.md A.3): a keyword parser for the header up
-to the first data tag, then a raw reader for ``DATA``/``LINES`` rows. The writer emits exactly the
-bytes ARIA's ``ArMap::writeFile`` emits (A.9). Files are handled as bytes; names are ``str``
-decoded as UTF-8 with ``surrogateescape``, so every byte survives.
-
-Where ARIA loses data (a last row without newline) mapkit keeps it and reports it; where ARIA
-crashes (NaN in an object) mapkit raises :class:`~mapkit.errors.MapFormatError` in strict mode and
-reports it in tolerant mode (:func:`recover`).
-"""
+"""The header parser: ARIA's keyword parse up to the first data tag, strict or tolerant, then the
+rows of each scan."""
 
 from __future__ import annotations
 
 import hashlib
 import math
-import os
-import re
-import threading
 import types
-from collections.abc import Iterator
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
-from mapkit._atomic import atomic_open
-from mapkit._typing import PathLike
 from mapkit.diagnostics import Issue, IssueCode
 from mapkit.errors import MapFormatError
 from mapkit.formats._numbers import aria_double, aria_int, c_int
 from mapkit.formats._rows import (
     RowReader,
     RowSink,
-    column_extremes,
-    iter_format_rows,
     ordered_map,
     worker_pool,
 )
+from mapkit.formats.map.data import (
+    _BACKGROUND_MD5_BYTES,
+    _KNOWN_KEYWORDS,
+    _NONNUMERIC_LINE,
+    _SCAN_KEYS,
+    _aria_box,
+    _BackgroundMD5,
+    _parse_span,
+    _short,
+    _spans,
+)
+from mapkit.formats.map.tokens import (
+    _CAT_LOWER,
+    _INACTIVE_INFO_LOWER,
+    _INFO_LOWER,
+    _LINE_BUFFER,
+    _MAX_ARG_BYTES,
+    _MAX_SPAN_MM,
+    _MAX_TOKENS,
+    _OBJECT_KEYWORDS,
+    _WS,
+    _decode,
+    _encode,
+    _lower,
+    _split_keyword,
+    _unquote,
+    tokenize,
+)
 from mapkit.model import (
-    CATEGORIES,
-    INFO_KEYWORDS,
     MapData,
     MapObject,
     Provenance,
@@ -48,80 +56,8 @@ from mapkit.model import (
     ScanHeader,
 )
 
-__all__ = [
-    "dumpb",
-    "dumps",
-    "iter_map_chunks",
-    "load",
-    "loads",
-    "parse_map",
-    "recover",
-    "save",
-    "written_category",
-]
-
-_WS = " \t\x0b\x0c"
-_TOKEN = re.compile(r'"[^\n]*?"(?=[ \t\x0b\x0c]|$)|"[^\n]*|[^ \t\x0b\x0c]+')
-_ASCII_LOWER = str.maketrans("ABCDEFGHIJKLMNOPQRSTUVWXYZ", "abcdefghijklmnopqrstuvwxyz")
-_CAT_LOWER = {c.lower(): c for c in CATEGORIES}
-_INFO_LOWER = {k.lower() + ":": k for k in INFO_KEYWORDS}
-_INACTIVE_INFO_LOWER = {"_" + k.lower() + ":": k for k in INFO_KEYWORDS}
-_OBJECT_KEYWORDS = {
-    "cairn:": "objects",
-    "_cairn:": "inactive_objects",
-    "childcairn:": "child_objects",
-}
-_MAX_TOKENS = 511  # ARIA's argument builder keeps 511 arguments per line
-_MAX_ARG_BYTES = 9_999  # ... copied from at most 9,999 bytes of argument text
-_LINE_BUFFER = 12_000  # header lines are read with fgets() into a 12,000-byte buffer
-_MAX_SPAN_MM = 2_000_000
-
-
-def _decode(b: bytes) -> str:
-    return b.decode("utf-8", "surrogateescape")
-
-
-def _encode(s: str) -> bytes:
-    return s.encode("utf-8", "surrogateescape")
-
-
-def _lower(s: str) -> str:
-    """ASCII-only lower case, as C's ``tolower``/``strcasecmp`` in the C locale."""
-    return s.translate(_ASCII_LOWER)
-
-
-def _unquote(tok: str) -> str:
-    if len(tok) >= 2 and tok[0] == '"' and tok[-1] == '"':
-        return tok[1:-1]
-    return tok
-
-
-def tokenize(text: str) -> list[str]:
-    """Split a header line's arguments as ARIA does (FORMATS.md A.6.1).
-
-    A token starting with ``"`` runs to the next ``"`` followed by whitespace or the end of the
-    line and keeps its quotes; there is no escape.
-
-    Examples:
-        >>> tokenize('GoalType  Name=Goal "Label=A  B"')
-        ['GoalType', 'Name=Goal', '"Label=A  B"']
-        >>> tokenize('"say "hi" now"')
-        ['"say "hi"', 'now"']
-    """
-    return _TOKEN.findall(text)
-
-
-def _split_keyword(line: str) -> tuple[str, str]:
-    s = line.lstrip(_WS)
-    if s.startswith('"'):
-        k = s.find('"', 1)
-        if k == -1:
-            return s[1:], ""
-        return s[1:k], s[k + 1 :]
-    for i, ch in enumerate(s):
-        if ch in _WS:
-            return s[:i], s[i:]
-    return s, ""
+_DATA_CHUNK = 1 << 17  # bytes of the data section per vectorised step
+_PARALLEL_SPANS = 16  # chunks from which worker threads parse the data section
 
 
 @dataclass
@@ -780,356 +716,3 @@ class _Parser:
                 )
                 break
         return out
-
-
-_SCAN_KEYS = {
-    "minpos:": "MinPos:",
-    "maxpos:": "MaxPos:",
-    "numpoints:": "NumPoints:",
-    "pointsaresorted:": "PointsAreSorted:",
-    "resolution:": "Resolution:",
-    "lineminpos:": "LineMinPos:",
-    "linemaxpos:": "LineMaxPos:",
-    "numlines:": "NumLines:",
-    "linesaresorted:": "LinesAreSorted:",
-    "display:": "Display:",
-}
-
-_KNOWN_KEYWORDS = {
-    *_OBJECT_KEYWORDS,
-    *_INFO_LOWER,
-    *_INACTIVE_INFO_LOWER,
-    *_SCAN_KEYS,
-    "sources:",
-    "originlatlongalt:",
-}
-
-
-def _short(text: str, limit: int = 60) -> str:
-    """Text for a message, cut to ``limit`` characters (a hostile line can be megabytes)."""
-    return text if len(text) <= limit else text[:limit] + f"... ({len(text):,} characters)"
-
-
-_NONNUMERIC_LINE = re.compile(rb"^(?![0-9-]).*$", re.M)
-_BACKGROUND_MD5_BYTES = 1 << 20
-
-
-class _BackgroundMD5:
-    """MD5 of a buffer computed by a thread (hashlib releases the GIL on large buffers)."""
-
-    def __init__(self, data: bytes) -> None:
-        self._hash = hashlib.md5()
-        self._thread = threading.Thread(target=self._hash.update, args=(data,), daemon=True)
-        self._thread.start()
-
-    def hexdigest(self) -> str:
-        self._thread.join()
-        return self._hash.hexdigest()
-
-
-_DATA_CHUNK = 1 << 17  # bytes of the data section per vectorised step
-_PARALLEL_SPANS = 16  # chunks from which worker threads parse the data section
-_PARALLEL_ROWS = 100_000  # rows from which worker threads format a map
-
-
-def _parse_span(
-    reader: RowReader, span: tuple[int, int]
-) -> tuple[np.ndarray[Any, Any], tuple[np.ndarray[Any, Any], np.ndarray[Any, Any]]] | None:
-    """A worker thread's job: the rows of a canonical chunk and their extremes (or ``None``)."""
-    values = reader.fast(*span)
-    if values is None or len(values) == 0:
-        return None
-    return values, column_extremes(values)
-
-
-def _spans(data: bytes, start: int, end: int, size: int) -> list[tuple[int, int]]:
-    """``data[start:end]`` cut into pieces of about ``size`` bytes that end with LF."""
-    out = []
-    s = start
-    while s < end:
-        e = end
-        if end - s > size:
-            cut = data.rfind(b"\n", s, s + size)
-            e = data.find(b"\n", s + size, end) + 1 if cut < 0 else cut + 1
-            e = e or end
-        out.append((s, e))
-        s = e
-    return out
-
-
-def _aria_box(
-    xy: np.ndarray[Any, Any],
-    hmin: tuple[int, int] | None,
-    hmax: tuple[int, int] | None,
-    count: int | None,
-    data_box: tuple[tuple[int, int], tuple[int, int]] | None = None,
-) -> tuple[tuple[int, int] | None, tuple[int, int] | None]:
-    """ARIA's box: the header box (or the origin) widened by the data; empty if ``NumX: 0``.
-
-    ``data_box`` is the data's own box when already known (``None``: computed here).
-    """
-    if len(xy) == 0:
-        return None, None  # nothing to bound; the writer writes no box then
-    lo, hi = data_box or _column_bounds(xy)
-    if count is not None and count <= 0:
-        return lo, hi
-    lo0 = hmin if hmin is not None else (0, 0)
-    hi0 = hmax if hmax is not None else (0, 0)
-    return (min(lo0[0], lo[0]), min(lo0[1], lo[1])), (max(hi0[0], hi[0]), max(hi0[1], hi[1]))
-
-
-def _column_bounds(xy: np.ndarray[Any, Any]) -> tuple[tuple[int, int], tuple[int, int]]:
-    # Column by column: numpy's min(axis=0) over an (N, 2) array is ten times slower.
-    x, y = xy[:, 0], xy[:, 1]
-    return (int(x.min()), int(y.min())), (int(x.max()), int(y.max()))
-
-
-# -- public reading API ----------------------------------------------------------------------
-
-
-def _as_bytes(data: str | bytes) -> bytes:
-    return _encode(data) if isinstance(data, str) else bytes(data)
-
-
-def parse_map(data: str | bytes, *, source: str = "<string>") -> MapData:
-    """Parse map text strictly: the first structural error raises.
-
-    Args:
-        data: The file's bytes (or text).
-        source: File name for error messages.
-
-    Returns:
-        The map.
-
-    Raises:
-        MapFormatError: Naming the source, the line and what was expected.
-    """
-    return _Parser(_as_bytes(data), source, strict=True).parse()
-
-
-def loads(data: str | bytes, *, source: str = "<string>") -> MapData:
-    """Parse a map from text or bytes (strict).
-
-    Args:
-        data: Map text or bytes.
-        source: Name used in error messages.
-
-    Returns:
-        The map.
-
-    Raises:
-        MapFormatError: When the text is not a map ARIA would load.
-
-    Examples:
-        >>> m = loads("2D-Map\\nDATA\\n1 2\\n")
-        >>> m.points.tolist(), m.md5
-        ([[1, 2]], '688ea5a151f70b05bdfb3e892a0574ec')
-    """
-    return parse_map(data, source=source)
-
-
-def load(path: PathLike) -> MapData:
-    """Read a ``.map`` file (strict).
-
-    Args:
-        path: The file.
-
-    Returns:
-        The map, with its provenance (file name, MD5, line numbers).
-
-    Raises:
-        MapFormatError: When the file is not a map ARIA would load.
-        OSError: When the file cannot be read.
-    """
-    with open(path, "rb") as fh:
-        data = fh.read()
-    return parse_map(data, source=os.fspath(path))
-
-
-def recover(data: PathLike | bytes, *, source: str | None = None) -> tuple[MapData, list[Issue]]:
-    """Read a map tolerantly: load what ARIA would load and list every problem met.
-
-    Lines ARIA would reject are skipped and reported; data ARIA would lose is kept and reported.
-    Only a file with no intro line at all (or an empty one) still raises.
-
-    Args:
-        data: A path, or the file's bytes.
-        source: Name for the issues (defaults to the path).
-
-    Returns:
-        ``(map, issues)``.
-
-    Raises:
-        MapFormatError: When there is nothing to load.
-        OSError: When the file cannot be read.
-
-    Examples:
-        >>> m, issues = recover(b"2D-Map\\nNumPoints: x\\nDATA\\n1 1\\n2 2")
-        >>> m.points.tolist(), [int(i.code) for i in issues]
-        ([[1, 1], [2, 2]], [110, 104])
-    """
-    if isinstance(data, (bytes, bytearray, memoryview)):
-        raw, name = bytes(data), source or "<bytes>"
-    else:
-        with open(data, "rb") as fh:
-            raw = fh.read()
-        name = source or os.fspath(data)
-    p = _Parser(raw, name, strict=False)
-    m = p.parse()
-    return m, p.issues
-
-
-# -- writer ----------------------------------------------------------------------------------
-
-
-def written_category(m: MapData) -> str:
-    """The intro line ARIA writes for this map (FORMATS.md A.2).
-
-    Upgraded to ``2D-Map-Ex4`` when the map uses templates; ``2D-Map-Ex`` with only the default
-    source is written as ``2D-Map``; never downgraded otherwise.
-    """
-    cat = m.category
-    if _uses_templates(m):
-        return "2D-Map-Ex4"
-    if cat == "2D-Map-Ex" and len(m.scans) == 1 and m.scans[0].is_default:
-        return "2D-Map"
-    return cat
-
-
-def _uses_templates(m: MapData) -> bool:
-    if m.info.get("MacroInfo"):
-        return True
-    for line in m.info.get("MapInfo", ()):
-        if line and line[0] == "CairnGroupType":
-            return True
-    for line in m.info.get("RouteInfo", ()):
-        if line and line[0] == "MacroTemplate":
-            return True
-    for line in m.info.get("MetaInfo", ()):
-        if line and line[0] == "Feature" and any(_unquote(t) == "Name=templates" for t in line[1:]):
-            return True
-    return False
-
-
-def _printf(spec: str, v: float) -> str:
-    """C's printf of one double: as Python's %, but a NaN with its sign bit set is ``-nan``."""
-    text = spec % v
-    return "-" + text if math.isnan(v) and math.copysign(1.0, v) < 0 else text
-
-
-def _f0(v: float) -> str:
-    return _printf("%.0f", v)
-
-
-def _object_line(keyword: str, o: MapObject) -> str:
-    th = _printf("%f", o.theta)
-    s = f'{keyword} {o.type} {_f0(o.x)} {_f0(o.y)} {th} "{o.description}" {o.icon} "{o.name}"'
-    if o.from_to is not None:
-        s += " " + " ".join(_f0(v) for v in o.from_to)
-    return s
-
-
-def _pair(p: tuple[int, int] | None) -> str:
-    p = p or (0, 0)
-    return f"{p[0]} {p[1]}"
-
-
-def _scan_prefix(scan: Scan) -> str:
-    return "" if scan.is_default else scan.name
-
-
-def iter_header_lines(m: MapData) -> Iterator[str]:
-    """The header lines ARIA writes, in its order (without newlines)."""
-    yield written_category(m)
-    if m.scans[0].name:
-        yield "Sources: " + " ".join(s.name for s in m.scans)
-    for s in m.scans:
-        p = _scan_prefix(s)
-        if s.display:
-            yield f'{p}Display: "{s.display}"'
-        if s.num_points:
-            yield f"{p}MinPos: {_pair(s.min_pos)}"
-            yield f"{p}MaxPos: {_pair(s.max_pos)}"
-            yield f"{p}NumPoints: {s.num_points}"
-            yield f"{p}PointsAreSorted: {'true' if s.points_sorted else 'false'}"
-        if s.resolution != -1:
-            yield f"{p}Resolution: {s.resolution}"
-        if s.num_lines:
-            yield f"{p}LineMinPos: {_pair(s.line_min_pos)}"
-            yield f"{p}LineMaxPos: {_pair(s.line_max_pos)}"
-            yield f"{p}NumLines: {s.num_lines}"
-            yield f"{p}LinesAreSorted: {'true' if s.lines_sorted else 'false'}"
-    if m.origin_lla is not None:
-        lat, lon, alt = m.origin_lla
-        yield "OriginLatLongAlt: " + " ".join(_printf("%f", v) for v in (lat, lon, alt))
-    for key in INFO_KEYWORDS:
-        for line in m.info.get(key, ()):
-            yield f"{key}: " + " ".join(line)
-    for o in m.objects:
-        yield _object_line("Cairn:", o)
-    for key in INFO_KEYWORDS:
-        for line in m.inactive_info.get(key, ()):
-            yield f"_{key}: " + " ".join(line)
-    for o in m.inactive_objects:
-        yield _object_line("_Cairn:", o)
-    for o in m.child_objects:
-        yield _object_line("ChildCairn:", o)
-    yield from m.remainder
-
-
-def iter_map_chunks(m: MapData) -> Iterator[bytes]:
-    """The canonical file as byte chunks (header, then each data section).
-
-    For a big map, worker threads format the rows ahead of the consumer (numpy releases the GIL),
-    so that writing and hashing the chunks overlap with formatting the next ones.
-    """
-    with worker_pool(sum(s.num_points + s.num_lines for s in m.scans) >= _PARALLEL_ROWS) as pool:
-        yield from _map_chunks(m, pool)
-
-
-def _map_chunks(m: MapData, pool: ThreadPoolExecutor | None) -> Iterator[bytes]:
-    yield _encode("".join(line + "\n" for line in iter_header_lines(m)))
-    for s in m.scans:
-        if s.num_lines:
-            yield _encode(_scan_prefix(s) + "_LINES\n" if _scan_prefix(s) else "LINES\n")
-            yield from iter_format_rows(s.lines, pool)
-    for s in m.scans:
-        yield _encode(_scan_prefix(s) + "_DATA\n" if _scan_prefix(s) else "DATA\n")
-        yield from iter_format_rows(s.points, pool)
-
-
-def dumpb(m: MapData) -> bytes:
-    """The map as ARIA's writer emits it, as bytes.
-
-    Examples:
-        >>> dumpb(MapData())
-        b'2D-Map\\nResolution: 0\\nDATA\\n'
-    """
-    return b"".join(iter_map_chunks(m))
-
-
-def dumps(m: MapData) -> str:
-    """The map as ARIA's writer emits it, as text (undecodable bytes as surrogates)."""
-    return _decode(dumpb(m))
-
-
-def save(m: MapData, path: PathLike, *, backup: bool = False) -> str:
-    """Write a map atomically (temp file beside it, fsync, rename) in ARIA's canonical form.
-
-    Args:
-        m: The map.
-        path: Destination file.
-        backup: Keep the previous file as ``path.bak``.
-
-    Returns:
-        The MD5 (hex) of the bytes written: ARIA's checksum of the new file.
-
-    Raises:
-        OSError: When the file cannot be written; any previous file is then unchanged.
-    """
-    md5 = hashlib.md5()
-    with atomic_open(path, backup=backup) as fh:
-        for chunk in iter_map_chunks(m):
-            md5.update(chunk)
-            fh.write(chunk)
-    return md5.hexdigest()
