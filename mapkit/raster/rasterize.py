@@ -482,8 +482,9 @@ def burn_polygons(
 
     Examples:
         >>> g = grid_for_bounds(((0, 0), (500, 500)), 0.1, 0)
-        >>> burn_polygons(g, [[[100, 100], [400, 100], [400, 300], [100, 300]]],
-        ...               outline=False).astype(int)[::-1].tolist()
+        >>> square = [[[100, 100], [400, 100], [400, 300], [100, 300]]]
+        >>> mask = burn_polygons(g, square, outline=False)
+        >>> mask.astype(int)[::-1].tolist()  # doctest: +NORMALIZE_WHITESPACE
         [[0, 0, 0, 0, 0, 0], [0, 0, 0, 0, 0, 0], [0, 0, 0, 0, 0, 0], [0, 1, 1, 1, 0, 0],
          [0, 1, 1, 1, 0, 0], [0, 0, 0, 0, 0, 0]]
     """
