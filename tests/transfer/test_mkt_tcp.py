@@ -14,6 +14,7 @@ from concurrent.futures import ThreadPoolExecutor
 import pytest
 from mkt_helpers import client_options, listing, make_map, wait_idle
 
+import mapkit.transfer.reading as reading_mod
 import mapkit.transfer.store as store_mod
 from mapkit.errors import LocalTransferError, TransferError
 from mapkit.transfer import (
@@ -103,7 +104,7 @@ def test_push_cut_at_many_points_resumes_and_resends_only_missing(
     if threads:  # the robot writes, hashes and checkpoints in background threads even for this
         # file, and the terminal prepares each chunk's CRC and tag in a background pass
         monkeypatch.setattr(store_mod, "THREADS_FROM", 0)
-        monkeypatch.setattr(store_mod, "PREPARE_FROM", 0)
+        monkeypatch.setattr(reading_mod, "PREPARE_FROM", 0)
     chunk, n = 16 * 1024, 40
     data = os.urandom(chunk * n - 123)
     src = tmp_path / "big.2d"
@@ -143,7 +144,7 @@ def test_push_cut_at_many_points_resumes_and_resends_only_missing(
 @pytest.mark.parametrize("ahead", [False, True], ids=["plain", "prepared"])
 def test_pull_cut_then_resumed(tmp_path, robot_dir, make_server, proxy, monkeypatch, ahead) -> None:
     if ahead:  # the robot prepares CRCs and tags in a background pass (PreparedReader)
-        monkeypatch.setattr(store_mod, "PREPARE_FROM", 0)
+        monkeypatch.setattr(reading_mod, "PREPARE_FROM", 0)
     chunk, n = 8 * 1024, 30
     data = make_map(20_000)[: chunk * n]
     data = data[: data.rfind(b"\n") + 1]
@@ -581,16 +582,16 @@ def test_concurrent_threads_do_not_share_sessions(robot_dir, make_server) -> Non
 def test_a_pushed_map_is_parsed_once_even_when_loaded(
     tmp_path, robot_dir, make_server, monkeypatch
 ) -> None:
-    import mapkit.transfer.server as server_mod
+    import mapkit.transfer.folder as folder_mod  # MapFolder parses the maps
 
     calls: list[str] = []
-    real = server_mod.parse_map
+    real = folder_mod.parse_map
 
     def counting(data, *, source="<string>"):
         calls.append(source)
         return real(data, source=source)
 
-    monkeypatch.setattr(server_mod, "parse_map", counting)
+    monkeypatch.setattr(folder_mod, "parse_map", counting)
     srv = make_server()
     src = tmp_path / "a.map"
     src.write_bytes(make_map(100))
