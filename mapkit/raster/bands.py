@@ -47,22 +47,19 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from mapkit.model import MapData
+from mapkit.raster.cells import _unknown_cells, grid_for
 from mapkit.raster.grid import FREE, OCCUPIED, UNKNOWN, OccupancyGrid
-from mapkit.raster.rasterize import (
+from mapkit.raster.primitives import (
     _convex_fill,
-    _forbidden,
     _hull_polygon,
     _row_extremes,
-    _unknown_cells,
     burn_points,
     burn_polygons,
     burn_segments,
-    check_options,
     free_from_rays,
-    grid_for,
     inflate,
-    seed_points,
 )
+from mapkit.raster.rasterize import _forbidden, check_options, seed_points
 
 __all__ = ["DEFAULT_BAND_CELLS", "BandRaster", "GridInfo", "band_spans", "halo_rows"]
 
