@@ -62,6 +62,14 @@ def _check_output(path: str, force: bool) -> None:
               show_default=True, help="Odometry starts at the true start pose, or at 0 0 0.")
 @click.option("--goal-names", type=click.Choice(["map", "aria"]), default="map", show_default=True,
               help="Goal events named after the map's goals, or goal1, goal2... as ARIA does.")
+@click.option("--scale-error", type=click.FloatRange(-0.4, 0.4), default=0.0, show_default=True,
+              help="Systematic odometry distance error (fraction, e.g. 0.01).")
+@click.option("--turn-slip", type=click.FloatRange(-0.4, 0.4), default=0.0, show_default=True,
+              help="Extra turn odometry reports while turning on the spot (fraction).")
+@click.option("--outliers", type=click.FloatRange(0, 0.9), default=0.0, show_default=True,
+              help="Fraction of spurious (short) laser readings.")
+@click.option("--people", type=click.IntRange(0, 100), default=0, show_default=True,
+              help="People walking about in the laser's view.")
 @click.option("--seed", type=int, default=0, show_default=True, help="Random seed.")
 @click.option("--no-truth", is_flag=True, help="Do not write the NAME.truth.tsv sidecar.")
 @force_option
@@ -69,7 +77,8 @@ def simulate(map_file: str | None, output: str, sample: str | None, log_version:
              waypoints: str | None, start: str | None, loop: bool, laps: int, fov: float,
              readings: int, max_range: float, range_noise: float, laser_pose: str,
              trans_error: float, rot_error: float, drift: float, dist_step: float,
-             deg_step: float, raw_ranges: bool, odometry_origin: str, goal_names: str, seed: int,
+             deg_step: float, raw_ranges: bool, odometry_origin: str, goal_names: str,
+             scale_error: float, turn_slip: float, outliers: float, people: int, seed: int,
              no_truth: bool, force: bool) -> None:
     """Drive a simulated robot through MAP_FILE and write the laser log it would record.
 
@@ -80,6 +89,7 @@ def simulate(map_file: str | None, output: str, sample: str | None, log_version:
     \b
     Examples:
       mapkit simulate office.map -o office.2d --loop
+      mapkit simulate office.map -o noisy.2d --loop --scale-error 0.01 --turn-slip 0.03 --outliers 0.02 --people 3
       mapkit simulate --sample building -o b.2d --version 3 --waypoints "5000,12000 55000,12000"
     """
     from mapkit.formats.map import load
@@ -100,7 +110,8 @@ def simulate(map_file: str | None, output: str, sample: str | None, log_version:
         readings=readings, max_range=max_range, range_noise=range_noise, laser_pose=lp,
         translation_error=trans_error, rotation_error=rot_error, drift=drift,
         dist_step=dist_step, deg_step=deg_step, raw_ranges=raw_ranges,
-        odometry_origin=odometry_origin, goal_names=goal_names, seed=seed)
+        odometry_origin=odometry_origin, goal_names=goal_names, scale_error=scale_error,
+        turn_slip=turn_slip, outliers=outliers, people=people, seed=seed)
     click.echo(sim.save(output, truth=not no_truth))
     if sim.skipped:
         err(f"mapkit: no path to {', '.join(sim.skipped)}: left out of the route")
