@@ -94,12 +94,12 @@ def _log_and_truth(name: str, mapname: str, kw: dict[str, Any], folder: Path) ->
 
 
 def _with_poses(log: Any, ids: Any, truth: Any) -> Any:
-    """The log with the true poses written as odometry."""
+    """The log with the true poses (from the true start, as odometry is) written as odometry."""
     from dataclasses import replace
 
-    from mapkit.model.scan import LaserLog, LaserScan, Pose2D
+    from mapkit.model.scan import LaserLog, LaserScan, Pose2D, relative
 
-    at = {int(i): Pose2D(*map(float, p)) for i, p in zip(ids, truth)}
+    at = {int(i): Pose2D(*map(float, p)) for i, p in zip(ids, relative(truth[0], truth))}
     recs = [replace(r, robot=at[r.scan_id], robot_global=at[r.scan_id])
             if isinstance(r, LaserScan) and r.scan_id in at else r for r in log.records]
     return LaserLog(header=log.header, records=tuple(recs), complete=log.complete, source=log.source)

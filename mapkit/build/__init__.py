@@ -71,6 +71,9 @@ class BuildResult:
         scan_ids: ``(N,)`` their ``scanId``.
         summary: Figures for people and ``--json`` (scans, registration, loops, timings).
         issues: Problems met in the log (tolerant reading) and while building.
+        residuals: ``(N,)`` RMS point-to-wall residual of each scan's match (mm; NaN where the
+            scan was placed by odometry alone).
+        closures: ``(K, 2)`` scan indices ``(old, new)`` of every loop closed.
     """
 
     map: MapData
@@ -79,6 +82,15 @@ class BuildResult:
     scan_ids: np.ndarray[Any, Any]
     summary: dict[str, Any] = field(default_factory=dict)
     issues: tuple[Issue, ...] = ()
+    residuals: FloatArray = field(default_factory=lambda: np.zeros(0))
+    closures: np.ndarray[Any, Any] = field(default_factory=lambda: np.zeros((0, 2), dtype=np.int64))
+
+    @property
+    def moved(self) -> FloatArray:
+        """``(N,)`` how far each scan's final pose lies from its odometry pose (mm)."""
+        d: FloatArray = np.hypot(self.poses[:, 0] - self.odometry[:, 0],
+                                 self.poses[:, 1] - self.odometry[:, 1])
+        return d
 
 
 def _deg(p: FloatArray) -> FloatArray:
@@ -238,6 +250,7 @@ def build_map(
     lines: bool = True,
     min_line_length: float = 300.0,
     strict: bool = True,
+    merge_goals: bool = True,
     progress: Progress | None = None,
 ) -> BuildResult:
     """Turn a ``.2d`` laser log into a map (see the module's description of the pipeline).
@@ -257,6 +270,8 @@ def build_map(
         min_line_length: Shortest line kept (mm).
         strict: Read a file strictly (the first bad record raises); ``False`` skips bad records
             and lists them in :attr:`BuildResult.issues`.
+        merge_goals: Goals of the same name (a tag repeated on every lap) become one object at
+            their mean pose; ``False`` keeps one object per ``cairn:`` event.
         progress: Called as ``progress(done, total)`` while scans are registered.
 
     Returns:
@@ -288,6 +303,7 @@ def build_map(
                              source=log.source)
     est = odo.copy()
     stats: dict[str, Any] = {"registered": 0, "odometry_only": 0, "residuals": [],
+                             "residual_per_scan": np.full(n, np.nan), "closures": [],
                              "tag_loops": 0, "tag_loops_matched": 0, "revisits": 0,
                              "optimisations": 0, "corrections_mm": [], "corrections_deg": []}
     t1 = time.perf_counter()
@@ -307,12 +323,14 @@ def build_map(
                           min_length=min_line_length) if lines and len(points) else np.zeros((0, 4)))
     t_map = time.perf_counter() - t2
     objects = [MapObject("RobotHome", *_obj_pose(est[0]), name="Home")]
-    objects.extend(_goals(log, scans, odo, est, pose_source))
+    objects.extend(_goals(log, scans, odo, est, pose_source, merge_goals))
     scan = Scan.from_arrays(points, np.rint(segs).astype(np.int64), resolution=resolution, sort=True)
     m = MapData(category="2D-Map", scans=(scan,), objects=tuple(objects))
     poses = _deg(est)
     odom = _deg(odo)
     res = stats.pop("residuals")
+    per_scan = stats.pop("residual_per_scan")
+    closures = np.array(stats.pop("closures"), dtype=np.int64).reshape(-1, 2)
     cm, cd = stats.pop("corrections_mm"), stats.pop("corrections_deg")
     length = float(np.sum(np.hypot(*np.diff(odo[:, :2], axis=0).T))) if n > 1 else 0.0
     summary = {
@@ -327,6 +345,7 @@ def build_map(
             "registered": stats["registered"],
             "odometry_only": stats["odometry_only"],
             "median_residual_mm": round(float(np.median(res)), 2) if res else None,
+            "odometry_noise_scale": stats.get("odometry_scale"),
         },
         "loops": {
             "tags": stats["tag_loops"],
@@ -344,7 +363,7 @@ def build_map(
     }
     return BuildResult(map=m, poses=poses, odometry=odom,
                        scan_ids=np.array([s.scan_id for s in scans]), summary=summary,
-                       issues=tuple(issues))
+                       issues=tuple(issues), residuals=per_scan, closures=closures)
 
 
 def _obj_pose(p: FloatArray) -> tuple[float, float, float]:
@@ -352,10 +371,15 @@ def _obj_pose(p: FloatArray) -> tuple[float, float, float]:
 
 
 def _goals(log: LaserLog, scans: list[LaserScan], odo: FloatArray, est: FloatArray,
-           pose_source: str) -> list[MapObject]:
+           pose_source: str, merge: bool = True) -> list[MapObject]:
+    """``cairn:`` goal events as objects at their corrected poses.
+
+    With ``merge``, the goals of one name (a tag given on every lap) become one object at the
+    mean pose (headings averaged on the circle), where the name first appeared.
+    """
     position = {id(s): k for k, s in enumerate(scans)}
     last = 0
-    out = []
+    out: list[MapObject] = []
     for rec in log.records:
         if isinstance(rec, LaserScan):
             last = position.get(id(rec), last)
@@ -372,15 +396,69 @@ def _goals(log: LaserLog, scans: list[LaserScan], odo: FloatArray, est: FloatArr
         th = wrap(est[last][2] + rel[2])
         typ, desc, _icon, name = goal_fields(rec)
         out.append(MapObject(typ, *_obj_pose(np.array([x, y, th])), name=name, description=desc))
+    return _merge_goals(out) if merge else out
+
+
+def _merge_goals(goals: list[MapObject]) -> list[MapObject]:
+    """One object per (type, name) at the mean pose; unnamed goals are kept as they are."""
+    groups: dict[tuple[str, str], list[MapObject]] = {}
+    order: list[tuple[str, str] | int] = []
+    for k, g in enumerate(goals):
+        if not g.name:
+            order.append(k)
+            continue
+        key = (g.type, g.name)
+        if key not in groups:
+            groups[key] = []
+            order.append(key)
+        groups[key].append(g)
+    out = []
+    for key in order:
+        if isinstance(key, int):
+            out.append(goals[key])
+            continue
+        grp = groups[key]
+        if len(grp) == 1:
+            out.append(grp[0])
+            continue
+        th = np.radians([g.theta for g in grp])
+        mean = np.array([np.mean([g.x for g in grp]), np.mean([g.y for g in grp]),
+                         math.atan2(float(np.sin(th).sum()), float(np.cos(th).sum()))])
+        out.append(MapObject(grp[0].type, *_obj_pose(mean), name=grp[0].name,
+                             description=grp[0].description))
     return out
 
 
 def _register(scans: list[LaserScan], odo: FloatArray, all_pts: list[FloatArray],
               log: LaserLog, issues: list[Issue], stats: dict[str, Any],
               loop_closure: bool, progress: Progress | None) -> FloatArray:
-    """The front end (scan-to-local-map ICP) with loop closures and pose-graph optimisation."""
+    """The front end (scan-to-local-map ICP) with loop closures and pose-graph optimisation.
+
+    The odometry's worth is learnt from the first scans (a warm-up pass over them) so that the
+    first metres are not registered with a guess of it.
+    """
+    n = len(scans)
+    model = _OdometryModel()
+    if n > 2 * _WARM_UP:
+        warm: dict[str, Any] = {"registered": 0, "odometry_only": 0, "residuals": [],
+                                "residual_per_scan": np.full(_WARM_UP, np.nan), "closures": []}
+        _register_pass(scans[:_WARM_UP], odo[:_WARM_UP], all_pts[:_WARM_UP], log, [], warm,
+                       False, None, model)
+        model.settle()
+    return _register_pass(scans, odo, all_pts, log, issues, stats, loop_closure, progress, model)
+
+
+#: Scans of the warm-up pass that learns the odometry's noise.
+_WARM_UP = 60
+
+
+def _register_pass(scans: list[LaserScan], odo: FloatArray, all_pts: list[FloatArray],
+                   log: LaserLog, issues: list[Issue], stats: dict[str, Any],
+                   loop_closure: bool, progress: Progress | None, model: _OdometryModel
+                   ) -> FloatArray:
     n = len(scans)
     est = odo.copy()
+    residuals = stats["residual_per_scan"]
     graph = PoseGraph()
     sub = _Submap(voxel=40.0)
     src = [p[::3] if len(p) > 240 else (p[::2] if len(p) > 120 else p) for p in all_pts]
@@ -399,6 +477,7 @@ def _register(scans: list[LaserScan], odo: FloatArray, all_pts: list[FloatArray]
     next_check = 0
     last_sub = 0
     report_every = max(1, n // 200)
+    weak_prior = sigma_info(300.0, 300.0, math.radians(10.0))
     for i in range(1, n):
         step = between(odo[i - 1], odo[i])
         c, s = math.cos(est[i - 1][2]), math.sin(est[i - 1][2])
@@ -407,21 +486,29 @@ def _register(scans: list[LaserScan], odo: FloatArray, all_pts: list[FloatArray]
                          wrap(est[i - 1][2] + step[2])])
         trans = math.hypot(step[0], step[1])
         path[i] = path[i - 1] + trans
-        # Odometry as a prior: it holds what the scan cannot tell (along a corridor).
-        s_xy = 10.0 + 0.05 * trans
-        odo_info = sigma_info(s_xy, s_xy, math.radians(0.5) + 0.05 * abs(step[2])
-                              + math.radians(0.2) * trans / 1000.0)
-        r = (icp(src[i], sub.tree, sub.pts, sub.nrm, pred, prior=pred, prior_info=odo_info)
+        # Odometry as the evidence it is: its noise grows with distance and turn, scaled to what
+        # this log's odometry turns out to be worth (see _OdometryModel).
+        odo_info = model.info(trans, float(step[2]))
+        # The scan's own view: matched with only a weak pull to the prediction (which holds the
+        # directions the scan cannot fix, a corridor's length), then fused with odometry.
+        r = (icp(src[i], sub.tree, sub.pts, sub.nrm, pred, prior=pred, prior_info=weak_prior,
+                 schedule=(250.0, 120.0, 60.0, 40.0), max_iter=14)
              if sub.tree is not None else None)
         if r is not None and r.ok and r.inliers > 0.25 and r.rms < 60.0 \
                 and math.hypot(*(r.pose[:2] - pred[:2])) < 300.0 + 0.1 * trans \
                 and abs(wrap(r.pose[2] - pred[2])) < math.radians(8.0):
-            est[i] = r.pose
+            scan_info = r.info(sigma=_MATCH_SIGMA, points=_MATCH_POINTS)
+            dv = r.pose - pred
+            dv[2] = wrap(dv[2])
+            model.observe(dv, scan_info, trans, float(step[2]))
+            fused = np.linalg.solve(scan_info + odo_info + np.eye(3) * 1e-12, scan_info @ dv)
+            est[i] = pred + fused
             est[i, 2] = wrap(est[i, 2])
             stats["registered"] += 1
             stats["residuals"].append(r.rms)
+            residuals[i] = r.rms
             graph.add(i - 1, i, between(est[i - 1], est[i]),
-                      _edge_info(r.info() + odo_info, est[i]))
+                      _edge_info(scan_info + odo_info, est[i]))
         else:
             est[i] = pred
             stats["odometry_only"] += 1
@@ -465,10 +552,87 @@ def _register(scans: list[LaserScan], odo: FloatArray, all_pts: list[FloatArray]
             last_sub = i
         if progress and (i % report_every == 0 or i == n - 1):
             progress(i + 1, n)
+    stats["odometry_scale"] = round(float(model.scale), 4)
     if loop_closure and (stats["revisits"] or stats["tag_loops"]):
         est = graph.optimize(est, iterations=20)
         stats["optimisations"] += 1
     return est
+
+
+#: What a scan match is worth, as if from this many independent points of this noise (mm).
+_MATCH_SIGMA = 10.0
+_MATCH_POINTS = 50.0
+
+
+class _OdometryModel:
+    """Odometry noise per step: distance- and turn-dependent, scaled to the log.
+
+    The model's shape (standard deviations) is ``2 mm + 2 %`` of the distance in x and y and
+    ``0.05 deg + 3 %`` of the turn ``+ 0.15 deg per metre`` in heading. How good a robot's odometry
+    really is differs by orders of magnitude (a simulated robot's is nearly perfect, a slipping one
+    is not), so the variances are scaled by a factor found from the log itself: the disagreement of
+    each step's odometry with its scan match is compared with the two noises combined (scan match
+    noise from its information), and the scale is chosen so that the median normalised
+    disagreement is what chance gives (the median of chi-square with 3 degrees of freedom). Odometry
+    that agrees with the scans better than the scans' own noise explains gets its scale lowered, so
+    the scans cannot walk away from it; drifting odometry gets it raised.
+    """
+
+    _CHI2_3_MEDIAN = 2.366
+
+    def __init__(self) -> None:
+        self.scale = 1.0
+        self._d: list[FloatArray] = []
+        self._scan_cov: list[FloatArray] = []
+        self._odo_var: list[FloatArray] = []
+        self._next = 30
+
+    @staticmethod
+    def variances(trans: float, turn: float) -> FloatArray:
+        s_xy = 2.0 + 0.02 * trans
+        s_th = math.radians(0.05) + 0.03 * abs(turn) + math.radians(0.15) * trans / 1000.0
+        return np.array([s_xy * s_xy, s_xy * s_xy, s_th * s_th])
+
+    def info(self, trans: float, turn: float) -> FloatArray:
+        return np.diag(1.0 / (self.scale * self.variances(trans, turn)))
+
+    def settle(self) -> None:
+        """Fit now (on what was seen) and keep what was seen for later fits."""
+        if self._d:
+            self._fit()
+
+    def observe(self, d: FloatArray, scan_info: FloatArray, trans: float, turn: float) -> None:
+        self._d.append(d.copy())
+        self._scan_cov.append(np.linalg.inv(scan_info + np.diag([1e-8, 1e-8, 1e-4])))
+        self._odo_var.append(self.variances(trans, turn))
+        if len(self._d) >= self._next:
+            self._next = int(len(self._d) * 1.3) + 10
+            self._fit()
+
+    def _fit(self) -> None:
+        D = np.array(self._d)
+        S = np.array(self._scan_cov)
+        V = np.array(self._odo_var)
+
+        def median_chi(k: float) -> float:
+            C = S + np.einsum("ni,ij->nij", V * k, np.eye(3))
+            x = np.linalg.solve(C, D[..., None])[..., 0]
+            return float(np.median(np.einsum("ni,ni->n", D, x)))
+
+        lo, hi = -3.0, 2.0  # log10 of the scale
+        if median_chi(10 ** lo) <= self._CHI2_3_MEDIAN:
+            self.scale = 10 ** lo
+            return
+        if median_chi(10 ** hi) >= self._CHI2_3_MEDIAN:
+            self.scale = 10 ** hi
+            return
+        for _ in range(20):
+            mid = (lo + hi) / 2
+            if median_chi(10 ** mid) > self._CHI2_3_MEDIAN:
+                lo = mid
+            else:
+                hi = mid
+        self.scale = 10 ** ((lo + hi) / 2)
 
 
 def _revisit_candidate(i: int, est: FloatArray, path: FloatArray) -> int | None:
@@ -563,6 +727,7 @@ def _close(i: int, j: int, est: FloatArray, src: list[FloatArray], pts: list[Flo
     info = r.info() + (claim if tagged else 0.0)
     graph.add(j, i, between(est[j], r.pose), _edge_info(info, r.pose), robust=True)
     stats["corrections_mm"].append(corr)
+    stats["closures"].append((j, i))
     stats["corrections_deg"].append(math.degrees(dth))
     stats["_moved"] = corr > 80.0 or dth > math.radians(0.8)
     return True

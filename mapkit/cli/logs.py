@@ -157,10 +157,18 @@ class _Bar:
               help="Laser hits a map point needs.")
 @click.option("--no-lines", is_flag=True, help="Do not fit line segments.")
 @click.option("--tolerant", is_flag=True, help="Skip bad records (and report them) instead of failing.")
+@click.option("--keep-all-tags", is_flag=True,
+              help="One goal per cairn: event (default: goals of one name merged at their mean pose).")
+@click.option("--poses", "poses_file", type=click.Path(dir_okay=False),
+              help="Also write the trajectory here (TSV: scanId x y th odo_x odo_y odo_th).")
+@click.option("--report", "report_file", type=click.Path(dir_okay=False),
+              help="Also draw a report (PNG): trajectory, loops closed, residual per scan, how far "
+                   "scans moved from odometry; its figures are printed.")
 @force_option
 @json_option
 def build(log_file: str, output: str, resolution: int, no_register: bool, no_loops: bool,
           pose_source: str, max_range: float, min_hits: int, no_lines: bool, tolerant: bool,
+          keep_all_tags: bool, poses_file: str | None, report_file: str | None,
           force: bool, as_json: bool) -> None:
     """Build a map from a .2d laser log, as Mapper3 did.
 
@@ -172,23 +180,32 @@ def build(log_file: str, output: str, resolution: int, no_register: bool, no_loo
     Examples:
       mapkit build office.2d -o office-built.map
       mapkit build office.2d -o raw.map --no-register
+      mapkit build office.2d -o office.map --poses office.tsv --report office-report.png
     """
     from mapkit.build import build_map
+    from mapkit.build.report import write_poses, write_report
     from mapkit.formats.map import save
 
-    _check_output(output, force)
+    for path in (output, poses_file, report_file):
+        if path is not None:
+            _check_output(path, force)
     bar = _Bar("registering scans", enabled=not as_json and not no_register)
     try:
         result = build_map(log_file, resolution=resolution, register=not no_register,
                            loop_closure=not no_loops, pose_source=pose_source,
                            max_range=max_range, min_hits=min_hits, lines=not no_lines,
-                           strict=not tolerant, progress=bar)
+                           strict=not tolerant, merge_goals=not keep_all_tags, progress=bar)
     finally:
         bar.close()
     md5 = save(result.map, output)
+    if poses_file is not None:
+        write_poses(result, poses_file)
+    figures = write_report(result, report_file) if report_file is not None else None
     s = result.summary
     if as_json:
-        echo_json({**s, "output": output, "md5": md5, "issues": [i.to_dict() for i in result.issues]})
+        extra = {"poses": poses_file, "report": report_file, "report_figures": figures}
+        echo_json({**s, "output": output, "md5": md5, **extra,
+                   "issues": [i.to_dict() for i in result.issues]})
         return
     for issue in result.issues:
         err(str(issue))
@@ -209,6 +226,15 @@ def build(log_file: str, output: str, resolution: int, no_register: bool, no_loo
         click.echo("  raw odometry (no registration)")
     sec = s["seconds"]
     click.echo(f"  time: read {sec['read']} s, register {sec['register']} s, map {sec['map']} s")
+    if poses_file is not None:
+        click.echo(f"wrote {poses_file}: {len(result.poses)} poses")
+    if figures is not None:
+        r, mv = figures["residual_mm"], figures["moved_from_odometry_mm"]
+        click.echo(f"wrote {report_file} (PNG): {figures['matched']} of {figures['scans']} scans "
+                   f"matched, residual median {r['median']} / p90 {r['p90']} / max {r['max']} mm "
+                   f"(worst scans {', '.join(map(str, figures['worst_scans'])) or 'none'}); "
+                   f"{figures['loops_closed']} loops closed; moved from odometry median "
+                   f"{mv['median']} / p90 {mv['p90']} / max {mv['max']} mm")
 
 
 @click.command("log-info")
