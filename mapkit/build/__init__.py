@@ -46,6 +46,7 @@ import numpy as np
 from mapkit._typing import PathLike
 from mapkit.build._graph import PoseGraph, between, sigma_info, wrap
 from mapkit.build._lines import extract_lines
+from mapkit.build._mapping import pass_counts
 from mapkit.build._match import correlative, icp, scan_normals, transform, voxel_keep
 from mapkit.diagnostics import Issue, IssueCode
 from mapkit.errors import LogFormatError
@@ -194,13 +195,18 @@ def _loop_pairs(log: LaserLog, scan_records: list[LaserScan], issues: list[Issue
 
 
 def _quantise(world: FloatArray, res: float, min_hits: int, thin: float,
-              normals: FloatArray | None = None) -> np.ndarray[Any, Any]:
+              normals: FloatArray | None = None, origins: FloatArray | None = None,
+              free_ratio: float = 0.0) -> np.ndarray[Any, Any]:
     """Lattice points hit often enough, with walls thinned to the cells hit most.
 
     A cell is kept when hit at least ``min_hits`` times and at least ``thin`` x its most-hit
     neighbour; where the hits have a clear wall direction (``normals``), only the cell hit most
     across the wall (non-maximum suppression along the normal) is kept, so a wall is one cell thick
     instead of the two or three that range noise spreads it over.
+
+    With ``origins`` (the laser's position for each hit), a cell is also dropped when other beams
+    passed through it more than ``free_ratio`` times as often as it was hit: a person walking by
+    or a spurious reading, not a wall (see :mod:`mapkit.build._mapping`).
     """
     cells = np.rint(world / res).astype(np.int64)
     off = 1 << 24
@@ -220,6 +226,10 @@ def _quantise(world: FloatArray, res: float, min_hits: int, thin: float,
             if dx or dy:
                 best = np.maximum(best, neighbour(dx, dy))
     keep = (counts >= min_hits) & (counts >= thin * best)
+    if origins is not None and free_ratio > 0 and keep.any():
+        cand = np.flatnonzero(keep)
+        passes = pass_counts(world, origins, res, np.stack([cx[cand], cy[cand]], axis=1))
+        keep[cand[passes > free_ratio * counts[cand]]] = False
     if normals is not None and len(normals) == len(world):
         ok = np.isfinite(normals[:, 0])
         phi2 = 2.0 * np.arctan2(normals[ok, 1], normals[ok, 0])  # sign-free (doubled) angle
@@ -247,6 +257,7 @@ def build_map(
     max_range: float = 16000.0,
     min_hits: int = 2,
     thin: float = 0.3,
+    free_ratio: float = 4.0,
     lines: bool = True,
     min_line_length: float = 300.0,
     strict: bool = True,
@@ -266,6 +277,8 @@ def build_map(
         thin: A cell is kept only when hit at least this fraction of its most-hit neighbour
             (thins walls to the cells the laser hit most, one cell across a wall; 0 keeps every
             cell).
+        free_ratio: A cell is left out when beams passed through it more than this many times
+            as often as they hit it (people walking by, spurious readings); 0 keeps every cell.
         lines: Fit line segments to the points (the map's ``LINES``).
         min_line_length: Shortest line kept (mm).
         strict: Read a file strictly (the first bad record raises); ``False`` skips bad records
@@ -315,10 +328,15 @@ def build_map(
     # The map.
     t2 = time.perf_counter()
     world = np.concatenate([transform(p, e) for p, e in zip(pts, est)])
+    origins = None
+    if free_ratio > 0:
+        mounts = np.array([log.header.laser(s.laser).pose[:2] for s in scans], dtype=np.float64)
+        sensor = np.stack([transform(mounts[k:k + 1], est[k])[0] for k in range(n)])
+        origins = np.repeat(sensor, [len(p) for p in pts], axis=0)
     normals = np.concatenate([
         scan_normals(p) @ np.array([[math.cos(e[2]), math.sin(e[2])], [-math.sin(e[2]), math.cos(e[2])]])
         for p, e in zip(pts, est)]) if thin > 0 else None
-    points = _quantise(world, float(resolution), min_hits, thin, normals)
+    points = _quantise(world, float(resolution), min_hits, thin, normals, origins, free_ratio)
     segs = (extract_lines(points.astype(np.float64), resolution=resolution,
                           min_length=min_line_length) if lines and len(points) else np.zeros((0, 4)))
     t_map = time.perf_counter() - t2
