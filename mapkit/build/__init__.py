@@ -460,7 +460,7 @@ def _register(scans: list[LaserScan], odo: FloatArray, all_pts: list[FloatArray]
     warm_up = min(_WARM_UP, n // 2)
     if warm_up >= 20:
         for _ in range(2):  # twice: the second pass runs with the scale the first found
-            model = _OdometryModel(model.scale)
+            model = _OdometryModel(model.scale, model.calibration.fresh())
             warm: dict[str, Any] = {"registered": 0, "odometry_only": 0, "residuals": [],
                                     "residual_per_scan": np.full(warm_up, np.nan), "closures": []}
             _register_pass(scans[:warm_up], odo[:warm_up], all_pts[:warm_up], log, [], warm,
@@ -500,7 +500,8 @@ def _register_pass(scans: list[LaserScan], odo: FloatArray, all_pts: list[FloatA
     report_every = max(1, n // 200)
     weak_prior = sigma_info(300.0, 300.0, math.radians(10.0))
     for i in range(1, n):
-        step = between(odo[i - 1], odo[i])
+        raw_step = between(odo[i - 1], odo[i])
+        step = model.calibration.correct(raw_step)
         c, s = math.cos(est[i - 1][2]), math.sin(est[i - 1][2])
         pred = np.array([est[i - 1][0] + c * step[0] - s * step[1],
                          est[i - 1][1] + s * step[0] + c * step[1],
@@ -522,6 +523,7 @@ def _register_pass(scans: list[LaserScan], odo: FloatArray, all_pts: list[FloatA
             dv = r.pose - pred
             dv[2] = wrap(dv[2])
             model.observe(dv, scan_info, trans, float(step[2]))
+            model.calibration.observe(raw_step, step, dv, scan_info, float(est[i - 1][2]))
             fused = np.linalg.solve(scan_info + odo_info + np.eye(3) * 1e-12, scan_info @ dv)
             est[i] = pred + fused
             est[i, 2] = wrap(est[i, 2])
@@ -603,8 +605,9 @@ class _OdometryModel:
     #: of the distribution: turns, where odometry errs most, are a minority of the steps).
     _CHI2_3_MEDIAN = 4.642
 
-    def __init__(self, scale: float = 1.0) -> None:
+    def __init__(self, scale: float = 1.0, calibration: _Calibration | None = None) -> None:
         self.scale = scale
+        self.calibration = calibration or _Calibration()
         self._d: list[FloatArray] = []
         self._scan_cov: list[FloatArray] = []
         self._odo_var: list[FloatArray] = []
@@ -656,6 +659,73 @@ class _OdometryModel:
             else:
                 hi = mid
         self.scale = 10 ** ((lo + hi) / 2)
+
+
+class _Calibration:
+    """Systematic odometry errors learnt from the scan matches: distance scale, turn scale, drift.
+
+    A wrong wheel diameter makes every distance too long or short, a wrong wheel base every turn,
+    unequal wheels a steady heading drift per metre. Where a scan match pins the motion down (the
+    walls in view fix the direction of travel, or the heading), the matched motion is compared
+    with the raw odometry; the median ratio (or drift per metre) is applied to the odometry of later
+    steps when it differs from none by more than three times its standard error, so that good
+    odometry is left alone.
+    """
+
+    _MIN = 20
+
+    def __init__(self) -> None:
+        self.dist = 1.0
+        self.turn = 1.0
+        self.drift = 0.0  # radians per mm
+        self._dist: list[float] = []
+        self._turn: list[float] = []
+        self._drift: list[float] = []
+        self._seen = 0
+
+    def fresh(self) -> _Calibration:
+        """A calibration that starts from this one's factors but forgets its observations."""
+        c = _Calibration()
+        c.dist, c.turn, c.drift = self.dist, self.turn, self.drift
+        return c
+
+    def correct(self, raw: FloatArray) -> FloatArray:
+        out = raw.copy()
+        out[:2] *= self.dist
+        trans = math.hypot(raw[0], raw[1])
+        out[2] = wrap(raw[2] * self.turn + self.drift * trans)
+        return out
+
+    def observe(self, raw: FloatArray, step: FloatArray, dv: FloatArray, scan_info: FloatArray,
+                heading: float) -> None:
+        trans_raw = math.hypot(raw[0], raw[1])
+        trans = math.hypot(step[0], step[1])
+        var = np.diag(np.linalg.inv(scan_info + np.diag([1e-8, 1e-8, 1e-4])))
+        if trans > 150.0:
+            u = np.array([step[0], step[1]]) / trans
+            c, s = math.cos(heading), math.sin(heading)
+            u = np.array([c * u[0] - s * u[1], s * u[0] + c * u[1]])
+            sig_u = 1.0 / math.sqrt(max(float(u @ scan_info[:2, :2] @ u), 1e-12))
+            if sig_u < 0.02 * trans:
+                self._dist.append((trans + float(dv[:2] @ u)) / trans_raw)
+            if abs(raw[2]) < math.radians(2.0) and math.sqrt(var[2]) < math.radians(0.2):
+                self._drift.append((float(step[2] + dv[2]) - raw[2] * self.turn) / trans_raw)
+        elif trans < 50.0 and abs(raw[2]) > math.radians(5.0) \
+                and math.sqrt(var[2]) < 0.05 * abs(raw[2]):
+            self._turn.append(float(step[2] + dv[2]) / raw[2])
+        self._seen += 1
+        if self._seen % 25 == 0:
+            self.dist = self._fit(self._dist, 1.0)
+            self.turn = self._fit(self._turn, 1.0)
+            self.drift = self._fit(self._drift, 0.0)
+
+    def _fit(self, obs: list[float], none: float) -> float:
+        if len(obs) < self._MIN:
+            return none
+        a = np.array(obs)
+        med = float(np.median(a))
+        err = 1.4826 * float(np.median(np.abs(a - med))) * 1.25 / math.sqrt(len(a))
+        return med if abs(med - none) > 3.0 * err else none
 
 
 def _revisit_candidate(i: int, est: FloatArray, path: FloatArray) -> int | None:
