@@ -522,6 +522,10 @@ def _register_pass(scans: list[LaserScan], odo: FloatArray, all_pts: list[FloatA
             scan_info = r.info(sigma=_MATCH_SIGMA, points=_MATCH_POINTS)
             dv = r.pose - pred
             dv[2] = wrap(dv[2])
+            weak = r.weak_direction()
+            if weak is not None:
+                # Along a corridor the scan slid where nothing held it: that is no evidence.
+                dv[:2] -= weak * float(dv[:2] @ weak)
             model.observe(dv, scan_info, trans, float(step[2]))
             model.calibration.observe(raw_step, step, dv, scan_info, float(est[i - 1][2]))
             fused = np.linalg.solve(scan_info + odo_info + np.eye(3) * 1e-12, scan_info @ dv)
