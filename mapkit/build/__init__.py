@@ -676,7 +676,7 @@ class _Calibration:
     odometry is left alone.
     """
 
-    _MIN = 20
+    _MIN = 50
 
     def __init__(self) -> None:
         self.dist = 1.0
@@ -710,7 +710,7 @@ class _Calibration:
             c, s = math.cos(heading), math.sin(heading)
             u = np.array([c * u[0] - s * u[1], s * u[0] + c * u[1]])
             sig_u = 1.0 / math.sqrt(max(float(u @ scan_info[:2, :2] @ u), 1e-12))
-            if sig_u < 0.02 * trans:
+            if sig_u < 0.01 * trans:
                 self._dist.append((trans + float(dv[:2] @ u)) / trans_raw)
             if abs(raw[2]) < math.radians(2.0) and math.sqrt(var[2]) < math.radians(0.2):
                 self._drift.append((float(step[2] + dv[2]) - raw[2] * self.turn) / trans_raw)
