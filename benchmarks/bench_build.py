@@ -51,6 +51,8 @@ CASES: dict[str, tuple[str, dict[str, Any]]] = {
                                 "people": 5, "readings": 181}),
     "building-real": ("building", {"loop": True, "seed": 1, "drift": 0.05, "scale_error": 0.005,
                                    "turn_slip": 0.02, "outliers": 0.02, "people": 4}),
+    "building-clean": ("building", {"loop": True, "seed": 1, "drift": 0.05, "scale_error": 0.005,
+                                    "turn_slip": 0.02}),
 }
 LONG = ("office", {"loop": True, "laps": 11, "seed": 5, "dist_step": 100.0, "deg_step": 10.0,
                    "drift": 0.05, "scale_error": 0.005, "turn_slip": 0.02, "outliers": 0.01})

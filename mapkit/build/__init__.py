@@ -364,6 +364,7 @@ def build_map(
             "odometry_only": stats["odometry_only"],
             "median_residual_mm": round(float(np.median(res)), 2) if res else None,
             "odometry_noise_scale": stats.get("odometry_scale"),
+            "odometry_calibration": stats.get("calibration"),
         },
         "loops": {
             "tags": stats["tag_loops"],
@@ -466,7 +467,20 @@ def _register(scans: list[LaserScan], odo: FloatArray, all_pts: list[FloatArray]
             _register_pass(scans[:warm_up], odo[:warm_up], all_pts[:warm_up], log, [], warm,
                            False, None, model)
             model.settle()
-    return _register_pass(scans, odo, all_pts, log, issues, stats, loop_closure, progress, model)
+    start = model.calibration.fresh()
+    first = dict(stats, residuals=[], closures=[], corrections_mm=[], corrections_deg=[],
+                 residual_per_scan=stats["residual_per_scan"].copy())
+    est = _register_pass(scans, odo, all_pts, log, issues, first, loop_closure, progress, model)
+    if not model.calibration.differs(start):
+        stats.update(first)
+        return est
+    # The odometry's systematic errors were learnt on the way: the first metres were registered
+    # without them. Once more from the start, with the odometry as calibrated.
+    model = _OdometryModel(model.scale, model.calibration.fresh())
+    model.frozen = True
+    est = _register_pass(scans, odo, all_pts, log, [], stats, loop_closure, None, model)
+    stats["passes"] = 2
+    return est
 
 
 #: Scans of the warm-up pass that learns the odometry's noise.
@@ -481,6 +495,8 @@ def _register_pass(scans: list[LaserScan], odo: FloatArray, all_pts: list[FloatA
     est = odo.copy()
     residuals = stats["residual_per_scan"]
     graph = PoseGraph()
+    odo_edges: list[int] = []
+    raw_steps: list[FloatArray] = []
     sub = _Submap(voxel=40.0)
     src = [p[::3] if len(p) > 240 else (p[::2] if len(p) > 120 else p) for p in all_pts]
     # The map side: every other point (the local map is thinned to 40 mm anyway), with normals
@@ -527,19 +543,24 @@ def _register_pass(scans: list[LaserScan], odo: FloatArray, all_pts: list[FloatA
                 # Along a corridor the scan slid where nothing held it: that is no evidence.
                 dv[:2] -= weak * float(dv[:2] @ weak)
             model.observe(dv, scan_info, trans, float(step[2]))
-            model.calibration.observe(raw_step, step, dv, scan_info, float(est[i - 1][2]))
+            if not model.frozen:
+                model.calibration.observe(raw_step, step, dv, scan_info, float(est[i - 1][2]))
             fused = np.linalg.solve(scan_info + odo_info + np.eye(3) * 1e-12, scan_info @ dv)
             est[i] = pred + fused
             est[i, 2] = wrap(est[i, 2])
             stats["registered"] += 1
             stats["residuals"].append(r.rms)
             residuals[i] = r.rms
-            graph.add(i - 1, i, between(est[i - 1], est[i]),
-                      _edge_info(scan_info + odo_info, est[i]))
+            # Two edges: the scan's (what it sees) and odometry's, so that odometry can be
+            # recalibrated at the end without redoing the scans.
+            seen = pred + dv
+            graph.add(i - 1, i, between(est[i - 1], seen), _edge_info(scan_info, seen))
         else:
             est[i] = pred
             stats["odometry_only"] += 1
-            graph.add(i - 1, i, step, odo_info)
+        odo_edges.append(len(graph))
+        raw_steps.append(raw_step)
+        graph.add(i - 1, i, step, odo_info)
         # Loop closures.
         moved = False
         for s0, _tag in tag_at.get(i, []):
@@ -580,6 +601,7 @@ def _register_pass(scans: list[LaserScan], odo: FloatArray, all_pts: list[FloatA
         if progress and (i % report_every == 0 or i == n - 1):
             progress(i + 1, n)
     stats["odometry_scale"] = round(float(model.scale), 4)
+    stats["calibration"] = model.calibration.summary()
     if loop_closure and (stats["revisits"] or stats["tag_loops"]):
         est = graph.optimize(est, iterations=20)
         stats["optimisations"] += 1
@@ -612,6 +634,7 @@ class _OdometryModel:
     def __init__(self, scale: float = 1.0, calibration: _Calibration | None = None) -> None:
         self.scale = scale
         self.calibration = calibration or _Calibration()
+        self.frozen = False  # True: the calibration is final
         self._d: list[FloatArray] = []
         self._scan_cov: list[FloatArray] = []
         self._odo_var: list[FloatArray] = []
@@ -692,6 +715,16 @@ class _Calibration:
         c = _Calibration()
         c.dist, c.turn, c.drift = self.dist, self.turn, self.drift
         return c
+
+    def differs(self, other: _Calibration) -> bool:
+        """Whether the factors differ from ``other``'s by enough to matter."""
+        return (abs(self.dist - other.dist) > 0.003 or abs(self.turn - other.turn) > 0.01
+                or abs(self.drift - other.drift) > math.radians(0.02) / 1000.0)
+
+    def summary(self) -> dict[str, float]:
+        """The factors, for the build's summary."""
+        return {"distance_scale": round(self.dist, 5), "turn_scale": round(self.turn, 5),
+                "drift_deg_per_m": round(math.degrees(self.drift) * 1000.0, 4)}
 
     def correct(self, raw: FloatArray) -> FloatArray:
         out = raw.copy()
