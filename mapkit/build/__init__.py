@@ -530,7 +530,7 @@ def _register_pass(scans: list[LaserScan], odo: FloatArray, all_pts: list[FloatA
         # The scan's own view: matched with only a weak pull to the prediction (which holds the
         # directions the scan cannot fix, a corridor's length), then fused with odometry.
         r = (icp(src[i], sub.tree, sub.pts, sub.nrm, pred, prior=pred, prior_info=weak_prior,
-                 schedule=(250.0, 120.0, 60.0, 40.0), max_iter=14)
+                 schedule=(250.0, 120.0, 60.0, 40.0), max_iter=14, cauchy=_CAUCHY)
              if sub.tree is not None else None)
         if r is not None and r.ok and r.inliers > 0.25 and r.rms < 60.0 \
                 and math.hypot(*(r.pose[:2] - pred[:2])) < 300.0 + 0.1 * trans \
@@ -607,6 +607,9 @@ def _register_pass(scans: list[LaserScan], odo: FloatArray, all_pts: list[FloatA
         stats["optimisations"] += 1
     return est
 
+
+#: Scale of the robust (Cauchy) weights of scan points in registration (mm).
+_CAUCHY = 25.0
 
 #: What a scan match is worth, as if from this many independent points of this noise (mm).
 _MATCH_SIGMA = 10.0
