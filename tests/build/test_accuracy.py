@@ -68,7 +68,7 @@ def test_true_poses_as_odometry_stay_true() -> None:
     res = build_map(with_true_odometry(sim), lines=False)
     rms, rms_deg = trajectory_rms(res.poses, sim.truth)
     assert rms < 5.0 and rms_deg < 0.1, (rms, rms_deg)
-    assert res.summary["registration"]["odometry_noise_scale"] < 0.1
+    assert res.summary["registration"]["odometry_noise_scale"] < 0.5
 
 
 def test_outliers_and_people_stay_out_of_the_map() -> None:
