@@ -471,17 +471,21 @@ def _register(scans: list[LaserScan], odo: FloatArray, all_pts: list[FloatArray]
     first = dict(stats, residuals=[], closures=[], corrections_mm=[], corrections_deg=[],
                  residual_per_scan=stats["residual_per_scan"].copy())
     est = _register_pass(scans, odo, all_pts, log, issues, first, loop_closure, progress, model)
-    if not model.calibration.differs(start):
+    if not model.calibration.differs(start) or n > _SECOND_PASS_MAX:
         stats.update(first)
         return est
     # The odometry's systematic errors were learnt on the way: the first metres were registered
-    # without them. Once more from the start, with the odometry as calibrated.
+    # without them. Once more from the start, with the odometry as calibrated. (A long log comes
+    # back over its first metres many times: its loop closures correct them instead.)
     model = _OdometryModel(model.scale, model.calibration.fresh())
     model.frozen = True
     est = _register_pass(scans, odo, all_pts, log, [], stats, loop_closure, None, model)
     stats["passes"] = 2
     return est
 
+
+#: Longest log (scans) registered a second time when the calibration was learnt on the way.
+_SECOND_PASS_MAX = 5000
 
 #: Scans of the warm-up pass that learns the odometry's noise.
 _WARM_UP = 150
@@ -530,7 +534,7 @@ def _register_pass(scans: list[LaserScan], odo: FloatArray, all_pts: list[FloatA
         # The scan's own view: matched with only a weak pull to the prediction (which holds the
         # directions the scan cannot fix, a corridor's length), then fused with odometry.
         r = (icp(src[i], sub.tree, sub.pts, sub.nrm, pred, prior=pred, prior_info=weak_prior,
-                 schedule=(250.0, 120.0, 60.0, 40.0), max_iter=14, cauchy=_CAUCHY)
+                 schedule=(250.0, 100.0, 40.0), max_iter=12, cauchy=_CAUCHY)
              if sub.tree is not None else None)
         if r is not None and r.ok and r.inliers > 0.25 and r.rms < 60.0 \
                 and math.hypot(*(r.pose[:2] - pred[:2])) < 300.0 + 0.1 * trans \
@@ -675,7 +679,7 @@ class _OdometryModel:
             x = np.linalg.solve(C, D[..., None])[..., 0]
             return float(np.percentile(np.einsum("ni,ni->n", D, x), 80))
 
-        lo, hi = -3.0, 2.0  # log10 of the scale
+        lo, hi = -5.0, 2.0  # log10 of the scale
         if median_chi(10 ** lo) <= self._CHI2_3_MEDIAN:
             self.scale = 10 ** lo
             return
