@@ -78,7 +78,10 @@ def report_figures(result: BuildResult) -> dict[str, Any]:
     res = result.residuals
     good = res[np.isfinite(res)] if len(res) else res
     moved = result.moved
-    pct = (lambda a, q: round(float(np.percentile(a, q)), 1) if len(a) else None)
+
+    def pct(a: FloatArray, q: float) -> float | None:
+        return round(float(np.percentile(a, q)), 1) if len(a) else None
+
     return {
         "scans": int(len(result.poses)),
         "matched": int(len(good)),
