@@ -76,7 +76,7 @@ class _OdometryModel:
             x = np.linalg.solve(C, D[..., None])[..., 0]
             return float(np.percentile(np.einsum("ni,ni->n", D, x), 80))
 
-        lo, hi = -5.0, 2.0  # log10 of the scale
+        lo, hi = -4.0, 2.0  # log10 of the scale
         if median_chi(10 ** lo) <= self._CHI2_3_MEDIAN:
             self.scale = 10 ** lo
             return
