@@ -16,7 +16,7 @@ import numpy as np
 FloatArray = np.ndarray[Any, np.dtype[np.float64]]
 
 #: At most this many beam samples are counted (beams are subsampled evenly beyond it).
-MAX_SAMPLES = 6_000_000
+MAX_SAMPLES = 4_000_000
 #: Samples stop this many cells short of the hit (a wall seen at a glancing angle is not free).
 STOP_CELLS = 2.5
 

@@ -15,6 +15,9 @@ from mapkit.build._graph import wrap
 
 FloatArray = np.ndarray[Any, np.dtype[np.float64]]
 
+#: The noise scale is fitted on at most this many of the latest steps.
+_FIT_STEPS = 3000
+
 
 class _OdometryModel:
     """Odometry noise per step: distance- and turn-dependent, scaled to the log.
@@ -67,9 +70,10 @@ class _OdometryModel:
             self._fit()
 
     def _fit(self) -> None:
-        D = np.array(self._d)
-        S = np.array(self._scan_cov)
-        V = np.array(self._odo_var)
+        # The latest steps (a few thousand are plenty, and keep long logs fast).
+        D = np.array(self._d[-_FIT_STEPS:])
+        S = np.array(self._scan_cov[-_FIT_STEPS:])
+        V = np.array(self._odo_var[-_FIT_STEPS:])
 
         def median_chi(k: float) -> float:
             C = S + np.einsum("ni,ij->nij", V * k, np.eye(3))
@@ -155,7 +159,7 @@ class _Calibration:
                 and math.sqrt(var[2]) < 0.05 * abs(raw[2]):
             self._turn.append(float(step[2] + dv[2]) / raw[2])
         self._seen += 1
-        if self._seen % 25 == 0:
+        if self._seen % (25 if self._seen < 1000 else 250) == 0:
             self.dist = self._fit(self._dist, 1.0)
             self.turn = self._fit(self._turn, 1.0)
             self.drift = self._fit(self._drift, 0.0)
