@@ -519,7 +519,7 @@ def _register_pass(scans: list[LaserScan], odo: FloatArray, all_pts: list[FloatA
     next_check = 0
     last_sub = 0
     report_every = max(1, n // 200)
-    cov: FloatArray = np.zeros((3, 3))
+    cov = np.zeros((3, 3))
     weak_prior = sigma_info(300.0, 300.0, math.radians(10.0))
     for i in range(1, n):
         raw_step = between(odo[i - 1], odo[i])
