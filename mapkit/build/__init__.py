@@ -519,7 +519,6 @@ def _register_pass(scans: list[LaserScan], odo: FloatArray, all_pts: list[FloatA
     next_check = 0
     last_sub = 0
     report_every = max(1, n // 200)
-    cov = np.zeros((3, 3))
     weak_prior = sigma_info(300.0, 300.0, math.radians(10.0))
     for i in range(1, n):
         raw_step = between(odo[i - 1], odo[i])
@@ -533,11 +532,6 @@ def _register_pass(scans: list[LaserScan], odo: FloatArray, all_pts: list[FloatA
         # Odometry as the evidence it is: its noise grows with distance and turn, scaled to what
         # this log's odometry turns out to be worth (see _OdometryModel).
         odo_info = model.info(trans, float(step[2]))
-        # How uncertain the prediction is against the local map: what odometry added since the
-        # scans last pinned the pose down (heading uncertainty turns into lateral uncertainty).
-        F = np.array([[1.0, 0.0, -(pred[1] - est[i - 1][1])],
-                      [0.0, 1.0, pred[0] - est[i - 1][0]], [0.0, 0.0, 1.0]])
-        cov = F @ cov @ F.T + np.diag(1.0 / np.diag(odo_info))
         # The scan's own view: matched with only a weak pull to the prediction (which holds the
         # directions the scan cannot fix, a corridor's length), then fused with odometry.
         r = (icp(src[i], sub.tree, sub.pts, sub.nrm, pred, prior=pred, prior_info=weak_prior,
@@ -556,9 +550,7 @@ def _register_pass(scans: list[LaserScan], odo: FloatArray, all_pts: list[FloatA
             model.observe(dv, scan_info, trans, float(step[2]))
             if not model.frozen:
                 model.calibration.observe(raw_step, step, dv, scan_info, float(est[i - 1][2]))
-            prior_info = np.linalg.inv(cov + np.eye(3) * 1e-12)
-            fused = np.linalg.solve(scan_info + prior_info, scan_info @ dv)
-            cov = np.linalg.inv(scan_info + prior_info)
+            fused = np.linalg.solve(scan_info + odo_info + np.eye(3) * 1e-12, scan_info @ dv)
             est[i] = pred + fused
             est[i, 2] = wrap(est[i, 2])
             stats["registered"] += 1
