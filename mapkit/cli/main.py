@@ -82,6 +82,8 @@ cli.add_command(_logs.build)
 cli.add_command(_logs.log_info)
 from mapkit.cli.aria import aria as _aria  # noqa: E402
 cli.add_command(_aria)
+from mapkit.cli.ros2 import ros2 as _ros2  # noqa: E402
+cli.add_command(_ros2)
 
 
 def main() -> None:
