@@ -1,3 +1,4 @@
+# mypy: disable-error-code="type-arg,valid-type"
 """ROS 2 message types declared for the DDS binding, named as rosidl names them on the wire.
 
 The DDS type of ``pkg/msg/Name`` is ``pkg::msg::dds_::Name_``. These declarations give Cyclone
@@ -6,7 +7,8 @@ bytes themselves come from :mod:`mapkit.ros2.messages` (rosbags), which this mod
 must and do match field for field. Imported only when the DDS binding is used.
 """
 
-# No ``from __future__ import annotations``: cyclonedds reads these annotations as objects.
+# No ``from __future__ import annotations``: cyclonedds reads these annotations as objects
+# (its IDL annotations such as sequence[int8] are not types to mypy, hence the line above).
 
 from typing import Any
 

@@ -13,7 +13,7 @@ data; Humble announces none.
 from __future__ import annotations
 
 import math
-from functools import lru_cache
+from functools import cache
 from typing import Any
 
 import numpy as np
@@ -54,7 +54,7 @@ float32 multiplier
 """
 
 
-@lru_cache(maxsize=None)
+@cache
 def typestore(distro: str = "jazzy") -> Any:
     """The rosbags type store of a ROS 2 distribution, with Nav2's CostmapFilterInfo added.
 
@@ -84,7 +84,7 @@ def type_hash(typename: str, distro: str = "jazzy") -> str:
 def _time(store: Any, seconds: float) -> Any:
     sec = math.floor(seconds)
     return store.types["builtin_interfaces/msg/Time"](
-        sec=int(sec), nanosec=min(int(round((seconds - sec) * 1e9)), 999_999_999))
+        sec=int(sec), nanosec=min(round((seconds - sec) * 1e9), 999_999_999))
 
 
 def _header(store: Any, frame_id: str, stamp: float) -> Any:
@@ -179,6 +179,7 @@ def participant_entities_info_cdr(participant_gid: bytes, node_name: str, node_n
 
     node = t["rmw_dds_common/msg/NodeEntitiesInfo"](
         node_namespace=node_namespace, node_name=node_name,
-        reader_gid_seq=[gid(g) for g in reader_gids or []], writer_gid_seq=[gid(g) for g in writer_gids])
+        reader_gid_seq=[gid(g) for g in reader_gids or []],
+        writer_gid_seq=[gid(g) for g in writer_gids])
     msg = t[PARTICIPANT_ENTITIES_INFO](gid=gid(participant_gid), node_entities_info_seq=[node])
     return _serialize(store, msg, PARTICIPANT_ENTITIES_INFO)

@@ -1,4 +1,5 @@
-"""Publish several maps from one ROS 2 node (one DDS participant): ``python -m tests.ros2.publish_maps
+"""Publish several maps from one ROS 2 node (one DDS participant):
+``python -m tests.ros2.publish_maps
 DOMAIN MAP...``. Map i goes to topics map_i, keepout_i, filter_info_i, goals_i, homes_i, docks_i.
 Prints ``PUBLISHED`` when every map is written, then serves until stdin closes."""
 

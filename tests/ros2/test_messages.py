@@ -56,7 +56,7 @@ def test_grid_round_trips(grid: OccupancyGrid, stamp: float, distro: str, frame:
 def test_pose_array_round_trips(poses: list[Pose]) -> None:
     msg = typestore().deserialize_cdr(pose_array_cdr(tuple(poses), "map", 5.0), POSE_ARRAY)
     assert len(msg.poses) == len(poses)
-    for got, p in zip(msg.poses, poses):
+    for got, p in zip(msg.poses, poses, strict=False):
         assert (got.position.x, got.position.y, got.position.z) == (p.x, p.y, 0.0)
         assert math.isclose(2 * math.atan2(got.orientation.z, got.orientation.w), p.yaw,
                             abs_tol=1e-9)

@@ -148,5 +148,5 @@ def test_a_map_changed_on_disk_reaches_running_readers(peers: dict[str, Path], n
                     check_grid_first.height, check_grid_first.width), check_grid_first.data)
     finally:
         server.terminate()
-        out, errs = server.communicate(timeout=20)
+        _out, errs = server.communicate(timeout=20)
     assert "does not load" in errs or "still serving the previous map" in errs
