@@ -29,15 +29,20 @@ REAL = sorted((SHARED / "sample-data" / "real").glob("*.map"))
 PEERS = ("fastdds", "cyclone")
 
 
-def start(ns: NetNs, cmd: list[str], **kw: object) -> subprocess.Popen[str]:
-    env = dict(os.environ, PYTHONPATH=str(ROOT), CI=os.environ.get("CI", ""))
+def start(ns: NetNs, cmd: list[str],
+          env_extra: dict[str, str] | None = None) -> subprocess.Popen[str]:
+    """Start ``cmd`` inside the namespace (pipes for stdin, stdout, stderr)."""
+    env = dict(os.environ, PYTHONPATH=str(ROOT), **(env_extra or {}))
     return subprocess.Popen(ns.wrap(cmd), stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            stdin=subprocess.PIPE, text=True, env=env, cwd=ROOT, **kw)  # type: ignore[call-overload]
+                            stdin=subprocess.PIPE, text=True, env=env, cwd=ROOT)
 
 
-def wait_line(proc: subprocess.Popen[str], prefix: str) -> str:
+def wait_line(proc: subprocess.Popen[str], prefix: str, seen: list[str] | None = None) -> str:
+    """The first line of ``proc`` starting with ``prefix``; lines read are added to ``seen``."""
     assert proc.stdout is not None
     for line in proc.stdout:
+        if seen is not None:
+            seen.append(line.rstrip("\n"))
         if line.startswith(prefix):
             return line
     raise AssertionError(f"process ended before {prefix!r}: {proc.stderr.read()}")  # type: ignore[union-attr]
