@@ -149,7 +149,8 @@ class Ros2MapServer:
 
 
 def run_map_server(path: str, *, domain: int = 0, topics: Topics = Topics(),
-                   frame_id: str = "map", distro: str = "jazzy", node_name: str = "map_server",
+                   frame_id: str = "map", distro: str = "jazzy",
+                   node_name: str = "mapkit_map_server",
                    stop: threading.Event | None = None, poll: float = 0.5,
                    on_publish: Callable[[Ros2MapServer], None] | None = None,
                    on_error: Callable[[MapLoadError], None] | None = None,

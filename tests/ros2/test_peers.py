@@ -155,3 +155,39 @@ def test_a_map_changed_on_disk_reaches_running_readers(peers: dict[str, Path], n
         server.terminate()
         _out, errs = server.communicate(timeout=20)
     assert "does not load" in errs or "still serving the previous map" in errs
+
+
+def test_discovery_data_is_what_ros2_writes(peers: dict[str, Path], netns: NetNs,
+                                            tmp_path: Path) -> None:
+    """From DDS's built-in topics and ros_discovery_info, as a ROS 2 graph cache sees them:
+    enclave user data, Jazzy type hashes on every writer, the node listing its writers."""
+    from mapkit.ros2.messages import COSTMAP_FILTER_INFO, OCCUPANCY_GRID, POSE_ARRAY, type_hash
+
+    server = start(netns, [sys.executable, "-m", "mapkit", "ros2", "map-server", str(REAL[0]),
+                           "--domain", "5", "--json"])
+    try:
+        wait_line(server, "{")
+        reader = start(netns, [str(peers["cyclone"]), "5", str(tmp_path), "30",
+                               "entities:ros_discovery_info:1", "graph:rt/:6"])
+        lines = finish(reader)
+    finally:
+        server.terminate()
+        server.communicate(timeout=20)
+    writers = {f[5]: f for f in (ln.split() for ln in lines if ln.startswith("writer "))}
+    types = {"rt/map": OCCUPANCY_GRID, "rt/keepout_filter_mask": OCCUPANCY_GRID,
+             "rt/costmap_filter_info": COSTMAP_FILTER_INFO, "rt/map_goals": POSE_ARRAY,
+             "rt/map_homes": POSE_ARRAY, "rt/map_docks": POSE_ARRAY}
+    assert set(writers) == set(types)
+    for topic, typename in types.items():
+        f = writers[topic]
+        pkg, kind, name = typename.split("/")
+        assert f[6] == f"{pkg}::{kind}::dds_::{name}_"
+        assert f[7] == f"typehash={type_hash(typename)};"
+    participant = {f[4] for f in writers.values()}
+    assert len(participant) == 1
+    (guid,) = participant
+    assert f"participant {guid} enclave=/;" in lines
+    (entities,) = [ln.split() for ln in lines if ln.startswith("entities ")]
+    assert entities[3] == guid
+    assert entities[4:8] == ["node", "/", "mapkit_map_server", "6"]
+    assert set(entities[8:]) == {f[3] for f in writers.values()}

@@ -2,7 +2,10 @@
  * no XTypes type information, as rmw_cyclonedds' own serdata).
  *
  * usage: cyclone_reader DOMAIN OUTDIR TIMEOUT_S KIND:DDS_TOPIC:COUNT...
- *   KIND grid | poses | info; the reader is reliable, transient-local, keep-last 1 (nav2's /map).
+ *   KIND grid | poses | info | entities (ros_discovery_info); the reader is reliable,
+ *   transient-local, keep-last 1 (nav2's /map). KIND graph: DDS_TOPIC is a topic-name prefix and
+ *   COUNT the number of remote writers on such topics to see; prints each writer (GUID, topic,
+ *   type, USER_DATA) and each participant (GUID, USER_DATA) from DDS's built-in topics.
  * For each sample it prints one line (see print_* below) and, for grids, writes the cells to
  * OUTDIR/<spec index>.<sample number>.bin. Exit 0 when every topic got COUNT samples, 2 on timeout.
  */
@@ -18,6 +21,18 @@ static double now_s(void) {
   return (double)ts.tv_sec + (double)ts.tv_nsec * 1e-9;
 }
 
+static void print_hex(const unsigned char *p, size_t n) {
+  putchar(' ');
+  for (size_t i = 0; i < n; i++) printf("%02x", p[i]);
+}
+
+static void print_user_data(const dds_qos_t *qos) {
+  void *ud = NULL; size_t sz = 0;
+  if (qos && dds_qget_userdata(qos, &ud, &sz) && sz > 0) printf(" %.*s", (int)sz, (char *)ud);
+  else printf(" -");
+  dds_free(ud);
+}
+
 static void print_pose(const geometry_msgs_msg_dds__Pose_ *p) {
   printf(" %.17g %.17g %.17g %.17g %.17g %.17g %.17g", p->position.x, p->position.y, p->position.z,
          p->orientation.x, p->orientation.y, p->orientation.z, p->orientation.w);
@@ -30,6 +45,8 @@ int main(int argc, char **argv) {
   int n = argc - 4;
   dds_entity_t *readers = calloc(n, sizeof *readers);
   int *kinds = calloc(n, sizeof *kinds), *want = calloc(n, sizeof *want), *got = calloc(n, sizeof *got);
+  char **prefixes = calloc(n, sizeof *prefixes);
+  dds_entity_t participants = 0;
   dds_entity_t dp = dds_create_participant(domain, NULL, NULL);
   if (dp < 0) { fprintf(stderr, "participant: %s\n", dds_strretcode(-dp)); return 1; }
   dds_qos_t *qos = dds_create_qos();
@@ -44,8 +61,16 @@ int main(int argc, char **argv) {
     if (!strcmp(kind, "grid")) { kinds[i] = 0; desc = &nav_msgs_msg_dds__OccupancyGrid__desc; }
     else if (!strcmp(kind, "poses")) { kinds[i] = 1; desc = &geometry_msgs_msg_dds__PoseArray__desc; }
     else if (!strcmp(kind, "info")) { kinds[i] = 2; desc = &nav2_msgs_msg_dds__CostmapFilterInfo__desc; }
+    else if (!strcmp(kind, "entities")) { kinds[i] = 3; desc = &rmw_dds_common_msg_dds__ParticipantEntitiesInfo__desc; }
+    else if (!strcmp(kind, "graph")) { kinds[i] = 4; desc = NULL; }
     else { fprintf(stderr, "bad kind %s\n", kind); return 1; }
     want[i] = atoi(count);
+    if (kinds[i] == 4) {  /* remote writers; participants are read below as they come */
+      prefixes[i] = strdup(topic);
+      readers[i] = dds_create_reader(dp, DDS_BUILTIN_TOPIC_DCPSPUBLICATION, NULL, NULL);
+      participants = dds_create_reader(dp, DDS_BUILTIN_TOPIC_DCPSPARTICIPANT, NULL, NULL);
+      continue;
+    }
     dds_entity_t tp = dds_create_topic(dp, desc, topic, NULL, NULL);
     if (tp < 0) { fprintf(stderr, "topic %s: %s\n", topic, dds_strretcode(-tp)); return 1; }
     readers[i] = dds_create_reader(dp, tp, qos, NULL);
@@ -57,7 +82,30 @@ int main(int argc, char **argv) {
     for (int i = 0; i < n; i++) {
       void *samples[1] = { NULL }; dds_sample_info_t info[1];
       int r = dds_take(readers[i], samples, info, 1, 1);
-      if (r > 0 && info[0].valid_data) {
+      if (r > 0 && info[0].valid_data && kinds[i] == 4) {
+        const dds_builtintopic_endpoint_t *e = samples[0];
+        if (!strncmp(e->topic_name, prefixes[i], strlen(prefixes[i]))) {
+          got[i]++;
+          printf("writer %d %d", i, got[i]);
+          print_hex(e->key.v, 16);
+          print_hex(e->participant_key.v, 16);
+          printf(" %s %s", e->topic_name, e->type_name);
+          print_user_data(e->qos);
+          printf("\n");
+        }
+      } else if (r > 0 && info[0].valid_data && kinds[i] == 3) {
+        const rmw_dds_common_msg_dds__ParticipantEntitiesInfo_ *m = samples[0];
+        got[i]++;
+        printf("entities %d %d", i, got[i]);
+        print_hex(m->gid.data, 16);
+        for (uint32_t k = 0; k < m->node_entities_info_seq._length; k++) {
+          const rmw_dds_common_msg_dds__NodeEntitiesInfo_ *node = &m->node_entities_info_seq._buffer[k];
+          printf(" node %s %s %u", node->node_namespace, node->node_name, node->writer_gid_seq._length);
+          for (uint32_t w = 0; w < node->writer_gid_seq._length; w++)
+            print_hex(node->writer_gid_seq._buffer[w].data, 16);
+        }
+        printf("\n");
+      } else if (r > 0 && info[0].valid_data) {
         got[i]++;
         double t = now_s() - t0;
         if (kinds[i] == 0) {
@@ -87,6 +135,19 @@ int main(int argc, char **argv) {
       }
       if (r > 0) dds_return_loan(readers[i], samples, r);
       if (got[i] < want[i]) done = 0;
+    }
+    for (int r = 1; participants > 0 && r > 0;) {  /* every participant seen so far */
+      void *ps[1] = { NULL }; dds_sample_info_t pi[1];
+      r = dds_take(participants, ps, pi, 1, 1);
+      if (r > 0 && pi[0].valid_data) {
+        const dds_builtintopic_participant_t *p = ps[0];
+        printf("participant");
+        print_hex(p->key.v, 16);
+        print_user_data(p->qos);
+        printf("\n");
+        fflush(stdout);
+      }
+      if (r > 0) dds_return_loan(participants, ps, r);
     }
     if (done) break;
     if (now_s() - t0 > timeout) { fprintf(stderr, "timeout\n"); return 2; }
