@@ -131,5 +131,7 @@ class Node:
 
     def close(self) -> None:
         """Leave the domain (peers see the node and its topics go)."""
-        self.participant = None  # the binding deletes the entities when they are collected
+        # The binding deletes a DDS entity (and its children) when its Python object goes.
         self.writers.clear()
+        self._discovery = None  # type: ignore[assignment]
+        self.participant = None

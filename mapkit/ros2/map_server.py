@@ -124,10 +124,11 @@ class Ros2MapServer:
     """
 
     def __init__(self, node: Any, path: str, *, topics: Topics = Topics(), frame_id: str = "map",
-                 resolution: float = 0.05, **raster: Any) -> None:
+                 resolution: float = 0.05, loaded: ServedMap | None = None,
+                 **raster: Any) -> None:
         self.node, self.topics, self.frame_id = node, topics, frame_id
         self.resolution, self.raster = resolution, raster
-        self.current = served_map(path, resolution, **raster)
+        self.current = loaded or served_map(path, resolution, **raster)
         self.published = 0
 
     def publish(self) -> None:
@@ -168,8 +169,11 @@ def run_map_server(path: str, *, domain: int = 0, topics: Topics = Topics(),
 
     stop = stop or threading.Event()
     server_path = path[len("file://"):] if path.startswith("file://") else path
+    resolution = options.pop("resolution", 0.05)
+    first = served_map(server_path, resolution, **options)  # a bad file never joins DDS
     node = Node(node_name, domain, distro=distro)
-    server = Ros2MapServer(node, server_path, topics=topics, frame_id=frame_id, **options)
+    server = Ros2MapServer(node, server_path, topics=topics, frame_id=frame_id,
+                           resolution=resolution, loaded=first, **options)
     server.publish()
     if on_publish is not None:
         on_publish(server)
