@@ -98,6 +98,10 @@ def aria_bridge(host: str, domain: int, topic: str, frame_id: str, resolution: f
 
     The robot is reached over ArNetworking (HOST is host[:port], port 7272). Topics as
     `mapkit ros2 map-server`.
+
+    \b
+    Example:
+      MAPKIT_ARIA_PASSWORD_FILE=~/.robot-pw mapkit ros2 aria-bridge robot1 -u admin --domain 3
     """
     from mapkit.cli.aria import open_robot
     from mapkit.ros2.graph import resolve_topic
