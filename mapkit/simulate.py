@@ -435,6 +435,44 @@ def _points_off_lines(points: FloatArray, segments: FloatArray, tol: float) -> F
     return kept
 
 
+#: Width of one of the plates a person's body is drawn with (mm).
+_BODY_PLATE = 80.0
+
+
+class _Crowd:
+    """People walking back and forth between two free places each (at 0.8 to 1.4 m/s).
+
+    Each body is a ring of plates 400 mm across; they walk through walls' free space only as
+    straight lines between places in view of each other, so a person never stands in a wall.
+    """
+
+    def __init__(self, grid: _Grid, n: int, radius: float, rng: np.random.Generator) -> None:
+        free = np.argwhere(grid.clearance > max(radius, 400.0))
+        if len(free) == 0:
+            raise MapkitError("the map leaves no room for people to walk")
+        self.ends: list[tuple[FloatArray, FloatArray, float, float]] = []
+        for _ in range(n):
+            for _attempt in range(100):
+                a = np.array(grid.center(*free[rng.integers(len(free))]))
+                b = np.array(grid.center(*free[rng.integers(len(free))]))
+                if 1500.0 < math.hypot(*(b - a)) < 12000.0 and _visible(grid, a, b, 400.0):
+                    self.ends.append((a, b, float(rng.uniform(800.0, 1400.0)),
+                                      float(rng.uniform(0, 100))))
+                    break
+        ang = np.linspace(0, 2 * math.pi, 16, endpoint=False)
+        self.ring = 200.0 * np.stack([np.cos(ang), np.sin(ang)], axis=1)
+
+    def bodies(self, t: float) -> FloatArray:
+        """Points of every body at time ``t`` (s)."""
+        out = [np.zeros((0, 2))]
+        for a, b, v, phase in self.ends:
+            length = math.hypot(*(b - a))
+            s = ((t + phase) * v) % (2 * length)
+            f = (s if s < length else 2 * length - s) / length
+            out.append(a + f * (b - a) + self.ring)
+        return np.concatenate(out)
+
+
 def _map_home(m: MapData) -> tuple[float, float, float] | None:
     for kind in ("RobotHome", "Dock"):
         for o in m.objects:
@@ -467,6 +505,10 @@ def simulate_log(
     raw_ranges: bool = False,
     odometry_origin: str = "start",
     goal_names: str = "map",
+    scale_error: float = 0.0,
+    turn_slip: float = 0.0,
+    outliers: float = 0.0,
+    people: int = 0,
     seed: int = 0,
 ) -> SimulatedLog:
     """Drive a simulated robot through ``m`` and record a ``.2d`` log with drifting odometry.
@@ -499,6 +541,14 @@ def simulate_log(
             the log overlays ``m``; ``"zero"``: odometry starts at 0 0 0, as on a real robot.
         goal_names: ``"map"``: goal events carry the map's goal names; ``"aria"``: ``goal1``,
             ``goal2``... as ARIA's logger names them.
+        scale_error: Systematic odometry distance error: every distance reads this fraction
+            too long (a wrong wheel diameter; 0.01 = 1 %).
+        turn_slip: Wheel slip while turning on the spot: the odometry reports this fraction more
+            turn than the robot made (systematic), plus a random part of half that size per turn.
+        outliers: Fraction of readings that are spurious: a random range short of the true one
+            (dust, reflections, a leg in the beam).
+        people: Moving people: each walks back and forth between two free places of the map at
+            walking pace and blocks the laser as a 400 mm wide body.
         seed: Random seed (the same seed gives the same log).
 
     Returns:
@@ -514,6 +564,9 @@ def simulate_log(
         raise ValueError("steps, speeds and laps must be positive")
     if odometry_origin not in ("start", "zero"):
         raise ValueError("odometry_origin is 'start' or 'zero'")
+    if not 0 <= outliers < 1 or people < 0 or abs(scale_error) >= 0.5 or abs(turn_slip) >= 0.5:
+        raise ValueError("outliers is a fraction in [0, 1); people >= 0; scale_error and "
+                         "turn_slip are fractions under 0.5")
     rng = np.random.default_rng(seed)
     home: tuple[float, float, float] | None = None
     if start is not None:
@@ -553,6 +606,7 @@ def simulate_log(
     header = LogHeader(version=version, lasers=(laser,), location_types=("robot", "robotGlobal"),
                        comments=("Created by mapkit simulate",))
     dt = 0.1
+    crowd = _Crowd(grid, people, robot_radius, rng) if people > 0 else None
     records: list[LogRecord] = []
     truth: list[FloatArray] = []
     truth_ids: list[int] = []
@@ -571,8 +625,15 @@ def simulate_log(
         nonlocal scan_id, last_logged
         lp = compose(true, laser.pose)
         r = ray_cast(lp, angles, segments, points, max_range=max_range, point_size=point_size)
+        if crowd is not None:
+            body = crowd.bodies(t)
+            r = np.minimum(r, ray_cast(lp, angles, np.zeros((0, 4)), body, max_range=max_range,
+                                       point_size=_BODY_PLATE))
         hit = np.isfinite(r)
         rn = np.where(hit, r + rng.normal(0.0, range_noise, len(r)) if range_noise > 0 else r, 0.0)
+        if outliers > 0:
+            bad = hit & (rng.random(len(r)) < outliers)
+            rn = np.where(bad, rn * rng.uniform(0.05, 0.95, len(r)), rn)
         rn = np.where(hit & (rn < 1.0), 1.0, rn)
         a = np.radians(angles)
         xy = np.stack([rn * np.cos(a), rn * np.sin(a)], axis=1)
@@ -611,6 +672,7 @@ def simulate_log(
             skipped.append(name or f"({gx:.0f}, {gy:.0f})")
             continue
         prev = true.copy()
+        slip = turn_slip * (1.0 + 0.5 * rng.normal()) if turn_slip > 0 else 0.0
         for x, y, th in _drive(path, heading, speed, turn_rate, dt):
             nxt = np.array([x, y, th])
             step = relative(prev, nxt)
@@ -619,8 +681,10 @@ def simulate_log(
                 continue
             moving, turn_now = d > 1e-9, float(step[2]) / dt
             # Odometry: noisy, drifting copy of the true step.
-            ds = step[:2] * (1.0 + rng.normal(0.0, translation_error))
+            ds = step[:2] * (1.0 + rng.normal(0.0, translation_error)) * (1.0 + scale_error)
             dth = step[2] * (1.0 + rng.normal(0.0, rotation_error)) + drift * d / 1000.0
+            if d < 1.0:  # turning on the spot
+                dth += step[2] * slip
             odo = compose(odo, np.array([ds[0], ds[1], dth]))
             true = nxt
             prev = nxt
@@ -657,5 +721,6 @@ def simulate_log(
                                            float(abs(odo_err[2]))),
         params={"seed": seed, "fov": fov, "readings": readings, "max_range": max_range,
                 "range_noise": range_noise, "translation_error": translation_error,
-                "rotation_error": rotation_error, "drift": drift})
+                "rotation_error": rotation_error, "drift": drift, "scale_error": scale_error,
+                "turn_slip": turn_slip, "outliers": outliers, "people": people})
 

@@ -18,7 +18,7 @@ LAYERS = {
     "mapkit.edit": 3, "mapkit.raster": 3, "mapkit.mesh": 3, "mapkit.validate": 3,
     "mapkit.build": 3, "mapkit.render": 3, "mapkit.simulate": 3, "mapkit.logs": 3,
     "mapkit.transfer": 4, "mapkit.ros": 4, "mapkit.demo": 4,
-    "mapkit.arnet": 4, "mapkit.aria": 4,
+    "mapkit.arnet": 4, "mapkit.aria": 4, "mapkit.ros2": 4,
     "mapkit.open": 5,
     "mapkit.cli": 6,
 }
@@ -30,7 +30,10 @@ ALLOWED_SIBLINGS = {
     ("mapkit.build", "mapkit.logs"), ("mapkit.simulate", "mapkit.logs"),
     ("mapkit.ros", "mapkit.transfer"), ("mapkit.ros", "mapkit.arnet"),
     ("mapkit.aria", "mapkit.arnet"),
+    ("mapkit.ros2", "mapkit.ros"), ("mapkit.ros2", "mapkit.arnet"),
 }
+# The ROS 2 message, naming and discovery modules are sans-I/O (no sockets, no DDS binding).
+ROS2_CORE = ("messages", "graph", "errors")
 # The ArNetworking protocol core is sans-I/O and imports no mapkit layer above errors.
 ARNET_CORE = ("packet", "reader", "events", "connection", "services", "errors")
 
@@ -155,3 +158,12 @@ def test_arnet_does_not_import_the_cli() -> None:
         for target, lineno in imports(path):
             assert not target.startswith(("mapkit.cli", "mapkit.ros", "mapkit.transfer")), (
                 f"{path}:{lineno}: arnet is at the transfer level ({target})")
+
+
+@pytest.mark.parametrize("name", ROS2_CORE)
+def test_ros2_core_is_sans_io(name: str) -> None:
+    path = PKG / "ros2" / f"{name}.py"
+    for target, lineno in imports(path):
+        assert target.split(".")[0] not in ("socket", "cyclonedds", "threading", "asyncio"), (
+            f"{path}:{lineno}: the ROS 2 core does no I/O ({target})")
+        assert not target.startswith(("mapkit.cli", "mapkit.ros2.dds")), f"{path}:{lineno}: {target}"

@@ -46,7 +46,9 @@ import numpy as np
 from mapkit._typing import PathLike
 from mapkit.build._graph import PoseGraph, between, sigma_info, wrap
 from mapkit.build._lines import extract_lines
+from mapkit.build._mapping import pass_counts
 from mapkit.build._match import correlative, icp, scan_normals, transform, voxel_keep
+from mapkit.build._odometry import _OdometryModel
 from mapkit.diagnostics import Issue, IssueCode
 from mapkit.errors import LogFormatError
 from mapkit.formats.laser2d import goal_fields, read_log, recover_log
@@ -71,6 +73,9 @@ class BuildResult:
         scan_ids: ``(N,)`` their ``scanId``.
         summary: Figures for people and ``--json`` (scans, registration, loops, timings).
         issues: Problems met in the log (tolerant reading) and while building.
+        residuals: ``(N,)`` RMS point-to-wall residual of each scan's match (mm; NaN where the
+            scan was placed by odometry alone).
+        closures: ``(K, 2)`` scan indices ``(old, new)`` of every loop closed.
     """
 
     map: MapData
@@ -79,6 +84,15 @@ class BuildResult:
     scan_ids: np.ndarray[Any, Any]
     summary: dict[str, Any] = field(default_factory=dict)
     issues: tuple[Issue, ...] = ()
+    residuals: FloatArray = field(default_factory=lambda: np.zeros(0))
+    closures: np.ndarray[Any, Any] = field(default_factory=lambda: np.zeros((0, 2), dtype=np.int64))
+
+    @property
+    def moved(self) -> FloatArray:
+        """``(N,)`` how far each scan's final pose lies from its odometry pose (mm)."""
+        d: FloatArray = np.hypot(self.poses[:, 0] - self.odometry[:, 0],
+                                 self.poses[:, 1] - self.odometry[:, 1])
+        return d
 
 
 def _deg(p: FloatArray) -> FloatArray:
@@ -182,13 +196,18 @@ def _loop_pairs(log: LaserLog, scan_records: list[LaserScan], issues: list[Issue
 
 
 def _quantise(world: FloatArray, res: float, min_hits: int, thin: float,
-              normals: FloatArray | None = None) -> np.ndarray[Any, Any]:
+              normals: FloatArray | None = None, origins: FloatArray | None = None,
+              free_ratio: float = 0.0) -> np.ndarray[Any, Any]:
     """Lattice points hit often enough, with walls thinned to the cells hit most.
 
     A cell is kept when hit at least ``min_hits`` times and at least ``thin`` x its most-hit
     neighbour; where the hits have a clear wall direction (``normals``), only the cell hit most
     across the wall (non-maximum suppression along the normal) is kept, so a wall is one cell thick
     instead of the two or three that range noise spreads it over.
+
+    With ``origins`` (the laser's position for each hit), a cell is also dropped when other beams
+    passed through it more than ``free_ratio`` times as often as it was hit: a person walking by
+    or a spurious reading, not a wall (see :mod:`mapkit.build._mapping`).
     """
     cells = np.rint(world / res).astype(np.int64)
     off = 1 << 24
@@ -208,6 +227,10 @@ def _quantise(world: FloatArray, res: float, min_hits: int, thin: float,
             if dx or dy:
                 best = np.maximum(best, neighbour(dx, dy))
     keep = (counts >= min_hits) & (counts >= thin * best)
+    if origins is not None and free_ratio > 0 and keep.any():
+        cand = np.flatnonzero(keep)
+        passes = pass_counts(world, origins, res, np.stack([cx[cand], cy[cand]], axis=1))
+        keep[cand[passes > free_ratio * counts[cand]]] = False
     if normals is not None and len(normals) == len(world):
         ok = np.isfinite(normals[:, 0])
         phi2 = 2.0 * np.arctan2(normals[ok, 1], normals[ok, 0])  # sign-free (doubled) angle
@@ -235,9 +258,11 @@ def build_map(
     max_range: float = 16000.0,
     min_hits: int = 2,
     thin: float = 0.3,
+    free_ratio: float = 4.0,
     lines: bool = True,
     min_line_length: float = 300.0,
     strict: bool = True,
+    merge_goals: bool = True,
     progress: Progress | None = None,
 ) -> BuildResult:
     """Turn a ``.2d`` laser log into a map (see the module's description of the pipeline).
@@ -253,10 +278,14 @@ def build_map(
         thin: A cell is kept only when hit at least this fraction of its most-hit neighbour
             (thins walls to the cells the laser hit most, one cell across a wall; 0 keeps every
             cell).
+        free_ratio: A cell is left out when beams passed through it more than this many times
+            as often as they hit it (people walking by, spurious readings); 0 keeps every cell.
         lines: Fit line segments to the points (the map's ``LINES``).
         min_line_length: Shortest line kept (mm).
         strict: Read a file strictly (the first bad record raises); ``False`` skips bad records
             and lists them in :attr:`BuildResult.issues`.
+        merge_goals: Goals of the same name (a tag repeated on every lap) become one object at
+            their mean pose; ``False`` keeps one object per ``cairn:`` event.
         progress: Called as ``progress(done, total)`` while scans are registered.
 
     Returns:
@@ -288,6 +317,7 @@ def build_map(
                              source=log.source)
     est = odo.copy()
     stats: dict[str, Any] = {"registered": 0, "odometry_only": 0, "residuals": [],
+                             "residual_per_scan": np.full(n, np.nan), "closures": [],
                              "tag_loops": 0, "tag_loops_matched": 0, "revisits": 0,
                              "optimisations": 0, "corrections_mm": [], "corrections_deg": []}
     t1 = time.perf_counter()
@@ -299,20 +329,27 @@ def build_map(
     # The map.
     t2 = time.perf_counter()
     world = np.concatenate([transform(p, e) for p, e in zip(pts, est)])
+    origins = None
+    if free_ratio > 0:
+        mounts = np.array([log.header.laser(s.laser).pose[:2] for s in scans], dtype=np.float64)
+        sensor = np.stack([transform(mounts[k:k + 1], est[k])[0] for k in range(n)])
+        origins = np.repeat(sensor, [len(p) for p in pts], axis=0)
     normals = np.concatenate([
         scan_normals(p) @ np.array([[math.cos(e[2]), math.sin(e[2])], [-math.sin(e[2]), math.cos(e[2])]])
         for p, e in zip(pts, est)]) if thin > 0 else None
-    points = _quantise(world, float(resolution), min_hits, thin, normals)
+    points = _quantise(world, float(resolution), min_hits, thin, normals, origins, free_ratio)
     segs = (extract_lines(points.astype(np.float64), resolution=resolution,
                           min_length=min_line_length) if lines and len(points) else np.zeros((0, 4)))
     t_map = time.perf_counter() - t2
     objects = [MapObject("RobotHome", *_obj_pose(est[0]), name="Home")]
-    objects.extend(_goals(log, scans, odo, est, pose_source))
+    objects.extend(_goals(log, scans, odo, est, pose_source, merge_goals))
     scan = Scan.from_arrays(points, np.rint(segs).astype(np.int64), resolution=resolution, sort=True)
     m = MapData(category="2D-Map", scans=(scan,), objects=tuple(objects))
     poses = _deg(est)
     odom = _deg(odo)
     res = stats.pop("residuals")
+    per_scan = stats.pop("residual_per_scan")
+    closures = np.array(stats.pop("closures"), dtype=np.int64).reshape(-1, 2)
     cm, cd = stats.pop("corrections_mm"), stats.pop("corrections_deg")
     length = float(np.sum(np.hypot(*np.diff(odo[:, :2], axis=0).T))) if n > 1 else 0.0
     summary = {
@@ -327,6 +364,8 @@ def build_map(
             "registered": stats["registered"],
             "odometry_only": stats["odometry_only"],
             "median_residual_mm": round(float(np.median(res)), 2) if res else None,
+            "odometry_noise_scale": stats.get("odometry_scale"),
+            "odometry_calibration": stats.get("calibration"),
         },
         "loops": {
             "tags": stats["tag_loops"],
@@ -344,7 +383,7 @@ def build_map(
     }
     return BuildResult(map=m, poses=poses, odometry=odom,
                        scan_ids=np.array([s.scan_id for s in scans]), summary=summary,
-                       issues=tuple(issues))
+                       issues=tuple(issues), residuals=per_scan, closures=closures)
 
 
 def _obj_pose(p: FloatArray) -> tuple[float, float, float]:
@@ -352,10 +391,15 @@ def _obj_pose(p: FloatArray) -> tuple[float, float, float]:
 
 
 def _goals(log: LaserLog, scans: list[LaserScan], odo: FloatArray, est: FloatArray,
-           pose_source: str) -> list[MapObject]:
+           pose_source: str, merge: bool = True) -> list[MapObject]:
+    """``cairn:`` goal events as objects at their corrected poses.
+
+    With ``merge``, the goals of one name (a tag given on every lap) become one object at the
+    mean pose (headings averaged on the circle), where the name first appeared.
+    """
     position = {id(s): k for k, s in enumerate(scans)}
     last = 0
-    out = []
+    out: list[MapObject] = []
     for rec in log.records:
         if isinstance(rec, LaserScan):
             last = position.get(id(rec), last)
@@ -372,16 +416,92 @@ def _goals(log: LaserLog, scans: list[LaserScan], odo: FloatArray, est: FloatArr
         th = wrap(est[last][2] + rel[2])
         typ, desc, _icon, name = goal_fields(rec)
         out.append(MapObject(typ, *_obj_pose(np.array([x, y, th])), name=name, description=desc))
+    return _merge_goals(out) if merge else out
+
+
+def _merge_goals(goals: list[MapObject]) -> list[MapObject]:
+    """One object per (type, name) at the mean pose; unnamed goals are kept as they are."""
+    groups: dict[tuple[str, str], list[MapObject]] = {}
+    order: list[tuple[str, str] | int] = []
+    for k, g in enumerate(goals):
+        if not g.name:
+            order.append(k)
+            continue
+        key = (g.type, g.name)
+        if key not in groups:
+            groups[key] = []
+            order.append(key)
+        groups[key].append(g)
+    out = []
+    for item in order:
+        if isinstance(item, int):
+            out.append(goals[item])
+            continue
+        grp = groups[item]
+        if len(grp) == 1:
+            out.append(grp[0])
+            continue
+        th = np.radians([g.theta for g in grp])
+        mean = np.array([np.mean([g.x for g in grp]), np.mean([g.y for g in grp]),
+                         math.atan2(float(np.sin(th).sum()), float(np.cos(th).sum()))])
+        out.append(MapObject(grp[0].type, *_obj_pose(mean), name=grp[0].name,
+                             description=grp[0].description))
     return out
 
 
 def _register(scans: list[LaserScan], odo: FloatArray, all_pts: list[FloatArray],
               log: LaserLog, issues: list[Issue], stats: dict[str, Any],
               loop_closure: bool, progress: Progress | None) -> FloatArray:
-    """The front end (scan-to-local-map ICP) with loop closures and pose-graph optimisation."""
+    """The front end (scan-to-local-map ICP) with loop closures and pose-graph optimisation.
+
+    The odometry's worth is learnt from the first scans (a warm-up pass over them) so that the
+    first metres are not registered with a guess of it.
+    """
+    n = len(scans)
+    model = _OdometryModel()
+    warm_up = min(_WARM_UP, n // 2)
+    if warm_up >= 20:
+        for _ in range(2):  # twice: the second pass runs with the scale the first found
+            model = _OdometryModel(model.scale, model.calibration.fresh())
+            warm: dict[str, Any] = {"registered": 0, "odometry_only": 0, "residuals": [],
+                                    "residual_per_scan": np.full(warm_up, np.nan), "closures": []}
+            _register_pass(scans[:warm_up], odo[:warm_up], all_pts[:warm_up], log, [], warm,
+                           False, None, model)
+            model.settle()
+    start = model.calibration.fresh()
+    first = dict(stats, residuals=[], closures=[], corrections_mm=[], corrections_deg=[],
+                 residual_per_scan=stats["residual_per_scan"].copy())
+    est = _register_pass(scans, odo, all_pts, log, issues, first, loop_closure, progress, model)
+    if not model.calibration.differs(start) or n > _SECOND_PASS_MAX:
+        stats.update(first)
+        return est
+    # The odometry's systematic errors were learnt on the way: the first metres were registered
+    # without them. Once more from the start, with the odometry as calibrated. (A long log comes
+    # back over its first metres many times: its loop closures correct them instead.)
+    model = _OdometryModel(model.scale, model.calibration.fresh())
+    model.frozen = True
+    est = _register_pass(scans, odo, all_pts, log, [], stats, loop_closure, None, model)
+    stats["passes"] = 2
+    return est
+
+
+#: Longest log (scans) registered a second time when the calibration was learnt on the way.
+_SECOND_PASS_MAX = 5000
+
+#: Scans of the warm-up pass that learns the odometry's noise.
+_WARM_UP = 150
+
+
+def _register_pass(scans: list[LaserScan], odo: FloatArray, all_pts: list[FloatArray],
+                   log: LaserLog, issues: list[Issue], stats: dict[str, Any],
+                   loop_closure: bool, progress: Progress | None, model: _OdometryModel
+                   ) -> FloatArray:
     n = len(scans)
     est = odo.copy()
+    residuals = stats["residual_per_scan"]
     graph = PoseGraph()
+    odo_edges: list[int] = []
+    raw_steps: list[FloatArray] = []
     sub = _Submap(voxel=40.0)
     src = [p[::3] if len(p) > 240 else (p[::2] if len(p) > 120 else p) for p in all_pts]
     # The map side: every other point (the local map is thinned to 40 mm anyway), with normals
@@ -399,33 +519,53 @@ def _register(scans: list[LaserScan], odo: FloatArray, all_pts: list[FloatArray]
     next_check = 0
     last_sub = 0
     report_every = max(1, n // 200)
+    weak_prior = sigma_info(300.0, 300.0, math.radians(10.0))
     for i in range(1, n):
-        step = between(odo[i - 1], odo[i])
+        raw_step = between(odo[i - 1], odo[i])
+        step = model.calibration.correct(raw_step)
         c, s = math.cos(est[i - 1][2]), math.sin(est[i - 1][2])
         pred = np.array([est[i - 1][0] + c * step[0] - s * step[1],
                          est[i - 1][1] + s * step[0] + c * step[1],
                          wrap(est[i - 1][2] + step[2])])
         trans = math.hypot(step[0], step[1])
         path[i] = path[i - 1] + trans
-        # Odometry as a prior: it holds what the scan cannot tell (along a corridor).
-        s_xy = 10.0 + 0.05 * trans
-        odo_info = sigma_info(s_xy, s_xy, math.radians(0.5) + 0.05 * abs(step[2])
-                              + math.radians(0.2) * trans / 1000.0)
-        r = (icp(src[i], sub.tree, sub.pts, sub.nrm, pred, prior=pred, prior_info=odo_info)
+        # Odometry as the evidence it is: its noise grows with distance and turn, scaled to what
+        # this log's odometry turns out to be worth (see _OdometryModel).
+        odo_info = model.info(trans, float(step[2]))
+        # The scan's own view: matched with only a weak pull to the prediction (which holds the
+        # directions the scan cannot fix, a corridor's length), then fused with odometry.
+        r = (icp(src[i], sub.tree, sub.pts, sub.nrm, pred, prior=pred, prior_info=weak_prior,
+                 schedule=(250.0, 100.0, 40.0), max_iter=12, cauchy=_CAUCHY)
              if sub.tree is not None else None)
         if r is not None and r.ok and r.inliers > 0.25 and r.rms < 60.0 \
                 and math.hypot(*(r.pose[:2] - pred[:2])) < 300.0 + 0.1 * trans \
                 and abs(wrap(r.pose[2] - pred[2])) < math.radians(8.0):
-            est[i] = r.pose
+            scan_info = r.info(sigma=_MATCH_SIGMA, points=_MATCH_POINTS)
+            dv = r.pose - pred
+            dv[2] = wrap(dv[2])
+            weak = r.weak_direction()
+            if weak is not None:
+                # Along a corridor the scan slid where nothing held it: that is no evidence.
+                dv[:2] -= weak * float(dv[:2] @ weak)
+            model.observe(dv, scan_info, trans, float(step[2]))
+            if not model.frozen:
+                model.calibration.observe(raw_step, step, dv, scan_info, float(est[i - 1][2]))
+            fused = np.linalg.solve(scan_info + odo_info + np.eye(3) * 1e-12, scan_info @ dv)
+            est[i] = pred + fused
             est[i, 2] = wrap(est[i, 2])
             stats["registered"] += 1
             stats["residuals"].append(r.rms)
-            graph.add(i - 1, i, between(est[i - 1], est[i]),
-                      _edge_info(r.info() + odo_info, est[i]))
+            residuals[i] = r.rms
+            # Two edges: the scan's (what it sees) and odometry's, so that odometry can be
+            # recalibrated at the end without redoing the scans.
+            seen = pred + dv
+            graph.add(i - 1, i, between(est[i - 1], seen), _edge_info(scan_info, seen))
         else:
             est[i] = pred
             stats["odometry_only"] += 1
-            graph.add(i - 1, i, step, odo_info)
+        odo_edges.append(len(graph))
+        raw_steps.append(raw_step)
+        graph.add(i - 1, i, step, odo_info)
         # Loop closures.
         moved = False
         for s0, _tag in tag_at.get(i, []):
@@ -465,10 +605,20 @@ def _register(scans: list[LaserScan], odo: FloatArray, all_pts: list[FloatArray]
             last_sub = i
         if progress and (i % report_every == 0 or i == n - 1):
             progress(i + 1, n)
+    stats["odometry_scale"] = round(float(model.scale), 4)
+    stats["calibration"] = model.calibration.summary()
     if loop_closure and (stats["revisits"] or stats["tag_loops"]):
         est = graph.optimize(est, iterations=20)
         stats["optimisations"] += 1
     return est
+
+
+#: Scale of the robust (Cauchy) weights of scan points in registration (mm).
+_CAUCHY = 25.0
+
+#: What a scan match is worth, as if from this many independent points of this noise (mm).
+_MATCH_SIGMA = 10.0
+_MATCH_POINTS = 50.0
 
 
 def _revisit_candidate(i: int, est: FloatArray, path: FloatArray) -> int | None:
@@ -563,6 +713,7 @@ def _close(i: int, j: int, est: FloatArray, src: list[FloatArray], pts: list[Flo
     info = r.info() + (claim if tagged else 0.0)
     graph.add(j, i, between(est[j], r.pose), _edge_info(info, r.pose), robust=True)
     stats["corrections_mm"].append(corr)
+    stats["closures"].append((j, i))
     stats["corrections_deg"].append(math.degrees(dth))
     stats["_moved"] = corr > 80.0 or dth > math.radians(0.8)
     return True

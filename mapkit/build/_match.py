@@ -128,7 +128,7 @@ def icp(
     src: FloatArray, tree: Any, tgt_pts: FloatArray, tgt_nrm: FloatArray, init: FloatArray, *,
     schedule: tuple[float, ...] = (250.0, 100.0, 50.0), max_iter: int = 12,
     huber: float = 20.0, min_points: int = 20, prior: FloatArray | None = None,
-    prior_info: FloatArray | None = None, sigma: float = 15.0,
+    prior_info: FloatArray | None = None, sigma: float = 15.0, cauchy: float | None = None,
 ) -> MatchResult:
     """Point-to-line ICP of ``src`` (robot frame) against a target with normals.
 
@@ -147,6 +147,8 @@ def icp(
             scan does not constrain (a corridor's length).
         prior_info: See ``prior``.
         sigma: Range noise assumed for the points (mm), weighting them against the prior.
+        cauchy: Use Cauchy weights ``1 / (1 + (r / cauchy)^2)`` instead of Huber's (stronger
+            down-weighting of outliers: people, spurious readings).
 
     Returns:
         The refined pose and fit statistics.
@@ -183,7 +185,10 @@ def icp(
         r = (p[ok, 0] - q[:, 0]) * nx + (p[ok, 1] - q[:, 1]) * ny
         jt = ny * vx - nx * vy
         a = np.abs(r)
-        w = np.minimum(1.0, huber / np.maximum(a, 1e-9)) * inv_s2
+        if cauchy is not None:
+            w = inv_s2 / (1.0 + (a / cauchy) ** 2)
+        else:
+            w = np.minimum(1.0, huber / np.maximum(a, 1e-9)) * inv_s2
         J = np.empty((cnt, 3))
         J[:, 0] = nx
         J[:, 1] = ny

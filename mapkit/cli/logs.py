@@ -69,6 +69,14 @@ def _check_output(path: str, force: bool) -> None:
               show_default=True, help="Odometry starts at the true start pose, or at 0 0 0.")
 @click.option("--goal-names", type=click.Choice(["map", "aria"]), default="map", show_default=True,
               help="Goal events named after the map's goals, or goal1, goal2... as ARIA does.")
+@click.option("--scale-error", type=click.FloatRange(-0.4, 0.4), default=0.0, show_default=True,
+              help="Systematic odometry distance error (fraction, e.g. 0.01).")
+@click.option("--turn-slip", type=click.FloatRange(-0.4, 0.4), default=0.0, show_default=True,
+              help="Extra turn odometry reports while turning on the spot (fraction).")
+@click.option("--outliers", type=click.FloatRange(0, 0.9), default=0.0, show_default=True,
+              help="Fraction of spurious (short) laser readings.")
+@click.option("--people", type=click.IntRange(0, 100), default=0, show_default=True,
+              help="People walking about in the laser's view.")
 @click.option("--seed", type=int, default=0, show_default=True, help="Random seed.")
 @click.option("--no-truth", is_flag=True, help="Do not write the NAME.truth.tsv sidecar.")
 @force_option
@@ -76,7 +84,8 @@ def simulate(map_file: str | None, output: str, sample: str | None, log_version:
              waypoints: str | None, start: str | None, loop: bool, laps: int, fov: float,
              readings: int, max_range: float, range_noise: float, laser_pose: str,
              trans_error: float, rot_error: float, drift: float, dist_step: float,
-             deg_step: float, raw_ranges: bool, odometry_origin: str, goal_names: str, seed: int,
+             deg_step: float, raw_ranges: bool, odometry_origin: str, goal_names: str,
+             scale_error: float, turn_slip: float, outliers: float, people: int, seed: int,
              no_truth: bool, force: bool) -> None:
     """Drive a simulated robot through MAP_FILE and write the laser log it would record.
 
@@ -87,6 +96,7 @@ def simulate(map_file: str | None, output: str, sample: str | None, log_version:
     \b
     Examples:
       mapkit simulate office.map -o office.2d --loop
+      mapkit simulate office.map -o noisy.2d --loop --scale-error 0.01 --turn-slip 0.03 --outliers 0.02 --people 3
       mapkit simulate --sample building -o b.2d --version 3 --waypoints "5000,12000 55000,12000"
     """
     from mapkit.formats.map import load
@@ -107,7 +117,8 @@ def simulate(map_file: str | None, output: str, sample: str | None, log_version:
         readings=readings, max_range=max_range, range_noise=range_noise, laser_pose=lp,
         translation_error=trans_error, rotation_error=rot_error, drift=drift,
         dist_step=dist_step, deg_step=deg_step, raw_ranges=raw_ranges,
-        odometry_origin=odometry_origin, goal_names=goal_names, seed=seed)
+        odometry_origin=odometry_origin, goal_names=goal_names, scale_error=scale_error,
+        turn_slip=turn_slip, outliers=outliers, people=people, seed=seed)
     click.echo(sim.save(output, truth=not no_truth))
     if sim.skipped:
         err(f"mapkit: no path to {', '.join(sim.skipped)}: left out of the route")
@@ -153,10 +164,18 @@ class _Bar:
               help="Laser hits a map point needs.")
 @click.option("--no-lines", is_flag=True, help="Do not fit line segments.")
 @click.option("--tolerant", is_flag=True, help="Skip bad records (and report them) instead of failing.")
+@click.option("--keep-all-tags", is_flag=True,
+              help="One goal per cairn: event (default: goals of one name merged at their mean pose).")
+@click.option("--poses", "poses_file", type=click.Path(dir_okay=False),
+              help="Also write the trajectory here (TSV: scanId x y th odo_x odo_y odo_th).")
+@click.option("--report", "report_file", type=click.Path(dir_okay=False),
+              help="Also draw a report (PNG): trajectory, loops closed, residual per scan, how far "
+                   "scans moved from odometry; its figures are printed.")
 @force_option
 @json_option
 def build(log_file: str, output: str, resolution: int, no_register: bool, no_loops: bool,
           pose_source: str, max_range: float, min_hits: int, no_lines: bool, tolerant: bool,
+          keep_all_tags: bool, poses_file: str | None, report_file: str | None,
           force: bool, as_json: bool) -> None:
     """Build a map from a .2d laser log, as Mapper3 did.
 
@@ -168,23 +187,32 @@ def build(log_file: str, output: str, resolution: int, no_register: bool, no_loo
     Examples:
       mapkit build office.2d -o office-built.map
       mapkit build office.2d -o raw.map --no-register
+      mapkit build office.2d -o office.map --poses office.tsv --report office-report.png
     """
     from mapkit.build import build_map
+    from mapkit.build.report import write_poses, write_report
     from mapkit.formats.map import save
 
-    _check_output(output, force)
+    for path in (output, poses_file, report_file):
+        if path is not None:
+            _check_output(path, force)
     bar = _Bar("registering scans", enabled=not as_json and not no_register)
     try:
         result = build_map(log_file, resolution=resolution, register=not no_register,
                            loop_closure=not no_loops, pose_source=pose_source,
                            max_range=max_range, min_hits=min_hits, lines=not no_lines,
-                           strict=not tolerant, progress=bar)
+                           strict=not tolerant, merge_goals=not keep_all_tags, progress=bar)
     finally:
         bar.close()
     md5 = save(result.map, output)
+    if poses_file is not None:
+        write_poses(result, poses_file)
+    figures = write_report(result, report_file) if report_file is not None else None
     s = result.summary
     if as_json:
-        echo_json({**s, "output": output, "md5": md5, "issues": [i.to_dict() for i in result.issues]})
+        extra = {"poses": poses_file, "report": report_file, "report_figures": figures}
+        echo_json({**s, "output": output, "md5": md5, **extra,
+                   "issues": [i.to_dict() for i in result.issues]})
         return
     for issue in result.issues:
         err(str(issue))
@@ -207,6 +235,15 @@ def build(log_file: str, output: str, resolution: int, no_register: bool, no_loo
         click.echo("  raw odometry (no registration)")
     sec = s["seconds"]
     click.echo(f"  time: read {sec['read']} s, register {sec['register']} s, map {sec['map']} s")
+    if poses_file is not None:
+        click.echo(f"wrote {poses_file}: {len(result.poses)} poses")
+    if figures is not None:
+        r, mv = figures["residual_mm"], figures["moved_from_odometry_mm"]
+        click.echo(f"wrote {report_file} (PNG): {figures['matched']} of {figures['scans']} scans "
+                   f"matched, residual median {r['median']} / p90 {r['p90']} / max {r['max']} mm "
+                   f"(worst scans {', '.join(map(str, figures['worst_scans'])) or 'none'}); "
+                   f"{figures['loops_closed']} loops closed; moved from odometry median "
+                   f"{mv['median']} / p90 {mv['p90']} / max {mv['max']} mm")
 
 
 @click.command("log-info")

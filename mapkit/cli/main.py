@@ -58,6 +58,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "rename": ("mapkit.cli.edit:rename_cmd", "Rename the object NAME (or #N) to NEW_NAME; its CairnInfo: Params follow."),  # noqa: E501
     "render": ("mapkit.cli.render:render", "Draw a map as PNG, SVG or PDF, or in a window."),
     "ros": ("mapkit.cli.ros:ros", "Maps over ROS 1: transfer between nodes, and a map server for ARIA maps."),  # noqa: E501
+    "ros2": ("mapkit.cli.ros2:ros2", "Maps on ROS 2 (Humble, Jazzy) over DDS; needs `pip install 'mapkit[ros2]'`, not ROS 2."),  # noqa: E501
     "samples": ("mapkit.cli.samples:samples", "List the maps and laser logs bundled with mapkit, or copy some into a folder."),  # noqa: E501
     "send": ("mapkit.cli.transfer:send", "Send FILE (a .map or .2d) to a robot or terminal at HOST[:PORT] (default port 7373)."),  # noqa: E501
     "serve": ("mapkit.cli.transfer:serve", "Serve the maps in FOLDER to terminals: push, pull, list and load (run on the robot)."),  # noqa: E501

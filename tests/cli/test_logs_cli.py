@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import json
 
+import numpy as np
+
 import mapkit
 from mapkit.cli.main import cli
 
@@ -63,3 +65,74 @@ def test_bad_log_is_one_line_error(runner, tmp_path) -> None:
     assert res.exit_code == 0 and "MK704" in res.output
     res = runner.invoke(cli, ["log-info", str(bad)])
     assert res.exit_code == 1 and "bad.2d:6:" in res.output
+
+
+ROOM = "2D-Map\nLINES\n0 0 8000 0\n8000 0 8000 5000\n8000 5000 0 5000\n0 5000 0 0\n"
+
+
+def _room_log(runner, tmp_path, *extra: str):
+    room = tmp_path / "world.map"
+    room.write_text(ROOM)
+    log = tmp_path / "room.2d"
+    res = runner.invoke(cli, ["simulate", str(room), "-o", str(log), "--waypoints",
+                              "6500,1500 6500,3500", "--start", "1500,2500,0", "--loop", "--laps",
+                              "3", "--seed", "4", "--readings", "181", *extra])
+    assert res.exit_code == 0, res.output
+    return log
+
+
+def test_repeated_tags_merge_into_one_goal(runner, tmp_path) -> None:
+    log = _room_log(runner, tmp_path, "--scale-error", "0.01", "--turn-slip", "0.03",
+                    "--outliers", "0.02", "--people", "1")
+    out = tmp_path / "built.map"
+    res = runner.invoke(cli, ["build", str(log), "-o", str(out), "--no-lines"])
+    assert res.exit_code == 0, res.output
+    goals = [o for o in mapkit.load(out).objects if o.type == "GoalWithHeading"]
+    # Three laps past goal1 and goal2: one object each, at the mean of the laps' poses.
+    assert sorted(g.name for g in goals) == ["goal1", "goal2"]
+    g1 = next(g for g in goals if g.name == "goal1")
+    assert abs(g1.x - 6500) < 100 and abs(g1.y - 1500) < 100
+    res = runner.invoke(cli, ["build", str(log), "-o", str(out), "--force", "--no-lines",
+                              "--keep-all-tags"])
+    assert res.exit_code == 0, res.output
+    goals = [o for o in mapkit.load(out).objects if o.type == "GoalWithHeading"]
+    assert sorted(g.name for g in goals) == ["goal1"] * 3 + ["goal2"] * 3
+
+
+def test_poses_and_report(runner, tmp_path) -> None:
+    from mapkit.build import build_map
+    from mapkit.build.report import read_poses
+
+    log = _room_log(runner, tmp_path)
+    out, poses, png = tmp_path / "built.map", tmp_path / "room.tsv", tmp_path / "report.png"
+    res = runner.invoke(cli, ["build", str(log), "-o", str(out), "--poses", str(poses),
+                              "--report", str(png)])
+    assert res.exit_code == 0, res.output
+    assert f"wrote {poses}:" in res.output and f"wrote {png} (PNG)" in res.output
+    assert "loops closed" in res.output and "moved from odometry" in res.output
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 10_000
+    ids, p, o = read_poses(poses)
+    result = build_map(log, lines=False)
+    assert np.array_equal(ids, result.scan_ids)
+    assert np.allclose(p, result.poses, atol=0.06) and np.allclose(o, result.odometry, atol=0.06)
+    # Existing outputs are refused before any work, unless --force.
+    res = runner.invoke(cli, ["build", str(log), "-o", str(tmp_path / "new.map"),
+                              "--poses", str(poses)])
+    assert res.exit_code == 2 and "--force" in res.output
+    res = runner.invoke(cli, ["build", str(log), "-o", str(tmp_path / "new.map"), "--json",
+                              "--report", str(tmp_path / "r2.png")])
+    assert res.exit_code == 0, res.output
+    figs = json.loads(res.output)["report_figures"]
+    assert figs["scans"] == len(ids) and figs["residual_mm"]["median"] > 0
+
+
+def test_read_poses_names_the_bad_line(tmp_path) -> None:
+    import pytest
+
+    from mapkit.build.report import read_poses
+    from mapkit.errors import MapkitError
+
+    bad = tmp_path / "p.tsv"
+    bad.write_text("scanId\tx\ty\tth\todo_x\todo_y\todo_th\n0 1 2 3 4 5 6\n1 1 2 x 4 5 6\n")
+    with pytest.raises(MapkitError, match=r"p\.tsv:3: expected"):
+        read_poses(bad)

@@ -1,0 +1,173 @@
+"""Odometry as evidence: its noise model scaled to the log, and its systematic errors calibrated.
+
+Poses and steps are ``(x mm, y mm, theta radians)`` numpy arrays; see :class:`_OdometryModel` and
+:class:`_Calibration`.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from mapkit.build._graph import wrap
+
+FloatArray = np.ndarray[Any, np.dtype[np.float64]]
+
+#: The noise scale is fitted on at most this many of the latest steps.
+_FIT_STEPS = 3000
+
+
+class _OdometryModel:
+    """Odometry noise per step: distance- and turn-dependent, scaled to the log.
+
+    The model's shape (standard deviations) is ``2 mm + 2 %`` of the distance in x and y and
+    ``0.05 deg + 3 %`` of the turn ``+ 0.15 deg per metre`` in heading. How good a robot's odometry
+    really is differs by orders of magnitude (a simulated robot's is nearly perfect, a slipping one
+    is not), so the variances are scaled by a factor found from the log itself: the disagreement of
+    each step's odometry with its scan match is compared with the two noises combined (scan match
+    noise from its information), and the scale is chosen so that the median normalised
+    disagreement is what chance gives (the median of chi-square with 3 degrees of freedom). Odometry
+    that agrees with the scans better than the scans' own noise explains gets its scale lowered, so
+    the scans cannot walk away from it; drifting odometry gets it raised.
+    """
+
+    #: The 80th percentile of chi-square with 3 degrees of freedom (the fit uses the upper part
+    #: of the distribution: turns, where odometry errs most, are a minority of the steps).
+    _CHI2_3_MEDIAN = 4.642
+
+    def __init__(self, scale: float = 1.0, calibration: _Calibration | None = None) -> None:
+        self.scale = scale
+        self.calibration = calibration or _Calibration()
+        self.frozen = False  # True: the calibration is final
+        self._d: list[FloatArray] = []
+        self._scan_cov: list[FloatArray] = []
+        self._odo_var: list[FloatArray] = []
+        self._next = 30
+
+    @staticmethod
+    def variances(trans: float, turn: float) -> FloatArray:
+        s_xy = 2.0 + 0.02 * trans
+        s_th = math.radians(0.05) + 0.03 * abs(turn) + math.radians(0.15) * trans / 1000.0
+        return np.array([s_xy * s_xy, s_xy * s_xy, s_th * s_th])
+
+    def info(self, trans: float, turn: float) -> FloatArray:
+        return np.diag(1.0 / (self.scale * self.variances(trans, turn)))
+
+    def settle(self) -> None:
+        """Fit now (on what was seen) and keep what was seen for later fits."""
+        if self._d:
+            self._fit()
+
+    def observe(self, d: FloatArray, scan_info: FloatArray, trans: float, turn: float) -> None:
+        self._d.append(d.copy())
+        cov: FloatArray = np.linalg.inv(scan_info + np.diag([1e-8, 1e-8, 1e-4])).astype(np.float64)
+        self._scan_cov.append(cov)
+        self._odo_var.append(self.variances(trans, turn))
+        if len(self._d) >= self._next:
+            self._next = int(len(self._d) * 1.3) + 10
+            self._fit()
+
+    def _fit(self) -> None:
+        # The latest steps (a few thousand are plenty, and keep long logs fast).
+        D = np.array(self._d[-_FIT_STEPS:])
+        S = np.array(self._scan_cov[-_FIT_STEPS:])
+        V = np.array(self._odo_var[-_FIT_STEPS:])
+
+        def median_chi(k: float) -> float:
+            C = S + np.einsum("ni,ij->nij", V * k, np.eye(3))
+            x = np.linalg.solve(C, D[..., None])[..., 0]
+            return float(np.percentile(np.einsum("ni,ni->n", D, x), 80))
+
+        lo, hi = -4.0, 2.0  # log10 of the scale
+        if median_chi(10 ** lo) <= self._CHI2_3_MEDIAN:
+            self.scale = 10 ** lo
+            return
+        if median_chi(10 ** hi) >= self._CHI2_3_MEDIAN:
+            self.scale = 10 ** hi
+            return
+        for _ in range(20):
+            mid = (lo + hi) / 2
+            if median_chi(10 ** mid) > self._CHI2_3_MEDIAN:
+                lo = mid
+            else:
+                hi = mid
+        self.scale = 10 ** ((lo + hi) / 2)
+
+
+class _Calibration:
+    """Systematic odometry errors learnt from the scan matches: distance scale, turn scale, drift.
+
+    A wrong wheel diameter makes every distance too long or short, a wrong wheel base every turn,
+    unequal wheels a steady heading drift per metre. Where a scan match pins the motion down (the
+    walls in view fix the direction of travel, or the heading), the matched motion is compared
+    with the raw odometry; the median ratio (or drift per metre) is applied to the odometry of later
+    steps when it differs from none by more than three times its standard error, so that good
+    odometry is left alone.
+    """
+
+    _MIN = 50
+
+    def __init__(self) -> None:
+        self.dist = 1.0
+        self.turn = 1.0
+        self.drift = 0.0  # radians per mm
+        self._dist: list[float] = []
+        self._turn: list[float] = []
+        self._drift: list[float] = []
+        self._seen = 0
+
+    def fresh(self) -> _Calibration:
+        """A calibration that starts from this one's factors but forgets its observations."""
+        c = _Calibration()
+        c.dist, c.turn, c.drift = self.dist, self.turn, self.drift
+        return c
+
+    def differs(self, other: _Calibration) -> bool:
+        """Whether the factors differ from ``other``'s by enough to matter."""
+        return (abs(self.dist - other.dist) > 0.003 or abs(self.turn - other.turn) > 0.01
+                or abs(self.drift - other.drift) > math.radians(0.02) / 1000.0)
+
+    def summary(self) -> dict[str, float]:
+        """The factors, for the build's summary."""
+        return {"distance_scale": round(self.dist, 5), "turn_scale": round(self.turn, 5),
+                "drift_deg_per_m": round(math.degrees(self.drift) * 1000.0, 4)}
+
+    def correct(self, raw: FloatArray) -> FloatArray:
+        out = raw.copy()
+        out[:2] *= self.dist
+        trans = math.hypot(raw[0], raw[1])
+        out[2] = wrap(raw[2] * self.turn + self.drift * trans)
+        return out
+
+    def observe(self, raw: FloatArray, step: FloatArray, dv: FloatArray, scan_info: FloatArray,
+                heading: float) -> None:
+        trans_raw = math.hypot(raw[0], raw[1])
+        trans = math.hypot(step[0], step[1])
+        var = np.diag(np.linalg.inv(scan_info + np.diag([1e-8, 1e-8, 1e-4])))
+        if trans > 150.0:
+            u = np.array([step[0], step[1]]) / trans
+            c, s = math.cos(heading), math.sin(heading)
+            u = np.array([c * u[0] - s * u[1], s * u[0] + c * u[1]])
+            sig_u = 1.0 / math.sqrt(max(float(u @ scan_info[:2, :2] @ u), 1e-12))
+            if sig_u < 0.01 * trans:
+                self._dist.append((trans + float(dv[:2] @ u)) / trans_raw)
+            if abs(raw[2]) < math.radians(2.0) and math.sqrt(var[2]) < math.radians(0.2):
+                self._drift.append((float(step[2] + dv[2]) - raw[2] * self.turn) / trans_raw)
+        elif trans < 50.0 and abs(raw[2]) > math.radians(5.0) \
+                and math.sqrt(var[2]) < 0.05 * abs(raw[2]):
+            self._turn.append(float(step[2] + dv[2]) / raw[2])
+        self._seen += 1
+        if self._seen % (25 if self._seen < 1000 else 250) == 0:
+            self.dist = self._fit(self._dist, 1.0)
+            self.turn = self._fit(self._turn, 1.0)
+            self.drift = self._fit(self._drift, 0.0)
+
+    def _fit(self, obs: list[float], none: float) -> float:
+        if len(obs) < self._MIN:
+            return none
+        a = np.array(obs)
+        med = float(np.median(a))
+        err = 1.4826 * float(np.median(np.abs(a - med))) * 1.25 / math.sqrt(len(a))
+        return med if abs(med - none) > 3.0 * err else none

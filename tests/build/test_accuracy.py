@@ -1,0 +1,78 @@
+"""mapkit build against the truth on small simulated logs: never worse than odometry, near the floor.
+
+The logs are short (a room and a corridor, a couple of hundred scans) so these run in seconds; the
+full benchmark over noisier and longer logs is ``benchmarks/bench_build.py``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from mapkit.build import build_map
+from mapkit.build.quality import distance_to_segments, trajectory_rms
+from mapkit.model import MapData, MapObject, Scan
+from mapkit.model.scan import LaserLog, LaserScan, Pose2D
+from mapkit.simulate import simulate_log
+
+# An L-shaped flat: a room, a corridor and a second room, with a pillar.
+WALLS = [[0, 0, 9000, 0], [9000, 0, 9000, 4000], [9000, 4000, 4000, 4000],
+         [4000, 4000, 4000, 9000], [4000, 9000, 0, 9000], [0, 9000, 0, 0],
+         [2000, 2000, 2600, 2000], [2600, 2000, 2600, 2600], [2600, 2600, 2000, 2600],
+         [2000, 2600, 2000, 2000]]
+ROUTE = [(7500, 1200), (7500, 3000), (3000, 3200), (2000, 7500), (1200, 1200)]
+
+
+def flat() -> MapData:
+    return MapData(scans=(Scan.from_arrays(lines=WALLS),),
+                   objects=(MapObject("RobotHome", 1000, 1000, 0, name="Home"),))
+
+
+def with_true_odometry(sim) -> LaserLog:
+    at = {int(i): Pose2D(*map(float, p)) for i, p in zip(sim.truth_ids, sim.truth)}
+    recs = [dataclasses.replace(r, robot=at[r.scan_id], robot_global=at[r.scan_id])
+            if isinstance(r, LaserScan) else r for r in sim.log.records]
+    return LaserLog(header=sim.log.header, records=tuple(recs))
+
+
+def figures(result, sim) -> tuple[float, float, float]:
+    d = distance_to_segments(result.map.points, np.array(WALLS, dtype=float))
+    truth = sim.truth[np.searchsorted(sim.truth_ids, result.scan_ids)]
+    rms, _ = trajectory_rms(result.poses, truth)
+    return float(np.median(d)), float(np.percentile(d, 90)), rms
+
+
+NOISE = {
+    "perfect": {"translation_error": 0.0, "rotation_error": 0.0, "drift": 0.0},
+    "good": {"translation_error": 0.003, "rotation_error": 0.005, "drift": 0.01},
+    "drifting": {"drift": 0.2, "rotation_error": 0.03, "scale_error": 0.01, "turn_slip": 0.04},
+}
+
+
+@pytest.mark.parametrize("noise", sorted(NOISE))
+def test_never_worse_than_odometry_and_near_the_floor(noise: str) -> None:
+    sim = simulate_log(flat(), waypoints=ROUTE, loop=True, seed=7, **NOISE[noise])
+    built = figures(build_map(sim.log, lines=False), sim)
+    raw = figures(build_map(sim.log, register=False, lines=False), sim)
+    floor = figures(build_map(with_true_odometry(sim), register=False, lines=False), sim)
+    med, p90, rms = built
+    assert med <= floor[0] + 5.0 and p90 < 60.0, (built, floor)
+    assert rms < 40.0 and rms <= raw[2] + 15.0, (built, raw)
+
+
+def test_true_poses_as_odometry_stay_true() -> None:
+    sim = simulate_log(flat(), waypoints=ROUTE, loop=True, seed=3, range_noise=15.0,
+                       translation_error=0.0, rotation_error=0.0, drift=0.0)
+    res = build_map(with_true_odometry(sim), lines=False)
+    rms, rms_deg = trajectory_rms(res.poses, sim.truth)
+    assert rms < 5.0 and rms_deg < 0.1, (rms, rms_deg)
+    assert res.summary["registration"]["odometry_noise_scale"] < 0.5
+
+
+def test_outliers_and_people_stay_out_of_the_map() -> None:
+    sim = simulate_log(flat(), waypoints=ROUTE, loop=True, seed=5, outliers=0.03, people=2,
+                       drift=0.1, turn_slip=0.03)
+    med, p90, rms = figures(build_map(sim.log, lines=False), sim)
+    assert med < 15.0 and p90 < 60.0 and rms < 40.0, (med, p90, rms)
