@@ -90,12 +90,18 @@ def main() -> None:
     env = dict(os.environ, PYTHONPATH=str(ROOT))
     with tempfile.TemporaryDirectory() as tmp:
         payload = os.path.join(tmp, "map.cdr")
-        pub = subprocess.Popen(ns.wrap([sys.executable, "-c", PUBLISHER, payload]), env=env,
-                               stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+        pub = subprocess.Popen(
+            ns.wrap([sys.executable, "-c", PUBLISHER, payload]),
+            env=env,
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            text=True,
+        )
         assert pub.stdout is not None
         assert pub.stdout.readline().strip() == "PUBLISHED"
-        tcp = subprocess.Popen(ns.wrap([sys.executable, "-c", TCP_SERVER, payload]),
-                               stdout=subprocess.PIPE, text=True)
+        tcp = subprocess.Popen(
+            ns.wrap([sys.executable, "-c", TCP_SERVER, payload]), stdout=subprocess.PIPE, text=True
+        )
         try:
             assert tcp.stdout is not None
             port = tcp.stdout.readline().strip()
@@ -114,12 +120,16 @@ def main() -> None:
             tcp.wait()
             ns.stop()
     base = statistics.median(results["TCP client (baseline)"])
-    print(f"2000 x 2000 map, {size / 1e6:.1f} MB of CDR; late joiner's start -> map received "
-          f"({args.runs} runs)")
+    print(
+        f"2000 x 2000 map, {size / 1e6:.1f} MB of CDR; late joiner's start -> map received "
+        f"({args.runs} runs)"
+    )
     for name, ts in results.items():
         med = statistics.median(ts)
-        print(f"  {name:24s} best {min(ts) * 1000:8.1f} ms  median {med * 1000:8.1f} ms  "
-              f"x{med / base:6.1f} of TCP")
+        print(
+            f"  {name:24s} best {min(ts) * 1000:8.1f} ms  median {med * 1000:8.1f} ms  "
+            f"x{med / base:6.1f} of TCP"
+        )
 
 
 if __name__ == "__main__":

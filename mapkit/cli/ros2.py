@@ -24,20 +24,46 @@ def ros2() -> None:
 
 def _common(f: Any) -> Any:
     f = json_option(f)
-    f = click.option("--distro", type=click.Choice(["jazzy", "humble"]), default="jazzy",
-                     show_default=True, help="Whose discovery layout to announce (type hashes, "
-                     "Gid size); the map topics are the same for both.")(f)
-    f = click.option("--free", type=click.Choice(["flood", "hull", "all", "none"]),
-                     default="flood", show_default=True,
-                     help="How free space is decided (see `mapkit rasterize`).")(f)
-    f = click.option("--resolution", type=float, default=0.05, show_default=True,
-                     help="Metres per cell for .map files.")(f)
-    f = click.option("--frame", "frame_id", default="map", show_default=True,
-                     help="Frame of the published messages.")(f)
-    f = click.option("--topic", default="map", show_default=True,
-                     help="The grid's topic (nav2: map).")(f)
-    return click.option("--domain", type=click.IntRange(0, 232), envvar="ROS_DOMAIN_ID",
-                        default=0, show_default=True, help="ROS 2 domain (ROS_DOMAIN_ID).")(f)
+    f = click.option(
+        "--distro",
+        type=click.Choice(["jazzy", "humble"]),
+        default="jazzy",
+        show_default=True,
+        help="Whose discovery layout to announce (type hashes, "
+        "Gid size); the map topics are the same for both.",
+    )(f)
+    f = click.option(
+        "--free",
+        type=click.Choice(["flood", "hull", "all", "none"]),
+        default="flood",
+        show_default=True,
+        help="How free space is decided (see `mapkit rasterize`).",
+    )(f)
+    f = click.option(
+        "--resolution",
+        type=float,
+        default=0.05,
+        show_default=True,
+        help="Metres per cell for .map files.",
+    )(f)
+    f = click.option(
+        "--frame",
+        "frame_id",
+        default="map",
+        show_default=True,
+        help="Frame of the published messages.",
+    )(f)
+    f = click.option(
+        "--topic", default="map", show_default=True, help="The grid's topic (nav2: map)."
+    )(f)
+    return click.option(
+        "--domain",
+        type=click.IntRange(0, 232),
+        envvar="ROS_DOMAIN_ID",
+        default=0,
+        show_default=True,
+        help="ROS 2 domain (ROS_DOMAIN_ID).",
+    )(f)
 
 
 def _stop_event() -> threading.Event:
@@ -56,16 +82,26 @@ def _report(server: Any, as_json: bool, extra: dict[str, Any] | None = None) -> 
     if as_json:
         click.echo(json.dumps(info))
     else:
-        err(f"serving {info['name']} on ROS 2 /{info['topic'].lstrip('/')}: {info['width']} x "
+        err(
+            f"serving {info['name']} on ROS 2 /{info['topic'].lstrip('/')}: {info['width']} x "
             f"{info['height']} cells of {info['resolution']:g} m; {len(info['goals'])} goals"
-            f"{'; keepout mask' if info['keepout'] else ''}. Ctrl-C stops.")
+            f"{'; keepout mask' if info['keepout'] else ''}. Ctrl-C stops."
+        )
 
 
 @ros2.command("map-server")
 @click.argument("map_file", type=click.Path(dir_okay=False))
 @_common
-def map_server(map_file: str, domain: int, topic: str, frame_id: str, resolution: float,
-               free: str, distro: str, as_json: bool) -> None:
+def map_server(
+    map_file: str,
+    domain: int,
+    topic: str,
+    frame_id: str,
+    resolution: float,
+    free: str,
+    distro: str,
+    as_json: bool,
+) -> None:
     """Serve MAP_FILE (.map, or a map_server YAML) on ROS 2 as nav2's map_server does.
 
     /map (reliable, transient-local, depth 1), /keepout_filter_mask + /costmap_filter_info for
@@ -81,19 +117,37 @@ def map_server(map_file: str, domain: int, topic: str, frame_id: str, resolution
     from mapkit.ros2.map_server import Topics, run_map_server
 
     stop = _stop_event()
-    run_map_server(map_file, domain=domain, topics=Topics(map=resolve_topic(topic)),
-                   frame_id=frame_id, distro=distro, stop=stop, resolution=resolution, free=free,
-                   on_publish=lambda s: _report(s, as_json),
-                   on_error=lambda e: err(f"warning: {e}; still serving the previous map"))
+    run_map_server(
+        map_file,
+        domain=domain,
+        topics=Topics(map=resolve_topic(topic)),
+        frame_id=frame_id,
+        distro=distro,
+        stop=stop,
+        resolution=resolution,
+        free=free,
+        on_publish=lambda s: _report(s, as_json),
+        on_error=lambda e: err(f"warning: {e}; still serving the previous map"),
+    )
 
 
 @ros2.command("aria-bridge")
 @click.argument("host")
 @_common
 @_aria_robot_options
-def aria_bridge(host: str, domain: int, topic: str, frame_id: str, resolution: float, free: str,
-                distro: str, as_json: bool, user: str, password_file: str | None,
-                timeout: float) -> None:
+def aria_bridge(
+    host: str,
+    domain: int,
+    topic: str,
+    frame_id: str,
+    resolution: float,
+    free: str,
+    distro: str,
+    as_json: bool,
+    user: str,
+    password_file: str | None,
+    timeout: float,
+) -> None:
     """Publish an ARNL/ARAM robot's active map on ROS 2; republish when the robot changes it.
 
     The robot is reached over ArNetworking (HOST is host[:port], port 7272). Topics as
@@ -109,7 +163,14 @@ def aria_bridge(host: str, domain: int, topic: str, frame_id: str, resolution: f
 
     stop = _stop_event()
     with open_robot(host, user, password_file, timeout) as robot:
-        run_aria_bridge(robot, domain=domain, topics=Topics(map=resolve_topic(topic)),
-                        frame_id=frame_id, distro=distro, stop=stop, resolution=resolution,
-                        free=free, on_publish=lambda s, c: _report(s, as_json,
-                                                                   {"robot_map": c.name}))
+        run_aria_bridge(
+            robot,
+            domain=domain,
+            topics=Topics(map=resolve_topic(topic)),
+            frame_id=frame_id,
+            distro=distro,
+            stop=stop,
+            resolution=resolution,
+            free=free,
+            on_publish=lambda s, c: _report(s, as_json, {"robot_map": c.name}),
+        )

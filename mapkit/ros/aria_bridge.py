@@ -27,8 +27,9 @@ __all__ = ["robot_maps", "run_aria_bridge"]
 log = logging.getLogger(__name__)
 
 
-def robot_maps(robot: Robot, stop: Callable[[], bool],
-               tick: float = 0.5) -> Iterator[tuple[str, MapChange]]:
+def robot_maps(
+    robot: Robot, stop: Callable[[], bool], tick: float = 0.5
+) -> Iterator[tuple[str, MapChange]]:
     """The robot's active map now and after each change, each saved as a file to serve.
 
     Yields ``(path, change)``: ``path`` is ``change.data`` written atomically into a private
@@ -45,10 +46,15 @@ def robot_maps(robot: Robot, stop: Callable[[], bool],
         shutil.rmtree(workdir, ignore_errors=True)
 
 
-def run_aria_bridge(robot: Robot, *, resolution: float = 0.05, frame_id: str = "map",
-                    node_name: str = "mapkit_aria_bridge",
-                    on_change: Callable[[MapServer, MapChange], None] | None = None,
-                    **raster: Any) -> int:
+def run_aria_bridge(
+    robot: Robot,
+    *,
+    resolution: float = 0.05,
+    frame_id: str = "map",
+    node_name: str = "mapkit_aria_bridge",
+    on_change: Callable[[MapServer, MapChange], None] | None = None,
+    **raster: Any,
+) -> int:
     """Serve ``robot``'s active map on ROS until Ctrl-C/SIGTERM; the number of maps served.
 
     Args:

@@ -43,7 +43,8 @@ def _qos(spec: QosSpec, user_data: bytes = b"") -> Any:
     cdds = _binding()
     P = cdds.core.Policy
     policies = [
-        P.Reliability.Reliable(cdds.util.duration(seconds=1)) if spec.reliable
+        P.Reliability.Reliable(cdds.util.duration(seconds=1))
+        if spec.reliable
         else P.Reliability.BestEffort,
         P.Durability.TransientLocal if spec.transient_local else P.Durability.Volatile,
         P.History.KeepLast(spec.depth),
@@ -57,8 +58,15 @@ def _qos(spec: QosSpec, user_data: bytes = b"") -> Any:
 class Writer:
     """A ROS 2 publisher: ``write`` takes the CDR bytes of one message (with its header)."""
 
-    def __init__(self, node: Node, topic: str, typename: str, qos: QosSpec = LATCHED,
-                 *, dds_name: str | None = None) -> None:
+    def __init__(
+        self,
+        node: Node,
+        topic: str,
+        typename: str,
+        qos: QosSpec = LATCHED,
+        *,
+        dds_name: str | None = None,
+    ) -> None:
         from mapkit.ros2.dds_types import dds_type
 
         cdds = _binding()
@@ -68,8 +76,9 @@ class Writer:
         thash = type_hash(typename, node.distro) if node.distro != "humble" else None
         try:
             self._topic = cdds.topic.Topic(node.participant, self.topic, self._cls)
-            self._writer = cdds.pub.DataWriter(node.participant, self._topic,
-                                               qos=_qos(qos, endpoint_user_data(thash)))
+            self._writer = cdds.pub.DataWriter(
+                node.participant, self._topic, qos=_qos(qos, endpoint_user_data(thash))
+            )
         except Exception as err:  # cyclonedds raises DDSException for any DDS failure
             raise Ros2Error(f"cannot create the DDS writer for {self.topic}: {err}") from err
         self.gid = self._writer.guid.bytes
@@ -100,8 +109,9 @@ class Node:
         Ros2Error: When the binding is missing or the participant cannot be created.
     """
 
-    def __init__(self, name: str, domain: int = 0, namespace: str = "/",
-                 distro: str = "jazzy") -> None:
+    def __init__(
+        self, name: str, domain: int = 0, namespace: str = "/", distro: str = "jazzy"
+    ) -> None:
         cdds = _binding()
         if not 0 <= domain <= 232:
             raise Ros2Error(f"ROS 2 domain must be 0..232, got {domain}")
@@ -109,12 +119,14 @@ class Node:
         self._lock = threading.Lock()
         try:
             self.participant = cdds.domain.DomainParticipant(
-                domain, qos=cdds.core.Qos(cdds.core.Policy.Userdata(participant_user_data())))
+                domain, qos=cdds.core.Qos(cdds.core.Policy.Userdata(participant_user_data()))
+            )
         except Exception as err:
             raise Ros2Error(f"cannot join DDS domain {domain}: {err}") from err
         self.writers: dict[str, Writer] = {}
-        self._discovery = Writer(self, DISCOVERY_TOPIC, PARTICIPANT_ENTITIES_INFO,
-                                 dds_name=DISCOVERY_TOPIC)
+        self._discovery = Writer(
+            self, DISCOVERY_TOPIC, PARTICIPANT_ENTITIES_INFO, dds_name=DISCOVERY_TOPIC
+        )
 
     def writer(self, topic: str, typename: str, qos: QosSpec = LATCHED) -> Writer:
         """A writer on a ROS 2 topic (created once; the node's graph entry is updated)."""
@@ -126,8 +138,11 @@ class Node:
 
     def _announce(self) -> None:
         gids = [w.gid for w in self.writers.values()]
-        self._discovery.write(participant_entities_info_cdr(
-            self.participant.guid.bytes, self.name, self.namespace, gids, distro=self.distro))
+        self._discovery.write(
+            participant_entities_info_cdr(
+                self.participant.guid.bytes, self.name, self.namespace, gids, distro=self.distro
+            )
+        )
 
     def close(self) -> None:
         """Leave the domain (peers see the node and its topics go)."""

@@ -12,8 +12,7 @@ must and do match field for field. Imported only when the DDS binding is used.
 
 from typing import Any
 
-from cyclonedds.idl import IdlStruct
-from cyclonedds.idl import types as t
+from cyclonedds.idl import IdlStruct, types as t
 
 from mapkit.ros2.messages import (
     COSTMAP_FILTER_INFO,
@@ -115,13 +114,15 @@ class NodeEntitiesInfo24_(IdlStruct, typename="rmw_dds_common::msg::dds_::NodeEn
 
 
 class ParticipantEntitiesInfo16_(
-        IdlStruct, typename="rmw_dds_common::msg::dds_::ParticipantEntitiesInfo_"):
+    IdlStruct, typename="rmw_dds_common::msg::dds_::ParticipantEntitiesInfo_"
+):
     gid: Gid16_
     node_entities_info_seq: t.sequence[NodeEntitiesInfo16_]
 
 
 class ParticipantEntitiesInfo24_(
-        IdlStruct, typename="rmw_dds_common::msg::dds_::ParticipantEntitiesInfo_"):
+    IdlStruct, typename="rmw_dds_common::msg::dds_::ParticipantEntitiesInfo_"
+):
     gid: Gid24_
     node_entities_info_seq: t.sequence[NodeEntitiesInfo24_]
 

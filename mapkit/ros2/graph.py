@@ -56,8 +56,12 @@ def resolve_topic(name: str, namespace: str = "/") -> str:
     full = name if name.startswith("/") else namespace.rstrip("/") + "/" + name
     parts = full.split("/")[1:]
     for part in parts:
-        if not part or part[0].isdigit() or not all(c.isalnum() or c == "_" for c in part) \
-                or not part.isascii():
+        if (
+            not part
+            or part[0].isdigit()
+            or not all(c.isalnum() or c == "_" for c in part)
+            or not part.isascii()
+        ):
             raise Ros2Error(f"invalid ROS 2 topic name {name!r}: bad part {part!r}")
     return full
 

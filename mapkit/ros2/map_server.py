@@ -38,8 +38,15 @@ from mapkit.ros2.messages import (
     pose_array_cdr,
 )
 
-__all__ = ["FileWatch", "Payload", "Ros2MapServer", "Topics", "payloads", "run_aria_bridge",
-           "run_map_server"]
+__all__ = [
+    "FileWatch",
+    "Payload",
+    "Ros2MapServer",
+    "Topics",
+    "payloads",
+    "run_aria_bridge",
+    "run_map_server",
+]
 
 log = logging.getLogger(__name__)
 
@@ -65,22 +72,41 @@ class Payload:
     cdr: bytes
 
 
-def payloads(served: ServedMap, topics: Topics = Topics(), frame_id: str = "map",
-             stamp: float | None = None, distro: str = "jazzy",
-             namespace: str = "/") -> list[Payload]:
+def payloads(
+    served: ServedMap,
+    topics: Topics = Topics(),
+    frame_id: str = "map",
+    stamp: float | None = None,
+    distro: str = "jazzy",
+    namespace: str = "/",
+) -> list[Payload]:
     """Everything the server publishes for one map, serialised (the grid first)."""
     from mapkit.ros2.graph import resolve_topic
 
     now = time.time() if stamp is None else stamp
-    out = [Payload(topics.map, OCCUPANCY_GRID,
-                   grid_cdr(served.grid, frame_id, now, now, distro))]
+    out = [Payload(topics.map, OCCUPANCY_GRID, grid_cdr(served.grid, frame_id, now, now, distro))]
     if served.keepout is not None:
-        out.append(Payload(topics.keepout_mask, OCCUPANCY_GRID,
-                           grid_cdr(served.keepout, frame_id, now, now, distro)))
-        out.append(Payload(topics.filter_info, COSTMAP_FILTER_INFO, costmap_filter_info_cdr(
-            resolve_topic(topics.keepout_mask, namespace), frame_id, now, distro=distro)))
-        for topic, poses in ((topics.goals, served.goals), (topics.homes, served.homes),
-                             (topics.docks, served.docks)):
+        out.append(
+            Payload(
+                topics.keepout_mask,
+                OCCUPANCY_GRID,
+                grid_cdr(served.keepout, frame_id, now, now, distro),
+            )
+        )
+        out.append(
+            Payload(
+                topics.filter_info,
+                COSTMAP_FILTER_INFO,
+                costmap_filter_info_cdr(
+                    resolve_topic(topics.keepout_mask, namespace), frame_id, now, distro=distro
+                ),
+            )
+        )
+        for topic, poses in (
+            (topics.goals, served.goals),
+            (topics.homes, served.homes),
+            (topics.docks, served.docks),
+        ):
             out.append(Payload(topic, POSE_ARRAY, pose_array_cdr(poses, frame_id, now, distro)))
     return out
 
@@ -123,9 +149,17 @@ class Ros2MapServer:
         MapLoadError: When the first map cannot be loaded (nothing is published then).
     """
 
-    def __init__(self, node: Any, path: str, *, topics: Topics = Topics(), frame_id: str = "map",
-                 resolution: float = 0.05, loaded: ServedMap | None = None,
-                 **raster: Any) -> None:
+    def __init__(
+        self,
+        node: Any,
+        path: str,
+        *,
+        topics: Topics = Topics(),
+        frame_id: str = "map",
+        resolution: float = 0.05,
+        loaded: ServedMap | None = None,
+        **raster: Any,
+    ) -> None:
         self.node, self.topics, self.frame_id = node, topics, frame_id
         self.resolution, self.raster = resolution, raster
         self.current = loaded or served_map(path, resolution, **raster)
@@ -133,8 +167,13 @@ class Ros2MapServer:
 
     def publish(self) -> None:
         """(Re)publish every topic for the active map."""
-        for p in payloads(self.current, self.topics, self.frame_id, distro=self.node.distro,
-                          namespace=self.node.namespace):
+        for p in payloads(
+            self.current,
+            self.topics,
+            self.frame_id,
+            distro=self.node.distro,
+            namespace=self.node.namespace,
+        ):
             self.node.writer(p.topic, p.typename).write(p.cdr)
         self.published += 1
 
@@ -149,13 +188,20 @@ class Ros2MapServer:
         return self.current
 
 
-def run_map_server(path: str, *, domain: int = 0, topics: Topics = Topics(),
-                   frame_id: str = "map", distro: str = "jazzy",
-                   node_name: str = "mapkit_map_server",
-                   stop: threading.Event | None = None, poll: float = 0.5,
-                   on_publish: Callable[[Ros2MapServer], None] | None = None,
-                   on_error: Callable[[MapLoadError], None] | None = None,
-                   **options: Any) -> Ros2MapServer:
+def run_map_server(
+    path: str,
+    *,
+    domain: int = 0,
+    topics: Topics = Topics(),
+    frame_id: str = "map",
+    distro: str = "jazzy",
+    node_name: str = "mapkit_map_server",
+    stop: threading.Event | None = None,
+    poll: float = 0.5,
+    on_publish: Callable[[Ros2MapServer], None] | None = None,
+    on_error: Callable[[MapLoadError], None] | None = None,
+    **options: Any,
+) -> Ros2MapServer:
     """Serve ``path`` on ROS 2 until ``stop`` is set; republish when the file changes on disk.
 
     A change that does not load (a half-written or broken file) keeps the previous map on the
@@ -168,12 +214,19 @@ def run_map_server(path: str, *, domain: int = 0, topics: Topics = Topics(),
     from mapkit.ros2.dds import Node
 
     stop = stop or threading.Event()
-    server_path = path[len("file://"):] if path.startswith("file://") else path
+    server_path = path[len("file://") :] if path.startswith("file://") else path
     resolution = options.pop("resolution", 0.05)
     first = served_map(server_path, resolution, **options)  # a bad file never joins DDS
     node = Node(node_name, domain, distro=distro)
-    server = Ros2MapServer(node, server_path, topics=topics, frame_id=frame_id,
-                           resolution=resolution, loaded=first, **options)
+    server = Ros2MapServer(
+        node,
+        server_path,
+        topics=topics,
+        frame_id=frame_id,
+        resolution=resolution,
+        loaded=first,
+        **options,
+    )
     server.publish()
     if on_publish is not None:
         on_publish(server)
@@ -184,8 +237,9 @@ def run_map_server(path: str, *, domain: int = 0, topics: Topics = Topics(),
         try:
             server.change(server_path)
         except MapLoadError as err:
-            log.warning("%s changed but does not load; still serving the previous map: %s",
-                        server_path, err)
+            log.warning(
+                "%s changed but does not load; still serving the previous map: %s", server_path, err
+            )
             if on_error is not None:
                 on_error(err)
             continue
@@ -195,11 +249,18 @@ def run_map_server(path: str, *, domain: int = 0, topics: Topics = Topics(),
     return server
 
 
-def run_aria_bridge(robot: Any, *, domain: int = 0, topics: Topics = Topics(),
-                    frame_id: str = "map", distro: str = "jazzy",
-                    node_name: str = "mapkit_aria_bridge", stop: threading.Event | None = None,
-                    on_publish: Callable[[Ros2MapServer, Any], None] | None = None,
-                    **options: Any) -> int:
+def run_aria_bridge(
+    robot: Any,
+    *,
+    domain: int = 0,
+    topics: Topics = Topics(),
+    frame_id: str = "map",
+    distro: str = "jazzy",
+    node_name: str = "mapkit_aria_bridge",
+    stop: threading.Event | None = None,
+    on_publish: Callable[[Ros2MapServer, Any], None] | None = None,
+    **options: Any,
+) -> int:
     """Serve an ArNetworking robot's active map on ROS 2, republished when the robot changes it.
 
     Args:
@@ -230,8 +291,7 @@ def run_aria_bridge(robot: Any, *, domain: int = 0, topics: Topics = Topics(),
             else:
                 server.change(path)
             served += 1
-            log.info("serving %s from %s (MD5 %s) on ROS 2", change.name, robot.address,
-                     change.md5)
+            log.info("serving %s from %s (MD5 %s) on ROS 2", change.name, robot.address, change.md5)
             if on_publish is not None:
                 on_publish(server, change)
     finally:

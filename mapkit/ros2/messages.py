@@ -84,7 +84,8 @@ def type_hash(typename: str, distro: str = "jazzy") -> str:
 def _time(store: Any, seconds: float) -> Any:
     sec = math.floor(seconds)
     return store.types["builtin_interfaces/msg/Time"](
-        sec=int(sec), nanosec=min(round((seconds - sec) * 1e9), 999_999_999))
+        sec=int(sec), nanosec=min(round((seconds - sec) * 1e9), 999_999_999)
+    )
 
 
 def _header(store: Any, frame_id: str, stamp: float) -> Any:
@@ -96,15 +97,22 @@ def _pose(store: Any, x: float, y: float, yaw: float) -> Any:
     return t["geometry_msgs/msg/Pose"](
         position=t["geometry_msgs/msg/Point"](x=float(x), y=float(y), z=0.0),
         orientation=t["geometry_msgs/msg/Quaternion"](
-            x=0.0, y=0.0, z=math.sin(yaw / 2), w=math.cos(yaw / 2)))
+            x=0.0, y=0.0, z=math.sin(yaw / 2), w=math.cos(yaw / 2)
+        ),
+    )
 
 
 def _serialize(store: Any, msg: Any, typename: str) -> bytes:
     return bytes(store.serialize_cdr(msg, typename))
 
 
-def grid_cdr(grid: OccupancyGrid, frame_id: str = "map", stamp: float = 0.0,
-             load_time: float | None = None, distro: str = "jazzy") -> bytes:
+def grid_cdr(
+    grid: OccupancyGrid,
+    frame_id: str = "map",
+    stamp: float = 0.0,
+    load_time: float | None = None,
+    distro: str = "jazzy",
+) -> bytes:
     """A ``nav_msgs/msg/OccupancyGrid`` as CDR: row-major from the southern row, int8 cells.
 
     Args:
@@ -118,25 +126,36 @@ def grid_cdr(grid: OccupancyGrid, frame_id: str = "map", stamp: float = 0.0,
     t = store.types
     info = t["nav_msgs/msg/MapMetaData"](
         map_load_time=_time(store, stamp if load_time is None else load_time),
-        resolution=float(grid.resolution), width=int(grid.width), height=int(grid.height),
-        origin=_pose(store, grid.origin[0], grid.origin[1], 0.0))
+        resolution=float(grid.resolution),
+        width=int(grid.width),
+        height=int(grid.height),
+        origin=_pose(store, grid.origin[0], grid.origin[1], 0.0),
+    )
     data = np.ascontiguousarray(grid.data, dtype=np.int8).ravel()
     msg = t[OCCUPANCY_GRID](header=_header(store, frame_id, stamp), info=info, data=data)
     return _serialize(store, msg, OCCUPANCY_GRID)
 
 
-def pose_array_cdr(poses: tuple[Pose, ...], frame_id: str = "map", stamp: float = 0.0,
-                   distro: str = "jazzy") -> bytes:
+def pose_array_cdr(
+    poses: tuple[Pose, ...], frame_id: str = "map", stamp: float = 0.0, distro: str = "jazzy"
+) -> bytes:
     """A ``geometry_msgs/msg/PoseArray`` as CDR (z 0, yaw as a quaternion about z)."""
     store = typestore(distro)
-    msg = store.types[POSE_ARRAY](header=_header(store, frame_id, stamp),
-                                  poses=[_pose(store, p.x, p.y, p.yaw) for p in poses])
+    msg = store.types[POSE_ARRAY](
+        header=_header(store, frame_id, stamp), poses=[_pose(store, p.x, p.y, p.yaw) for p in poses]
+    )
     return _serialize(store, msg, POSE_ARRAY)
 
 
-def costmap_filter_info_cdr(mask_topic: str, frame_id: str = "map", stamp: float = 0.0,
-                            filter_type: int = KEEPOUT_FILTER, base: float = 0.0,
-                            multiplier: float = 1.0, distro: str = "jazzy") -> bytes:
+def costmap_filter_info_cdr(
+    mask_topic: str,
+    frame_id: str = "map",
+    stamp: float = 0.0,
+    filter_type: int = KEEPOUT_FILTER,
+    base: float = 0.0,
+    multiplier: float = 1.0,
+    distro: str = "jazzy",
+) -> bytes:
     """A ``nav2_msgs/msg/CostmapFilterInfo`` as CDR, as Nav2's costmap_filter_info_server sends.
 
     The defaults describe a keepout mask (type 0, base 0, multiplier 1: mask value 100 keeps
@@ -144,8 +163,12 @@ def costmap_filter_info_cdr(mask_topic: str, frame_id: str = "map", stamp: float
     """
     store = typestore(distro)
     msg = store.types[COSTMAP_FILTER_INFO](
-        header=_header(store, frame_id, stamp), type=int(filter_type),
-        filter_mask_topic=mask_topic, base=float(base), multiplier=float(multiplier))
+        header=_header(store, frame_id, stamp),
+        type=int(filter_type),
+        filter_mask_topic=mask_topic,
+        base=float(base),
+        multiplier=float(multiplier),
+    )
     return _serialize(store, msg, COSTMAP_FILTER_INFO)
 
 
@@ -154,9 +177,14 @@ def gid_size(distro: str) -> int:
     return 24 if distro == "humble" else 16
 
 
-def participant_entities_info_cdr(participant_gid: bytes, node_name: str, node_namespace: str,
-                                  writer_gids: list[bytes], reader_gids: list[bytes] | None = None,
-                                  distro: str = "jazzy") -> bytes:
+def participant_entities_info_cdr(
+    participant_gid: bytes,
+    node_name: str,
+    node_namespace: str,
+    writer_gids: list[bytes],
+    reader_gids: list[bytes] | None = None,
+    distro: str = "jazzy",
+) -> bytes:
     """The ``ros_discovery_info`` sample that puts one node into the ROS 2 graph.
 
     Args:
@@ -174,12 +202,15 @@ def participant_entities_info_cdr(participant_gid: bytes, node_name: str, node_n
     def gid(raw: bytes) -> Any:
         if len(raw) != 16:
             raise Ros2Error(f"a DDS GUID has 16 bytes, got {len(raw)}")
-        return t["rmw_dds_common/msg/Gid"](data=np.frombuffer(raw.ljust(size, b"\0"),
-                                                              dtype=np.uint8).copy())
+        return t["rmw_dds_common/msg/Gid"](
+            data=np.frombuffer(raw.ljust(size, b"\0"), dtype=np.uint8).copy()
+        )
 
     node = t["rmw_dds_common/msg/NodeEntitiesInfo"](
-        node_namespace=node_namespace, node_name=node_name,
+        node_namespace=node_namespace,
+        node_name=node_name,
         reader_gid_seq=[gid(g) for g in reader_gids or []],
-        writer_gid_seq=[gid(g) for g in writer_gids])
+        writer_gid_seq=[gid(g) for g in writer_gids],
+    )
     msg = t[PARTICIPANT_ENTITIES_INFO](gid=gid(participant_gid), node_entities_info_seq=[node])
     return _serialize(store, msg, PARTICIPANT_ENTITIES_INFO)

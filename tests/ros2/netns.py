@@ -10,8 +10,10 @@ import os
 import shutil
 import subprocess
 
-SETUP = ("ip link set lo up && ip link set lo multicast on && ip route add 224.0.0.0/4 dev lo "
-         "&& echo ready && exec sleep 100000")
+SETUP = (
+    "ip link set lo up && ip link set lo multicast on && ip route add 224.0.0.0/4 dev lo "
+    "&& echo ready && exec sleep 100000"
+)
 
 
 class NetNs:

@@ -12,8 +12,14 @@ from mapkit.ros2.map_server import Ros2MapServer, Topics
 
 
 def topics(i: int) -> Topics:
-    return Topics(map=f"map_{i}", keepout_mask=f"keepout_{i}", filter_info=f"filter_info_{i}",
-                  goals=f"goals_{i}", homes=f"homes_{i}", docks=f"docks_{i}")
+    return Topics(
+        map=f"map_{i}",
+        keepout_mask=f"keepout_{i}",
+        filter_info=f"filter_info_{i}",
+        goals=f"goals_{i}",
+        homes=f"homes_{i}",
+        docks=f"docks_{i}",
+    )
 
 
 def main() -> None:

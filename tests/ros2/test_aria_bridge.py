@@ -24,14 +24,16 @@ FIRST, SECOND = "aria291-columbia.map", "aria-office.map"
 
 @pytest.fixture
 def robot(tmp_path: Path, shared_dir: Path) -> Iterator[Peer]:
-    p = start_peer(tmp_path / "peer", [shared_dir / "real" / FIRST, shared_dir / "real" / SECOND],
-                   active=FIRST)
+    p = start_peer(
+        tmp_path / "peer", [shared_dir / "real" / FIRST, shared_dir / "real" / SECOND], active=FIRST
+    )
     yield p
     p.stop()
 
 
 def test_bridge_publishes_the_robots_map_and_follows_a_switch(
-        peers: dict[str, Path], netns: NetNs, robot: Peer, tmp_path: Path) -> None:
+    peers: dict[str, Path], netns: NetNs, robot: Peer, tmp_path: Path
+) -> None:
     sock = str(tmp_path / "robot.sock")
     unix = serve_unix(sock, robot.port)
     relay = start(netns, [sys.executable, "-m", "tests.ros2.relay", sock])
@@ -39,17 +41,40 @@ def test_bridge_publishes_the_robots_map_and_follows_a_switch(
     try:
         assert relay.stdout is not None
         port = relay.stdout.readline().strip()
-        bridge = start(netns, [sys.executable, "-m", "mapkit", "ros2", "aria-bridge",
-                               f"127.0.0.1:{port}", "-u", "admin", "--domain", "13", "--json"],
-                       env_extra={"MAPKIT_ARIA_PASSWORD": "secret1"})
+        bridge = start(
+            netns,
+            [
+                sys.executable,
+                "-m",
+                "mapkit",
+                "ros2",
+                "aria-bridge",
+                f"127.0.0.1:{port}",
+                "-u",
+                "admin",
+                "--domain",
+                "13",
+                "--json",
+            ],
+            env_extra={"MAPKIT_ARIA_PASSWORD": "secret1"},
+        )
         first = json.loads(wait_line(bridge, "{"))
         assert first["robot_map"] == FIRST and first["keepout"]
         readers: dict[str, Any] = {}
         early: dict[str, list[str]] = {}
         for name in PEERS:
             (tmp_path / name).mkdir()
-            readers[name] = start(netns, [str(peers[name]), "13", str(tmp_path / name), "90",
-                                          "grid:rt/map:2", "poses:rt/map_goals:2"])
+            readers[name] = start(
+                netns,
+                [
+                    str(peers[name]),
+                    "13",
+                    str(tmp_path / name),
+                    "90",
+                    "grid:rt/map:2",
+                    "poses:rt/map_goals:2",
+                ],
+            )
             early[name] = []
             wait_line(readers[name], "grid ", early[name])
         res = robot.probe("setmap", SECOND, "5")

@@ -6,8 +6,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given
-from hypothesis import strategies as st
+from hypothesis import given, strategies as st
 
 from mapkit.raster.grid import OccupancyGrid
 from mapkit.ros.grids import Pose
@@ -30,13 +29,24 @@ finite = st.floats(-1e4, 1e4, allow_nan=False)
 grids = st.builds(
     lambda w, h, seed, res, ox, oy: OccupancyGrid(
         np.random.default_rng(seed).choice(np.array([-1, 0, 100, 37], np.int8), (h, w)),
-        res, (ox, oy)),
-    st.integers(1, 40), st.integers(1, 40), st.integers(0, 2**32), st.floats(0.001, 10), finite,
-    finite)
+        res,
+        (ox, oy),
+    ),
+    st.integers(1, 40),
+    st.integers(1, 40),
+    st.integers(0, 2**32),
+    st.floats(0.001, 10),
+    finite,
+    finite,
+)
 
 
-@given(grids, st.floats(0, 2e9), st.sampled_from(["humble", "jazzy"]),
-       st.text(st.characters(min_codepoint=32, max_codepoint=126), max_size=20))
+@given(
+    grids,
+    st.floats(0, 2e9),
+    st.sampled_from(["humble", "jazzy"]),
+    st.text(st.characters(min_codepoint=32, max_codepoint=126), max_size=20),
+)
 def test_grid_round_trips(grid: OccupancyGrid, stamp: float, distro: str, frame: str) -> None:
     raw = grid_cdr(grid, frame, stamp, distro=distro)
     assert raw[:4] == b"\x00\x01\x00\x00"  # CDR little-endian: XCDR1 as rmw writes it
@@ -48,8 +58,7 @@ def test_grid_round_trips(grid: OccupancyGrid, stamp: float, distro: str, frame:
     assert msg.info.resolution == np.float32(grid.resolution)
     assert (msg.info.origin.position.x, msg.info.origin.position.y) == grid.origin
     assert msg.info.origin.orientation.w == 1.0
-    assert np.array_equal(np.asarray(msg.data, np.int8).reshape(grid.height, grid.width),
-                          grid.data)
+    assert np.array_equal(np.asarray(msg.data, np.int8).reshape(grid.height, grid.width), grid.data)
 
 
 @given(st.lists(st.builds(Pose, finite, finite, st.floats(-math.pi, math.pi)), max_size=8))
@@ -58,15 +67,21 @@ def test_pose_array_round_trips(poses: list[Pose]) -> None:
     assert len(msg.poses) == len(poses)
     for got, p in zip(msg.poses, poses, strict=False):
         assert (got.position.x, got.position.y, got.position.z) == (p.x, p.y, 0.0)
-        assert math.isclose(2 * math.atan2(got.orientation.z, got.orientation.w), p.yaw,
-                            abs_tol=1e-9)
+        assert math.isclose(
+            2 * math.atan2(got.orientation.z, got.orientation.w), p.yaw, abs_tol=1e-9
+        )
 
 
 def test_costmap_filter_info_is_a_keepout_filter() -> None:
-    msg = typestore().deserialize_cdr(costmap_filter_info_cdr("/keepout_filter_mask"),
-                                      COSTMAP_FILTER_INFO)
-    assert (msg.type, msg.filter_mask_topic, msg.base, msg.multiplier) == \
-        (0, "/keepout_filter_mask", 0.0, 1.0)
+    msg = typestore().deserialize_cdr(
+        costmap_filter_info_cdr("/keepout_filter_mask"), COSTMAP_FILTER_INFO
+    )
+    assert (msg.type, msg.filter_mask_topic, msg.base, msg.multiplier) == (
+        0,
+        "/keepout_filter_mask",
+        0.0,
+        1.0,
+    )
 
 
 @pytest.mark.parametrize(("distro", "size"), [("humble", 24), ("jazzy", 16)])

@@ -16,28 +16,41 @@ ROOM = [[0, 0, 8000, 0], [8000, 0, 8000, 5000], [8000, 5000, 0, 5000], [0, 5000,
 
 
 def room_map(**objects) -> MapData:
-    return MapData(scans=(Scan.from_arrays(lines=ROOM),),
-                   objects=(MapObject("RobotHome", 2000, 2500, 0, name="Home"),
-                            MapObject("Goal", 6000, 2500, 0, name="A"),
-                            MapObject("GoalWithHeading", 6000, 1000, 90, name="B")))
+    return MapData(
+        scans=(Scan.from_arrays(lines=ROOM),),
+        objects=(
+            MapObject("RobotHome", 2000, 2500, 0, name="Home"),
+            MapObject("Goal", 6000, 2500, 0, name="A"),
+            MapObject("GoalWithHeading", 6000, 1000, 90, name="B"),
+        ),
+    )
 
 
 def test_ray_cast_matches_geometry() -> None:
     angles = np.linspace(-90, 90, 181)
-    r = ray_cast((2000, 2500, 0), angles, np.array(ROOM, dtype=float), np.zeros((0, 2)),
-                 max_range=20000)
+    r = ray_cast(
+        (2000, 2500, 0), angles, np.array(ROOM, dtype=float), np.zeros((0, 2)), max_range=20000
+    )
     a = np.radians(angles)
     # Distance to the box from inside, analytically: the nearest of the walls in each direction.
     with np.errstate(divide="ignore"):
         tx = np.where(np.cos(a) > 1e-12, 6000 / np.cos(a), np.inf)
-        ty = np.where(np.sin(a) > 1e-12, 2500 / np.sin(a),
-                      np.where(np.sin(a) < -1e-12, -2500 / np.sin(a), np.inf))
+        ty = np.where(
+            np.sin(a) > 1e-12,
+            2500 / np.sin(a),
+            np.where(np.sin(a) < -1e-12, -2500 / np.sin(a), np.inf),
+        )
     assert np.allclose(r, np.minimum(tx, ty), rtol=1e-9)
 
 
 def test_ray_cast_range_points_and_full_circle() -> None:
-    far = ray_cast((0, 0, 0), np.array([0.0]), np.array([[5000.0, -10, 5000, 10]]),
-                   np.zeros((0, 2)), max_range=4000)
+    far = ray_cast(
+        (0, 0, 0),
+        np.array([0.0]),
+        np.array([[5000.0, -10, 5000, 10]]),
+        np.zeros((0, 2)),
+        max_range=4000,
+    )
     assert np.isinf(far).all()
     angles = np.linspace(-180, 180, 361)
     pts = np.array([[1000.0, 0.0], [-2000.0, 0.0]])
@@ -66,10 +79,14 @@ def test_perfect_odometry_and_laser(tmp_path) -> None:
     sim = simulate_log(m, seed=1, translation_error=0, rotation_error=0, drift=0, range_noise=0)
     assert np.allclose(sim.log.poses()[:, :2], sim.truth[:, :2], atol=0.6)
     laser = sim.log.header.laser(1)
-    for scan, true in zip(sim.log.scans, sim.truth):
+    for scan, true in zip(sim.log.scans, sim.truth, strict=True):
         p = scan.global_points(laser, pose=true)
-        d = np.min(np.stack([np.abs(p[:, 0]), np.abs(p[:, 0] - 8000),
-                             np.abs(p[:, 1]), np.abs(p[:, 1] - 5000)]), axis=0)
+        d = np.min(
+            np.stack(
+                [np.abs(p[:, 0]), np.abs(p[:, 0] - 8000), np.abs(p[:, 1]), np.abs(p[:, 1] - 5000)]
+            ),
+            axis=0,
+        )
         assert d.max() < 2.0  # every hit on a wall (integer rounding only)
 
 
@@ -89,7 +106,7 @@ def test_save_writes_log_and_truth(tmp_path) -> None:
 
 def test_unreachable_goal_is_skipped_and_errors() -> None:
     m = room_map()
-    walled = m.replace(objects=m.objects + (MapObject("Goal", 20000, 20000, 0, name="Out"),))
+    walled = m.replace(objects=(*m.objects, MapObject("Goal", 20000, 20000, 0, name="Out")))
     sim = simulate_log(walled, seed=1)
     assert "Out" in sim.skipped and [e.name for e in sim.log.events] == ["A", "B"]
     with pytest.raises(MapkitError, match="neither points nor lines"):
@@ -108,8 +125,13 @@ def test_read_truth_rejects_bad_lines(tmp_path) -> None:
 
 
 def test_waypoints_and_zero_origin() -> None:
-    sim = simulate_log(room_map(), waypoints=[(3000, 1000), (7000, 4000)], seed=3,
-                       odometry_origin="zero", goal_names="aria")
+    sim = simulate_log(
+        room_map(),
+        waypoints=[(3000, 1000), (7000, 4000)],
+        seed=3,
+        odometry_origin="zero",
+        goal_names="aria",
+    )
     assert sim.log.scans[0].robot == (0.0, 0.0, 0.0)
     assert [e.name for e in sim.log.events] == ["goal1", "goal2"]
     assert math.hypot(*(sim.truth[0, :2] - [2000, 2500])) < 1.0  # starts at RobotHome

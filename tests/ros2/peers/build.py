@@ -34,8 +34,10 @@ def _run(cmd: list[str], cwd: Path) -> None:
         raise PeerBuildError(f"{cmd[0]} not found; install the Debian packages: {DEBIAN}")
     proc = subprocess.run(cmd, cwd=cwd, capture_output=True, text=True, check=False)
     if proc.returncode != 0:
-        raise PeerBuildError(f"{' '.join(cmd)} failed ({proc.returncode}):\n{proc.stderr[-3000:]}"
-                             f"\nDebian packages needed: {DEBIAN}")
+        raise PeerBuildError(
+            f"{' '.join(cmd)} failed ({proc.returncode}):\n{proc.stderr[-3000:]}"
+            f"\nDebian packages needed: {DEBIAN}"
+        )
 
 
 def build() -> dict[str, Path]:
@@ -54,13 +56,39 @@ def build() -> dict[str, Path]:
     (work / "cyclone").mkdir()
     idl = str(HERE / "ros2_msgs.idl")
     _run(["idlc", "-t", "-Wno-implicit-extensibility", "-o", str(work / "cyclone"), idl], work)
-    _run(["gcc", "-O2", "-o", str(work / "cyclone_reader"), "-I", str(work / "cyclone"),
-          str(HERE / "cyclone_reader.c"), str(work / "cyclone" / "ros2_msgs.c"), "-lddsc"], work)
+    _run(
+        [
+            "gcc",
+            "-O2",
+            "-o",
+            str(work / "cyclone_reader"),
+            "-I",
+            str(work / "cyclone"),
+            str(HERE / "cyclone_reader.c"),
+            str(work / "cyclone" / "ros2_msgs.c"),
+            "-lddsc",
+        ],
+        work,
+    )
     _run(["fastddsgen", "-replace", "-d", str(work / "fast"), idl], work)
     fast = work / "fast"
-    _run(["g++", "-O1", "-std=c++14", "-o", str(work / "fastdds_reader"), "-I", str(fast),
-          str(HERE / "fastdds_reader.cpp"), str(fast / "ros2_msgs.cxx"),
-          str(fast / "ros2_msgsPubSubTypes.cxx"), "-lfastrtps", "-lfastcdr"], work)
+    _run(
+        [
+            "g++",
+            "-O1",
+            "-std=c++14",
+            "-o",
+            str(work / "fastdds_reader"),
+            "-I",
+            str(fast),
+            str(HERE / "fastdds_reader.cpp"),
+            str(fast / "ros2_msgs.cxx"),
+            str(fast / "ros2_msgsPubSubTypes.cxx"),
+            "-lfastrtps",
+            "-lfastcdr",
+        ],
+        work,
+    )
     try:
         work.rename(out)
     except OSError:  # another process built it first
