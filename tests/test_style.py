@@ -20,6 +20,8 @@ from tests.conftest import IN_CI
 
 ROOT = Path(__file__).resolve().parent.parent
 TOOLS = ("ruff", "mypy")
+#: A module longer than this is a room too big to find your way in: split it along its sections.
+MAX_MODULE_LINES = 800
 
 
 def pinned() -> dict[str, str]:
@@ -62,6 +64,18 @@ def test_the_tools_are_pinned_exactly() -> None:
     config = (ROOT / ".pre-commit-config.yaml").read_text(encoding="utf-8")
     for tool, version in pins.items():
         assert f"{tool}=={version}" in config, f".pre-commit-config.yaml must use {tool}=={version}"
+
+
+def test_no_module_is_too_big() -> None:
+    big = {}
+    for path in sorted((ROOT / "mapkit").rglob("*.py")):
+        with path.open(encoding="utf-8") as fh:
+            lines = sum(1 for _ in fh)
+        if lines > MAX_MODULE_LINES:
+            big[str(path.relative_to(ROOT))] = lines
+    assert not big, (
+        f"modules over {MAX_MODULE_LINES} lines (split them along their sections): {big}"
+    )
 
 
 def test_ruff_check() -> None:
