@@ -24,6 +24,7 @@ import time
 from collections.abc import Callable, Sequence
 from typing import Any
 
+from mapkit._text import plural
 from mapkit.errors import LocalTransferError, TransferError
 from mapkit.transfer.admission import Admission
 from mapkit.transfer.folder import (
@@ -609,11 +610,11 @@ class MapServer:
                 if ahead is not None:
                     ahead.close()
             log.info(
-                "%s: sent %s (%d bytes, %d chunks sent, %d skipped)",
+                "%s: sent %s (%s, %s sent, %d skipped)",
                 peer,
                 offer.name,
-                offer.size,
-                tx.chunks_sent,
+                plural(offer.size, "byte"),
+                plural(tx.chunks_sent, "chunk"),
                 tx.chunks_skipped,
             )
             return tx

@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 
+from mapkit._text import plural
 from mapkit.diagnostics import Issue, IssueCode
 from mapkit.errors import MapFormatError
 from mapkit.formats._numbers import aria_double, aria_int, c_int
@@ -463,7 +464,8 @@ class _Parser:
                 self.note(
                     IssueCode.LOSSY_OBJECT_LINE,
                     lineno,
-                    f"{len(args) - 12} extra field(s) after the description dropped, as ARIA does",
+                    f"{plural(len(args) - 12, 'extra field')} after the description dropped, "
+                    "as ARIA does",
                     _unquote(args[6]),
                 )
         elif len(args) > 7:

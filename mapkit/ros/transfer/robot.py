@@ -10,6 +10,7 @@ import time
 from collections.abc import Callable, Iterable
 from typing import Any
 
+from mapkit._text import plural
 from mapkit.errors import LocalTransferError, TransferError
 from mapkit.ros.node import ros_import, rospy
 from mapkit.ros.transfer.session import _Conn, _session_id, log
@@ -307,10 +308,10 @@ class _RobotSession:
             log.warning("%s: transfer of %s failed: %s", self.client, m.offer.name, m.error)
         elif isinstance(m, Sender):
             log.info(
-                "%s: sent %s (%d chunks sent, %d skipped)",
+                "%s: sent %s (%s sent, %d skipped)",
                 self.client,
                 m.offer.name,
-                m.chunks_sent,
+                plural(m.chunks_sent, "chunk"),
                 m.chunks_skipped,
             )
         if isinstance(m, Sender) or m.error is not None:
