@@ -76,3 +76,23 @@ def test_outliers_and_people_stay_out_of_the_map() -> None:
                        drift=0.1, turn_slip=0.03)
     med, p90, rms = figures(build_map(sim.log, lines=False), sim)
     assert med < 15.0 and p90 < 60.0 and rms < 40.0, (med, p90, rms)
+
+
+def test_odometry_noise_scale_has_a_floor() -> None:
+    """Steps that agree with their scans better than the scans' noise explains still leave odometry
+    a noise: the scale stops at its floor, so good-but-not-perfect odometry cannot overrule scans."""
+    from mapkit.build import _odometry
+
+    model = _odometry._OdometryModel()
+    strong = np.diag([1.0, 1.0, 1e4])  # scan matches of 1 mm and 0.6 degrees
+    for _ in range(200):
+        model.observe(np.zeros(3), strong, 150.0, 0.0)
+    model.settle()
+    assert model.scale == pytest.approx(10 ** _odometry._MIN_LOG_SCALE)
+    assert 0 < model.scale < 0.05
+    # Steps that disagree with their scans raise it again.
+    rng = np.random.default_rng(1)
+    for _ in range(200):
+        model.observe(np.array([*rng.normal(0, 20.0, 2), rng.normal(0, 0.01)]), strong, 150.0, 0.0)
+    model.settle()
+    assert model.scale > 0.05
