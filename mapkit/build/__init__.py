@@ -550,6 +550,11 @@ def _register_pass(scans: list[LaserScan], odo: FloatArray, all_pts: list[FloatA
             model.observe(dv, scan_info, trans, float(step[2]))
             if not model.frozen:
                 model.calibration.observe(raw_step, step, dv, scan_info, float(est[i - 1][2]))
+            # A match that disagrees with odometry far beyond both noises (a new feature caught
+            # on the wrong wall, a person) is down-weighted (Cauchy on the Mahalanobis distance).
+            both = np.linalg.inv(scan_info + np.eye(3) * 1e-9) + np.linalg.inv(odo_info)
+            m2 = float(dv @ np.linalg.solve(both, dv))
+            scan_info = scan_info / (1.0 + m2 / _FUSE_ROBUST ** 2)
             fused = np.linalg.solve(scan_info + odo_info + np.eye(3) * 1e-12, scan_info @ dv)
             est[i] = pred + fused
             est[i, 2] = wrap(est[i, 2])
@@ -612,6 +617,9 @@ def _register_pass(scans: list[LaserScan], odo: FloatArray, all_pts: list[FloatA
         stats["optimisations"] += 1
     return est
 
+
+#: Mahalanobis distance of a match from odometry at which its weight halves.
+_FUSE_ROBUST = 3.0
 
 #: Scale of the robust (Cauchy) weights of scan points in registration (mm).
 _CAUCHY = 25.0
