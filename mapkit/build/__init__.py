@@ -550,12 +550,7 @@ def _register_pass(scans: list[LaserScan], odo: FloatArray, all_pts: list[FloatA
             model.observe(dv, scan_info, trans, float(step[2]))
             if not model.frozen:
                 model.calibration.observe(raw_step, step, dv, scan_info, float(est[i - 1][2]))
-            # A match that disagrees with odometry far beyond both noises (a new feature caught
-            # on the wrong wall, a person) is down-weighted (Cauchy on the Mahalanobis distance).
-            both = np.linalg.inv(scan_info + np.eye(3) * 1e-9) + np.linalg.inv(odo_info)
-            m2 = float(dv @ np.linalg.solve(both, dv))
-            scan_info = scan_info / (1.0 + m2 / _FUSE_ROBUST ** 2)
-            fused = np.linalg.solve(scan_info + odo_info + np.eye(3) * 1e-12, scan_info @ dv)
+            fused = _fuse(dv, scan_info, odo_info)
             est[i] = pred + fused
             est[i, 2] = wrap(est[i, 2])
             stats["registered"] += 1
@@ -627,6 +622,20 @@ _CAUCHY = 25.0
 #: What a scan match is worth, as if from this many independent points of this noise (mm).
 _MATCH_SIGMA = 10.0
 _MATCH_POINTS = 50.0
+
+
+def _fuse(dv: FloatArray, scan_info: FloatArray, odo_info: FloatArray) -> FloatArray:
+    """How far to move the odometry prediction towards a scan match ``dv`` away from it.
+
+    The two are weighed by their information. A match that disagrees with odometry far beyond
+    both noises (a feature seen for the first time caught on the wrong wall, a person) is
+    down-weighted: Cauchy weights on the Mahalanobis distance, halved at ``_FUSE_ROBUST``.
+    """
+    both = np.linalg.inv(scan_info + np.eye(3) * 1e-9) + np.linalg.inv(odo_info)
+    m2 = float(dv @ np.linalg.solve(both, dv))
+    info = scan_info / (1.0 + m2 / _FUSE_ROBUST ** 2)
+    out: FloatArray = np.linalg.solve(info + odo_info + np.eye(3) * 1e-12, info @ dv)
+    return out
 
 
 def _revisit_candidate(i: int, est: FloatArray, path: FloatArray) -> int | None:
