@@ -634,7 +634,7 @@ def _fuse(dv: FloatArray, scan_info: FloatArray, odo_info: FloatArray) -> FloatA
     both = np.linalg.inv(scan_info + np.eye(3) * 1e-9) + np.linalg.inv(odo_info)
     m2 = float(dv @ np.linalg.solve(both, dv))
     info = scan_info / (1.0 + m2 / _FUSE_ROBUST ** 2)
-    out: FloatArray = np.linalg.solve(info + odo_info + np.eye(3) * 1e-12, info @ dv)
+    out: FloatArray = np.linalg.solve(info + odo_info + np.eye(3) * 1e-12, info @ dv).astype(np.float64)
     return out
 
 
