@@ -634,8 +634,8 @@ def _fuse(dv: FloatArray, scan_info: FloatArray, odo_info: FloatArray) -> FloatA
     both = np.linalg.inv(scan_info + np.eye(3) * 1e-9) + np.linalg.inv(odo_info)
     m2 = float(dv @ np.linalg.solve(both, dv))
     info = scan_info / (1.0 + m2 / _FUSE_ROBUST ** 2)
-    out: FloatArray = np.linalg.solve(info + odo_info + np.eye(3) * 1e-12, info @ dv).astype(np.float64)
-    return out
+    out = np.linalg.solve(info + odo_info + np.eye(3) * 1e-12, info @ dv)
+    return np.asarray(out, dtype=np.float64)
 
 
 def _revisit_candidate(i: int, est: FloatArray, path: FloatArray) -> int | None:
