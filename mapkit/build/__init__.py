@@ -550,7 +550,7 @@ def _register_pass(scans: list[LaserScan], odo: FloatArray, all_pts: list[FloatA
             model.observe(dv, scan_info, trans, float(step[2]))
             if not model.frozen:
                 model.calibration.observe(raw_step, step, dv, scan_info, float(est[i - 1][2]))
-            fused = _fuse(dv, scan_info, odo_info)
+            fused, scan_info = _fuse(dv, scan_info, odo_info)
             est[i] = pred + fused
             est[i, 2] = wrap(est[i, 2])
             stats["registered"] += 1
@@ -624,8 +624,10 @@ _MATCH_SIGMA = 10.0
 _MATCH_POINTS = 50.0
 
 
-def _fuse(dv: FloatArray, scan_info: FloatArray, odo_info: FloatArray) -> FloatArray:
-    """How far to move the odometry prediction towards a scan match ``dv`` away from it.
+def _fuse(dv: FloatArray, scan_info: FloatArray, odo_info: FloatArray
+          ) -> tuple[FloatArray, FloatArray]:
+    """How far to move the odometry prediction towards a scan match ``dv`` away from it, and what
+    the match is worth (its information, down-weighted when it is wild; the pose graph's edge).
 
     The two are weighed by their information. A match that disagrees with odometry far beyond
     both noises (a feature seen for the first time caught on the wrong wall, a person) is
@@ -635,7 +637,7 @@ def _fuse(dv: FloatArray, scan_info: FloatArray, odo_info: FloatArray) -> FloatA
     m2 = float(dv @ np.linalg.solve(both, dv))
     info = scan_info / (1.0 + m2 / _FUSE_ROBUST ** 2)
     out = np.linalg.solve(info + odo_info + np.eye(3) * 1e-12, info @ dv)
-    return np.asarray(out, dtype=np.float64)
+    return np.asarray(out, dtype=np.float64), info
 
 
 def _revisit_candidate(i: int, est: FloatArray, path: FloatArray) -> int | None:

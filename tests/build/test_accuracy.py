@@ -104,13 +104,15 @@ def test_fusion_weighs_scan_and_odometry_and_distrusts_a_wild_match() -> None:
     scan = np.diag([1 / 4.0**2, 1 / 4.0**2, 1 / np.radians(0.2) ** 2])
     odo = np.diag([1 / 4.0**2, 1 / 4.0**2, 1 / np.radians(0.2) ** 2])
     # Within the noises: the information-weighted mean (here halfway).
-    near = _fuse(np.array([4.0, -2.0, np.radians(0.1)]), scan, odo)
+    near, near_info = _fuse(np.array([4.0, -2.0, np.radians(0.1)]), scan, odo)
     assert np.allclose(near, [1.9, -0.95, np.radians(0.0475)], rtol=0.1)
     # 50 mm off where both claim 4 mm: the match barely moves the pose.
-    wild = _fuse(np.array([50.0, 0.0, 0.0]), scan, odo)
+    wild, wild_info = _fuse(np.array([50.0, 0.0, 0.0]), scan, odo)
     assert 0 < wild[0] < 5.0
+    # ... and counts for little in the pose graph too.
+    assert wild_info[0, 0] < 0.15 * near_info[0, 0]
     # A corridor: the match says nothing along x, odometry holds it.
     corridor = scan.copy()
     corridor[0, 0] = 0.0
-    along = _fuse(np.array([30.0, 3.0, 0.0]), corridor, odo)
+    along, _ = _fuse(np.array([30.0, 3.0, 0.0]), corridor, odo)
     assert abs(along[0]) < 1e-3 and 1.0 < along[1] < 2.0
