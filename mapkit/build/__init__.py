@@ -614,7 +614,7 @@ def _register_pass(scans: list[LaserScan], odo: FloatArray, all_pts: list[FloatA
 
 
 #: Mahalanobis distance of a match from odometry at which its weight halves.
-_FUSE_ROBUST = 3.0
+_FUSE_ROBUST = 2.5
 
 #: Scale of the robust (Cauchy) weights of scan points in registration (mm).
 _CAUCHY = 25.0
