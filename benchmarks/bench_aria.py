@@ -50,8 +50,9 @@ if (Path(sys.executable).parent / "mapkit").exists():
 
 #: The same command loaded through its own click group only (what `mapkit` costs once its
 #: top-level group loads command modules lazily).
-GROUP_ONLY = ("import sys; from mapkit.cli.aria import aria; "
-              "aria(sys.argv[1:], prog_name='mapkit aria')")
+GROUP_ONLY = (
+    "import sys; from mapkit.cli.aria import aria; aria(sys.argv[1:], prog_name='mapkit aria')"
+)
 
 
 def free_port() -> int:
@@ -61,9 +62,23 @@ def free_port() -> int:
 
 
 def probe(port: int, *args: str, cwd: Path) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([str(PEER / "run-probe"), "-quiet", "-port", str(port), "-user", "bench",
-                           "-password", "bench1", *args], capture_output=True, text=True,
-                          cwd=cwd, timeout=300)
+    return subprocess.run(
+        [
+            str(PEER / "run-probe"),
+            "-quiet",
+            "-port",
+            str(port),
+            "-user",
+            "bench",
+            "-password",
+            "bench1",
+            *args,
+        ],
+        capture_output=True,
+        text=True,
+        cwd=cwd,
+        timeout=300,
+    )
 
 
 def main() -> int:
@@ -84,18 +99,33 @@ def main() -> int:
         save(small, root / "small.map")
         (work / "users").write_text("UserInfoVersion1\nuser bench bench1 all\n")
         port = free_port()
-        proc = subprocess.Popen([str(PEER / "run-mapserver"), "-serverPort", str(port), "-fileDir",
-                                 str(root), "-userInfo", str(work / "users"), "-config",
-                                 str(work / "server.cfg"), "-tempDir", str(work)],
-                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        proc = subprocess.Popen(
+            [
+                str(PEER / "run-mapserver"),
+                "-serverPort",
+                str(port),
+                "-fileDir",
+                str(root),
+                "-userInfo",
+                str(work / "users"),
+                "-config",
+                str(work / "server.cfg"),
+                "-tempDir",
+                str(work),
+            ],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+        )
         for _ in range(100):
             if probe(port, "mapname", cwd=work).returncode == 0:
                 break
             time.sleep(0.1)
         env = dict(os.environ, MAPKIT_ARIA_PASSWORD="bench1")
         env.pop("MAPKIT_ARIA_PASSWORD_FILE", None)
-        print(f"load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} CPUs; "
-              f"best of {args.repeat} runs each")
+        print(
+            f"load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} CPUs; "
+            f"best of {args.repeat} runs each"
+        )
         for name in ("small.map", "big.map"):
             served = (root / name).read_bytes()
             res = probe(port, "setmap", name, "60", cwd=work)
@@ -111,17 +141,46 @@ def main() -> int:
                 t_aria.append(time.perf_counter() - t)
                 assert r.returncode == 0 and out_a.read_bytes() == served, r.stdout
                 t = time.perf_counter()
-                r2 = subprocess.run([*MAPKIT, "aria", "fetch", f"127.0.0.1:{port}", "-u", "bench",
-                                     "-o", str(out_m)], capture_output=True, text=True, env=env,
-                                    cwd=work, timeout=300)
+                r2 = subprocess.run(
+                    [
+                        *MAPKIT,
+                        "aria",
+                        "fetch",
+                        f"127.0.0.1:{port}",
+                        "-u",
+                        "bench",
+                        "-o",
+                        str(out_m),
+                    ],
+                    capture_output=True,
+                    text=True,
+                    env=env,
+                    cwd=work,
+                    timeout=300,
+                )
                 t_mapkit.append(time.perf_counter() - t)
                 assert r2.returncode == 0 and "matches the robot's map id" in r2.stdout, r2.stderr
                 assert out_m.read_bytes() == served
                 out_m.unlink()
                 t = time.perf_counter()
-                r3 = subprocess.run([sys.executable, "-c", GROUP_ONLY, "fetch", f"127.0.0.1:{port}",
-                                     "-u", "bench", "-o", str(out_m)], capture_output=True,
-                                    text=True, env=env, cwd=work, timeout=300)
+                r3 = subprocess.run(
+                    [
+                        sys.executable,
+                        "-c",
+                        GROUP_ONLY,
+                        "fetch",
+                        f"127.0.0.1:{port}",
+                        "-u",
+                        "bench",
+                        "-o",
+                        str(out_m),
+                    ],
+                    capture_output=True,
+                    text=True,
+                    env=env,
+                    cwd=work,
+                    timeout=300,
+                )
                 t_group.append(time.perf_counter() - t)
                 assert r3.returncode == 0 and out_m.read_bytes() == served, r3.stderr
                 out_m.unlink()
@@ -133,11 +192,13 @@ def main() -> int:
                 out_a.unlink()
                 out_m.unlink()
             a, m, g, i_ = min(t_aria), min(t_mapkit), min(t_group), min(t_inproc)
-            print(f"{name:9s} {len(served) / 1e6:5.1f} MB: ARIA run-probe get {a:6.3f} s, "
-                  f"mapkit aria fetch {m:6.3f} s (verified + parsed): {m / a:4.2f}x; "
-                  f"through the aria group alone {g:6.3f} s: {g / a:4.2f}x; "
-                  f"in a running Python (connect, fetch, verify, parse, write) {i_:6.3f} s: "
-                  f"{i_ / a:4.2f}x")
+            print(
+                f"{name:9s} {len(served) / 1e6:5.1f} MB: ARIA run-probe get {a:6.3f} s, "
+                f"mapkit aria fetch {m:6.3f} s (verified + parsed): {m / a:4.2f}x; "
+                f"through the aria group alone {g:6.3f} s: {g / a:4.2f}x; "
+                f"in a running Python (connect, fetch, verify, parse, write) {i_:6.3f} s: "
+                f"{i_ / a:4.2f}x"
+            )
         start = min(_timed([*MAPKIT, "--version"]) for _ in range(args.repeat))
         bare = min(_timed([sys.executable, "-c", "pass"]) for _ in range(args.repeat))
         print(f"(process start alone: `mapkit --version` {start:.3f} s, bare Python {bare:.3f} s)")

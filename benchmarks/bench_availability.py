@@ -33,9 +33,14 @@ def _serve(folder: Path, secret_file: Path) -> tuple[subprocess.Popen[bytes], in
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
     env.pop("MAPKIT_SECRET", None)
     log = folder.parent / "serve.log"
-    proc = subprocess.Popen([sys.executable, "-m", "mapkit", "serve", str(folder), "--listen",
-                             "127.0.0.1:0", "--secret-file", str(secret_file)],
-                            stderr=open(log, "wb"), stdout=subprocess.DEVNULL, env=env)  # noqa: SIM115
+    cmd = [sys.executable, "-m", "mapkit", "serve", str(folder), "--listen", "127.0.0.1:0"]
+    with open(log, "wb") as err:  # the server keeps its own copy of the descriptor
+        proc = subprocess.Popen(
+            [*cmd, "--secret-file", str(secret_file)],
+            stderr=err,
+            stdout=subprocess.DEVNULL,
+            env=env,
+        )
     end = time.monotonic() + 60
     while time.monotonic() < end:
         m = re.search(r"on 127\.0\.0\.1:(\d+) \(", log.read_text(errors="replace"))
@@ -91,12 +96,17 @@ def main() -> None:
         try:
             rows = []
             for label, sources, threads in (
-                    ("quiet (baseline)", [], 0),
-                    ("silent flood, 1 address", ["127.0.0.1"], 2),
-                    ("silent flood, 40 addresses", [f"127.0.0.{i}" for i in range(2, 42)], 2)):
+                ("quiet (baseline)", [], 0),
+                ("silent flood, 1 address", ["127.0.0.1"], 2),
+                ("silent flood, 40 addresses", [f"127.0.0.{i}" for i in range(2, 42)], 2),
+            ):
                 stop, opened = threading.Event(), [0]
-                workers = [threading.Thread(target=_attack, args=(port, sources, stop, opened),
-                                            daemon=True) for _ in range(threads)]
+                workers = [
+                    threading.Thread(
+                        target=_attack, args=(port, sources, stop, opened), daemon=True
+                    )
+                    for _ in range(threads)
+                ]
                 for w in workers:
                     w.start()
                 time.sleep(0.5 if threads else 0)
@@ -106,13 +116,17 @@ def main() -> None:
                     w.join(10)
                 rows.append((label, times, failed, opened[0]))
             base = statistics.median(rows[0][1])
-            print(f"{'honest list_maps':<30}{'median':>10}{'p95':>10}{'ratio':>8}{'failed':>8}"
-                  f"{'attacker conns':>16}")
+            print(
+                f"{'honest list_maps':<30}{'median':>10}{'p95':>10}{'ratio':>8}{'failed':>8}"
+                f"{'attacker conns':>16}"
+            )
             for label, times, failed, opened in rows:
                 med = statistics.median(times)
                 p95 = statistics.quantiles(times, n=20)[-1] if len(times) > 1 else med
-                print(f"{label:<30}{med * 1e3:>8.1f}ms{p95 * 1e3:>8.1f}ms{med / base:>7.2f}x"
-                      f"{failed:>8}{opened:>16}")
+                print(
+                    f"{label:<30}{med * 1e3:>8.1f}ms{p95 * 1e3:>8.1f}ms{med / base:>7.2f}x"
+                    f"{failed:>8}{opened:>16}"
+                )
             print(f"load average: {os.getloadavg()[0]:.1f}")
         finally:
             proc.terminate()

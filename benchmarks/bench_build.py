@@ -1,4 +1,5 @@
-"""Benchmark of ``mapkit build``: map and trajectory accuracy on simulated logs with truth, and speed.
+"""Benchmark of ``mapkit build``: map and trajectory accuracy on simulated logs with truth, and
+speed.
 
 Every log is simulated from a bundled map (``mapkit.simulate``) with the true pose of every scan
 kept. For each log three maps are made and compared with the true walls (the map's lines):
@@ -38,24 +39,80 @@ ROOT = Path(__file__).resolve().parent.parent
 
 #: name -> (map, simulate_log arguments). Noise levels from none to heavy.
 CASES: dict[str, tuple[str, dict[str, Any]]] = {
-    "office-perfect": ("office", {"loop": True, "seed": 4, "translation_error": 0.0,
-                                  "rotation_error": 0.0, "drift": 0.0}),
-    "office-good": ("office", {"loop": True, "seed": 5, "translation_error": 0.003,
-                               "rotation_error": 0.005, "drift": 0.01, "range_noise": 5.0}),
+    "office-perfect": (
+        "office",
+        {"loop": True, "seed": 4, "translation_error": 0.0, "rotation_error": 0.0, "drift": 0.0},
+    ),
+    "office-good": (
+        "office",
+        {
+            "loop": True,
+            "seed": 5,
+            "translation_error": 0.003,
+            "rotation_error": 0.005,
+            "drift": 0.01,
+            "range_noise": 5.0,
+        },
+    ),
     "office-drift": ("office", {"loop": True, "seed": 11, "drift": 0.15, "rotation_error": 0.03}),
-    "office-real": ("office", {"loop": True, "seed": 3, "drift": 0.1, "scale_error": 0.01,
-                               "turn_slip": 0.03, "outliers": 0.02, "people": 3,
-                               "range_noise": 15.0}),
-    "office-2laps": ("office", {"loop": True, "laps": 2, "seed": 8, "drift": -0.08,
-                                "scale_error": -0.015, "turn_slip": 0.05, "outliers": 0.03,
-                                "people": 5, "readings": 181}),
-    "building-real": ("building", {"loop": True, "seed": 1, "drift": 0.05, "scale_error": 0.005,
-                                   "turn_slip": 0.02, "outliers": 0.02, "people": 4}),
-    "building-clean": ("building", {"loop": True, "seed": 1, "drift": 0.05, "scale_error": 0.005,
-                                    "turn_slip": 0.02}),
+    "office-real": (
+        "office",
+        {
+            "loop": True,
+            "seed": 3,
+            "drift": 0.1,
+            "scale_error": 0.01,
+            "turn_slip": 0.03,
+            "outliers": 0.02,
+            "people": 3,
+            "range_noise": 15.0,
+        },
+    ),
+    "office-2laps": (
+        "office",
+        {
+            "loop": True,
+            "laps": 2,
+            "seed": 8,
+            "drift": -0.08,
+            "scale_error": -0.015,
+            "turn_slip": 0.05,
+            "outliers": 0.03,
+            "people": 5,
+            "readings": 181,
+        },
+    ),
+    "building-real": (
+        "building",
+        {
+            "loop": True,
+            "seed": 1,
+            "drift": 0.05,
+            "scale_error": 0.005,
+            "turn_slip": 0.02,
+            "outliers": 0.02,
+            "people": 4,
+        },
+    ),
+    "building-clean": (
+        "building",
+        {"loop": True, "seed": 1, "drift": 0.05, "scale_error": 0.005, "turn_slip": 0.02},
+    ),
 }
-LONG = ("office", {"loop": True, "laps": 11, "seed": 5, "dist_step": 100.0, "deg_step": 10.0,
-                   "drift": 0.05, "scale_error": 0.005, "turn_slip": 0.02, "outliers": 0.01})
+LONG = (
+    "office",
+    {
+        "loop": True,
+        "laps": 11,
+        "seed": 5,
+        "dist_step": 100.0,
+        "deg_step": 10.0,
+        "drift": 0.05,
+        "scale_error": 0.005,
+        "turn_slip": 0.02,
+        "outliers": 0.01,
+    },
+)
 
 
 def main() -> int:
@@ -75,7 +132,9 @@ def main() -> int:
     return run(args, args.logs)
 
 
-def _log_and_truth(name: str, mapname: str, kw: dict[str, Any], folder: Path) -> tuple[Any, Any, Any]:
+def _log_and_truth(
+    name: str, mapname: str, kw: dict[str, Any], folder: Path
+) -> tuple[Any, Any, Any]:
     """The log (read back from the file, as a user's would be), truth ids and poses."""
     import mapkit
     from mapkit.formats.laser2d import read_log
@@ -88,8 +147,9 @@ def _log_and_truth(name: str, mapname: str, kw: dict[str, Any], folder: Path) ->
 
         m = mapkit.load(sample_path(mapname))
         home = next(o for o in m.objects if o.type == "RobotHome")
-        sim = simulate_log(m, start=(home.x + 7.3, home.y - 4.1, home.theta + 1.7),
-                           odometry_origin="zero", **kw)
+        sim = simulate_log(
+            m, start=(home.x + 7.3, home.y - 4.1, home.theta + 1.7), odometry_origin="zero", **kw
+        )
         sim.save(path)
     ids, truth = read_truth(truth_path_for(path))
     return read_log(path), ids, truth
@@ -101,10 +161,18 @@ def _with_poses(log: Any, ids: Any, truth: Any) -> Any:
 
     from mapkit.model.scan import LaserLog, LaserScan, Pose2D, relative
 
-    at = {int(i): Pose2D(*map(float, p)) for i, p in zip(ids, relative(truth[0], truth))}
-    recs = [replace(r, robot=at[r.scan_id], robot_global=at[r.scan_id])
-            if isinstance(r, LaserScan) and r.scan_id in at else r for r in log.records]
-    return LaserLog(header=log.header, records=tuple(recs), complete=log.complete, source=log.source)
+    at = {
+        int(i): Pose2D(*map(float, p)) for i, p in zip(ids, relative(truth[0], truth), strict=True)
+    }
+    recs = [
+        replace(r, robot=at[r.scan_id], robot_global=at[r.scan_id])
+        if isinstance(r, LaserScan) and r.scan_id in at
+        else r
+        for r in log.records
+    ]
+    return LaserLog(
+        header=log.header, records=tuple(recs), complete=log.complete, source=log.source
+    )
 
 
 def measure(res: Any, world: Any, ids: Any, truth: Any) -> dict[str, float]:
@@ -121,15 +189,22 @@ def measure(res: Any, world: Any, ids: Any, truth: Any) -> dict[str, float]:
     from mapkit.model.scan import compose
 
     start = truth[0]
-    pts = compose(np.append(start[:2], start[2]), np.column_stack(
-        [res.map.points.astype(float), np.zeros(len(res.map.points))]))[:, :2]
+    pts = compose(
+        np.append(start[:2], start[2]),
+        np.column_stack([res.map.points.astype(float), np.zeros(len(res.map.points))]),
+    )[:, :2]
     d = distance_to_segments(pts, world.lines)
     if len(world.points):
         d = np.minimum(d, cKDTree(world.points.astype(float)).query(pts)[0])
     tr = truth[np.searchsorted(ids, res.scan_ids)]
     rms, rms_deg = trajectory_rms(compose(start, res.poses), tr)
-    return {"median": float(np.median(d)), "p90": float(np.percentile(d, 90)), "rms": rms,
-            "rms_deg": rms_deg, "points": int(len(res.map.points))}
+    return {
+        "median": float(np.median(d)),
+        "p90": float(np.percentile(d, 90)),
+        "rms": rms,
+        "rms_deg": rms_deg,
+        "points": len(res.map.points),
+    }
 
 
 def run(args: argparse.Namespace, folder: Path) -> int:
@@ -147,14 +222,17 @@ def run(args: argparse.Namespace, folder: Path) -> int:
             _log_and_truth(name, mapname, kw, folder)
             print(f"{name}: {folder / name}.2d")
         return 0
-    print(f"{'log':15} {'scans':>6} | {'floor med/p90':>13} | {'odometry med/p90 rms':>21} | "
-          f"{'built med/p90 rms':>18} | {'build s':>7} {'cpu s':>6} | targets")
+    print(
+        f"{'log':15} {'scans':>6} | {'floor med/p90':>13} | {'odometry med/p90 rms':>21} | "
+        f"{'built med/p90 rms':>18} | {'build s':>7} {'cpu s':>6} | targets"
+    )
     failures = 0
     for name, (mapname, kw) in cases.items():
         walls = mapkit.load(sample_path(mapname))
         log, ids, truth = _log_and_truth(name, mapname, kw, folder)
-        floor = measure(build_map(_with_poses(log, ids, truth), register=False, lines=False),
-                        walls, ids, truth)
+        floor = measure(
+            build_map(_with_poses(log, ids, truth), register=False, lines=False), walls, ids, truth
+        )
         t = time.perf_counter()
         raw = measure(build_map(log, register=False, lines=False), walls, ids, truth)
         t_raw = time.perf_counter() - t
@@ -162,23 +240,34 @@ def run(args: argparse.Namespace, folder: Path) -> int:
         res = build_map(log)
         t_b, c_b = time.perf_counter() - t, time.process_time() - c
         b = measure(res, walls, ids, truth)
-        ok = {"med": b["median"] <= floor["median"] + 5.0, "p90": b["p90"] < 60.0,
-              "rms": b["rms"] < 40.0 and b["rms"] <= raw["rms"] + 15.0}
+        ok = {
+            "med": b["median"] <= floor["median"] + 5.0,
+            "p90": b["p90"] < 60.0,
+            "rms": b["rms"] < 40.0 and b["rms"] <= raw["rms"] + 15.0,
+        }
         failures += not all(ok.values())
         flags = " ".join(f"{k}:{'ok' if v else 'FAIL'}" for k, v in ok.items())
-        print(f"{name:15} {len(log.scans):6d} | {floor['median']:5.1f} / {floor['p90']:5.1f} | "
-              f"{raw['median']:6.1f} / {raw['p90']:6.0f} {raw['rms']:6.0f} | "
-              f"{b['median']:5.1f} / {b['p90']:4.0f} {b['rms']:5.1f} | {t_b:7.1f} {c_b:6.1f} | "
-              f"{flags}", flush=True)
+        print(
+            f"{name:15} {len(log.scans):6d} | {floor['median']:5.1f} / {floor['p90']:5.1f} | "
+            f"{raw['median']:6.1f} / {raw['p90']:6.0f} {raw['rms']:6.0f} | "
+            f"{b['median']:5.1f} / {b['p90']:4.0f} {b['rms']:5.1f} | {t_b:7.1f} {c_b:6.1f} | "
+            f"{flags}",
+            flush=True,
+        )
         if name == "office-perfect":
             # True poses in, as odometry: the result must stay on them.
             perfect = measure(build_map(_with_poses(log, ids, truth)), walls, ids, truth)
-            print(f"{'  true poses as odometry':38} built: median {perfect['median']:.1f}, "
-                  f"p90 {perfect['p90']:.0f}, trajectory RMS {perfect['rms']:.1f} mm / "
-                  f"{perfect['rms_deg']:.2f} deg", flush=True)
+            print(
+                f"{'  true poses as odometry':38} built: median {perfect['median']:.1f}, "
+                f"p90 {perfect['p90']:.0f}, trajectory RMS {perfect['rms']:.1f} mm / "
+                f"{perfect['rms_deg']:.2f} deg",
+                flush=True,
+            )
         if name == "office-11laps":
-            print(f"{'  speed':38} build {t_b:.1f} s wall / {c_b:.1f} s CPU = "
-                  f"{t_b / max(t_raw, 1e-9):.1f}x the raw odometry build ({t_raw:.1f} s)")
+            print(
+                f"{'  speed':38} build {t_b:.1f} s wall / {c_b:.1f} s CPU = "
+                f"{t_b / max(t_raw, 1e-9):.1f}x the raw odometry build ({t_raw:.1f} s)"
+            )
     print(f"{failures} log(s) miss a target")
     return 0
 

@@ -11,7 +11,6 @@ in memory (best of a few runs) and printed as seconds and as a multiple of the b
 from __future__ import annotations
 
 import sys
-import time
 from collections.abc import Callable
 from pathlib import Path
 
@@ -21,15 +20,13 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
-from bigmap import make_big_map  # noqa: E402
 from _timing import best  # noqa: E402
+from bigmap import make_big_map  # noqa: E402
 
 from mapkit import edit  # noqa: E402
 from mapkit.edit.selection import points_inside  # noqa: E402
 from mapkit.formats.map import dumpb, loads  # noqa: E402
 from mapkit.model import MapData  # noqa: E402
-
-
 
 
 def main() -> None:

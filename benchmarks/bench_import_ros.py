@@ -54,8 +54,9 @@ print(json.dumps({{"s": dt, "rss": rss,
 """
 
 
-def write_warehouse(yaml_path: Path, width: int, height: int, *, res: float = 0.02,
-                    band: int = 512, seed: int = 7) -> Path:
+def write_warehouse(
+    yaml_path: Path, width: int, height: int, *, res: float = 0.02, band: int = 512, seed: int = 7
+) -> Path:
     """A warehouse-like map_server map, written in row bands (bounded memory)."""
     rng = np.random.default_rng(seed)
     pgm = yaml_path.with_suffix(".pgm")
@@ -68,8 +69,8 @@ def write_warehouse(yaml_path: Path, width: int, height: int, *, res: float = 0.
             rows = np.arange(top, min(height, top + band))[:, None]
             img = np.full((len(rows), width), 254, dtype=np.uint8)
             y = rows % rack_pitch
-            face = ((y == 40) | (y == 41) | (y == 40 + rack_depth) | (y == 41 + rack_depth))
-            ends = (((cols % aisle_every) == aisle) | ((cols % aisle_every) == aisle_every - 1))
+            face = (y == 40) | (y == 41) | (y == 40 + rack_depth) | (y == 41 + rack_depth)
+            ends = ((cols % aisle_every) == aisle) | ((cols % aisle_every) == aisle_every - 1)
             inside = (y > 41) & (y < 40 + rack_depth)
             img[(face & ~in_aisle) | (inside & ends & ~in_aisle)] = 0
             clutter = rng.random(img.shape) < 2e-4
@@ -79,9 +80,11 @@ def write_warehouse(yaml_path: Path, width: int, height: int, *, res: float = 0.
             corner = (rows < height // 6) & (cols > width - width // 5)  # unmapped
             img[corner] = 205
             fh.write(img.tobytes())
-    yaml_path.write_text(f"image: {pgm.name}\nmode: trinary\nresolution: {res}\n"
-                         "origin: [-10.0, -5.0, 0.0]\nnegate: 0\noccupied_thresh: 0.65\n"
-                         "free_thresh: 0.196\n")
+    yaml_path.write_text(
+        f"image: {pgm.name}\nmode: trinary\nresolution: {res}\n"
+        "origin: [-10.0, -5.0, 0.0]\nnegate: 0\noccupied_thresh: 0.65\n"
+        "free_thresh: 0.196\n"
+    )
     return yaml_path
 
 
@@ -95,8 +98,12 @@ def run(how: str, path: Path, save: Path | None = None) -> dict[str, float]:
 
 def best_of(how: str, path: Path, repeat: int, save: Path | None = None) -> dict[str, float]:
     runs = [run(how, path, save if i == 0 else None) for i in range(repeat)]
-    return {"s": min(r["s"] for r in runs), "rss": max(r["rss"] for r in runs),
-            "points": runs[0]["points"], "lines": runs[0]["lines"]}
+    return {
+        "s": min(r["s"] for r in runs),
+        "rss": max(r["rss"] for r in runs),
+        "points": runs[0]["points"],
+        "lines": runs[0]["lines"],
+    }
 
 
 def mb(n: float) -> str:
@@ -120,14 +127,18 @@ def main() -> None:
         streamed = best_of("streamed", y, args.repeat, folder / "streamed.npz")
         a, b = np.load(folder / "whole.npz"), np.load(folder / "streamed.npz")
         same = all(np.array_equal(a[k], b[k]) for k in ("points", "lines"))
-        print(f"{args.width} x {args.height} ({cells / 1e6:.0f} M cells): "
-              f"{int(streamed['points']):,} points, {int(streamed['lines']):,} lines; "
-              f"identical to the whole-image path: {same}")
+        print(
+            f"{args.width} x {args.height} ({cells / 1e6:.0f} M cells): "
+            f"{int(streamed['points']):,} points, {int(streamed['lines']):,} lines; "
+            f"identical to the whole-image path: {same}"
+        )
         print(f"  whole image : {whole['s']:7.2f} s  peak {mb(whole['rss'])}")
         print(f"  row bands   : {streamed['s']:7.2f} s  peak {mb(streamed['rss'])}")
-        print(f"  ratio bands/whole: time {streamed['s'] / whole['s']:.2f}x, peak memory "
-              f"{streamed['rss'] / whole['rss']:.2f}x (above the idle floor: "
-              f"{(streamed['rss'] - floor['rss']) / (whole['rss'] - floor['rss']):.2f}x)")
+        print(
+            f"  ratio bands/whole: time {streamed['s'] / whole['s']:.2f}x, peak memory "
+            f"{streamed['rss'] / whole['rss']:.2f}x (above the idle floor: "
+            f"{(streamed['rss'] - floor['rss']) / (whole['rss'] - floor['rss']):.2f}x)"
+        )
         if not same:
             raise SystemExit("streamed and whole-image imports differ")
         (folder / "mid.pgm").unlink()
@@ -136,11 +147,15 @@ def main() -> None:
         w, h = SITE
         y = write_warehouse(folder / "site.yaml", w, h)
         site = run("streamed", y)
-        print(f"site {w:,} x {h:,} ({w * h / 1e6:.0f} M cells, 415 x 270 m at 2 cm): "
-              f"{int(site['points']):,} points, {int(site['lines']):,} lines")
-        print(f"  row bands   : {site['s']:7.2f} s  peak {mb(site['rss'])} "
-              f"({site['s'] / streamed['s']:.1f}x the time of the {cells / 1e6:.0f} M-cell map "
-              f"for {w * h / cells:.1f}x the cells)")
+        print(
+            f"site {w:,} x {h:,} ({w * h / 1e6:.0f} M cells, 415 x 270 m at 2 cm): "
+            f"{int(site['points']):,} points, {int(site['lines']):,} lines"
+        )
+        print(
+            f"  row bands   : {site['s']:7.2f} s  peak {mb(site['rss'])} "
+            f"({site['s'] / streamed['s']:.1f}x the time of the {cells / 1e6:.0f} M-cell map "
+            f"for {w * h / cells:.1f}x the cells)"
+        )
 
 
 if __name__ == "__main__":

@@ -85,8 +85,12 @@ def rss_delta(path: Path) -> int:
         "mapkit.loads(b'2D-Map\\nLINES\\n1 2 3 4\\nDATA\\n-1 2\\n');"  # warm up the code paths
         "h0 = hwm(); m = mapkit.load(sys.argv[1]); print((hwm() - h0) * 1024)"
     )
-    out = subprocess.run([sys.executable, "-c", code, str(path), str(ROOT)],
-                         check=True, capture_output=True, text=True)
+    out = subprocess.run(
+        [sys.executable, "-c", code, str(path), str(ROOT)],
+        check=True,
+        capture_output=True,
+        text=True,
+    )
     return int(out.stdout.strip())
 
 
@@ -110,9 +114,11 @@ def main() -> None:
     data = path.read_bytes()
     size = len(data)
     m = mapkit.load(path)
-    print(f"map: {path} ({size / 1e6:.1f} MB, {m.scan.num_points:,} points, "
-          f"{m.scan.num_lines:,} lines, {len(m.objects)} objects); best of {args.repeat} runs, "
-          f"{resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MB resident")
+    print(
+        f"map: {path} ({size / 1e6:.1f} MB, {m.scan.num_points:,} points, "
+        f"{m.scan.num_lines:,} lines, {len(m.objects)} objects); best of {args.repeat} runs, "
+        f"{resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MB resident"
+    )
     assert mapkit.dumpb(m) == data, "the benchmark map must be a fixed point of the writer"
 
     # mapkit
@@ -145,24 +151,37 @@ def main() -> None:
 
     write_t = best_of(write_bytes, args.repeat)
     atomic_t = best_of(lambda: atomic_write(out, data), args.repeat)
-    ref_parse_t = best_of(lambda: (_rows._parse_rows_reference(lines_text, 4),
-                                   _rows._parse_rows_reference(data_text, 2)), 1)
-    ref_format_t = best_of(lambda: (_rows._format_rows_reference(m.lines),
-                                    _rows._format_rows_reference(m.points)), 1)
-    fast_parse_t = best_of(lambda: (_rows.parse_rows(lines_text, 4),
-                                    _rows.parse_rows(data_text, 2)), args.repeat)
-    fast_format_t = best_of(lambda: (_rows.format_rows(m.lines), _rows.format_rows(m.points)),
-                            args.repeat)
+    ref_parse_t = best_of(
+        lambda: (
+            _rows._parse_rows_reference(lines_text, 4),
+            _rows._parse_rows_reference(data_text, 2),
+        ),
+        1,
+    )
+    ref_format_t = best_of(
+        lambda: (_rows._format_rows_reference(m.lines), _rows._format_rows_reference(m.points)), 1
+    )
+    fast_parse_t = best_of(
+        lambda: (_rows.parse_rows(lines_text, 4), _rows.parse_rows(data_text, 2)), args.repeat
+    )
+    fast_format_t = best_of(
+        lambda: (_rows.format_rows(m.lines), _rows.format_rows(m.points)), args.repeat
+    )
 
     def row(label: str, t: tuple[float, float], base: float | None = None, note: str = "") -> None:
         ratio = f"{t[0] / base:6.2f}x" if base else "       "
         print(f"  {label:44s} {t[0]:8.4f} s  (cpu {t[1]:.4f} s)  {ratio}  {note}")
 
     def section(
-        what: str, mapkit_t: tuple[float, float], aria: float, goal: float,
+        what: str,
+        mapkit_t: tuple[float, float],
+        aria: float,
+        goal: float,
         baselines: list[tuple[str, tuple[float, float]]],
-        rows_fast: tuple[str, tuple[float, float]], rows_ref: tuple[str, tuple[float, float]],
-        peak: int, extra: str = "",
+        rows_fast: tuple[str, tuple[float, float]],
+        rows_ref: tuple[str, tuple[float, float]],
+        peak: int,
+        extra: str = "",
     ) -> None:
         name, call = what.split(" ", 1)
         met = "met" if mapkit_t[0] < goal else "NOT met"
@@ -172,24 +191,40 @@ def main() -> None:
             row(label, t, mapkit_t[0], f"of {call.split()[0]}")
         row(rows_fast[0], rows_fast[1], rows_ref[1][0], "of the reference")
         row(rows_ref[0], rows_ref[1], mapkit_t[0], f"of {call.split()[0]}")
-        print(f"  peak memory: {peak / 1e6:.1f} MB traced = {peak / size:.2f}x the file{extra} "
-              f"(target < {TARGET_MEMORY:.0f}x)")
+        print(
+            f"  peak memory: {peak / 1e6:.1f} MB traced = {peak / size:.2f}x the file{extra} "
+            f"(target < {TARGET_MEMORY:.0f}x)"
+        )
 
-    section("read mapkit.load", load_t, ARIA_READ_S, TARGET_READ_S,
-            [("file bytes only (open().read())", read_t),
-             ("MD5 of the bytes (mapkit hashes on a 2nd thread)", md5_t),
-             ("bytes + np.fromstring(sep=' ') on the rows", fromstring_t)],
-            ("rows: mapkit parse_rows (vectorised)", fast_parse_t),
-            ("rows: reference parser (per-line regex)", ref_parse_t),
-            load_mem, f", RSS growth {load_rss / 1e6:.1f} MB = {load_rss / size:.2f}x")
-    section("write mapkit.save (atomic: temp file, fsync, rename)", save_t, ARIA_WRITE_S,
-            TARGET_WRITE_S,
-            [("mapkit.dumpb (in memory)", dump_t),
-             ("writing the bytes (plain open/write)", write_t),
-             ("writing the bytes atomically (fsync, rename)", atomic_t)],
-            ("rows: mapkit format_rows (vectorised)", fast_format_t),
-            ("rows: reference formatter (per-row %d)", ref_format_t),
-            save_mem)
+    section(
+        "read mapkit.load",
+        load_t,
+        ARIA_READ_S,
+        TARGET_READ_S,
+        [
+            ("file bytes only (open().read())", read_t),
+            ("MD5 of the bytes (mapkit hashes on a 2nd thread)", md5_t),
+            ("bytes + np.fromstring(sep=' ') on the rows", fromstring_t),
+        ],
+        ("rows: mapkit parse_rows (vectorised)", fast_parse_t),
+        ("rows: reference parser (per-line regex)", ref_parse_t),
+        load_mem,
+        f", RSS growth {load_rss / 1e6:.1f} MB = {load_rss / size:.2f}x",
+    )
+    section(
+        "write mapkit.save (atomic: temp file, fsync, rename)",
+        save_t,
+        ARIA_WRITE_S,
+        TARGET_WRITE_S,
+        [
+            ("mapkit.dumpb (in memory)", dump_t),
+            ("writing the bytes (plain open/write)", write_t),
+            ("writing the bytes atomically (fsync, rename)", atomic_t),
+        ],
+        ("rows: mapkit format_rows (vectorised)", fast_format_t),
+        ("rows: reference formatter (per-row %d)", ref_format_t),
+        save_mem,
+    )
 
 
 if __name__ == "__main__":

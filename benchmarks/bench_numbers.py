@@ -22,8 +22,9 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-import mapkit  # noqa: E402
-from _timing import best  # noqa: E402
+from _timing import best
+
+import mapkit
 
 
 def ordinary_header(n_objects: int = 20_000, n_info: int = 2_000) -> bytes:

@@ -122,8 +122,15 @@ def measure(path: Path, seconds: float, screenshot: Path | None = None) -> dict[
             errors = console_errors(d)
     finally:
         ed.stop()
-    return {"open": opened, "paint": paint_ms / 1000.0, "drag": drag, "wheel": wheel,
-            "pan": pan[0], "zoom": zoom[0], "errors": errors}
+    return {
+        "open": opened,
+        "paint": paint_ms / 1000.0,
+        "drag": drag,
+        "wheel": wheel,
+        "pan": pan[0],
+        "zoom": zoom[0],
+        "errors": errors,
+    }
 
 
 def main() -> None:
@@ -142,10 +149,14 @@ def main() -> None:
     base = measure(small, args.seconds)
     res = measure(big, args.seconds, args.screenshot)
     print(f"{'':30s} {'office.map':>11s} {'1M points':>11s} {'x office':>9s}  target")
-    rows = [("open + index (s)", "open", ""), ("first full paint (s)", "paint", "< 2 s"),
-            ("panning, mouse drag (fps)", "drag", ">= 30 fps"),
-            ("zooming, mouse wheel (fps)", "wheel", ""),
-            ("panBy every frame (fps)", "pan", ""), ("setZoom every 15 (fps)", "zoom", "")]
+    rows = [
+        ("open + index (s)", "open", ""),
+        ("first full paint (s)", "paint", "< 2 s"),
+        ("panning, mouse drag (fps)", "drag", ">= 30 fps"),
+        ("zooming, mouse wheel (fps)", "wheel", ""),
+        ("panBy every frame (fps)", "pan", ""),
+        ("setZoom every 15 (fps)", "zoom", ""),
+    ]
     for label, key, target in rows:
         ratio = res[key] / base[key]
         print(f"{label:30s} {base[key]:11.3f} {res[key]:11.3f} {ratio:9.2f}  {target}")

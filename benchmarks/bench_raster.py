@@ -51,13 +51,19 @@ def main() -> None:
         t_read, m = best(lambda: mapkit.load(big), args.repeat)
         rasterize(m, 0.05)  # warm up (scipy imports)
         t_ras, g = best(lambda: rasterize(m, 0.05), args.repeat)
-        t_exp, res = best(lambda: export_ros(m, folder / "big.yaml"), args.repeat)
-        print(f"read bigmap.map ({m.scan.num_points:,} points, {m.scan.num_lines:,} lines): "
-              f"{t_read:.3f} s (baseline)")
-        print(f"rasterise at 0.05 m ({g.width} x {g.height}):            {t_ras:.3f} s = "
-              f"{t_ras / t_read:.2f} x read")
-        print(f"rasterise + write PGM + YAML:                     {t_exp:.3f} s = "
-              f"{t_exp / t_read:.2f} x read")
+        t_exp, _res = best(lambda: export_ros(m, folder / "big.yaml"), args.repeat)
+        print(
+            f"read bigmap.map ({m.scan.num_points:,} points, {m.scan.num_lines:,} lines): "
+            f"{t_read:.3f} s (baseline)"
+        )
+        print(
+            f"rasterise at 0.05 m ({g.width} x {g.height}):            {t_ras:.3f} s = "
+            f"{t_ras / t_read:.2f} x read"
+        )
+        print(
+            f"rasterise + write PGM + YAML:                     {t_exp:.3f} s = "
+            f"{t_exp / t_read:.2f} x read"
+        )
 
         fine = rasterize(m, 0.025, margin_m=0)
         crop = OccupancyGrid(fine.data[:4000, :4000], fine.resolution, fine.origin)
@@ -66,12 +72,18 @@ def main() -> None:
         t_imp, back = best(lambda: import_ros(files.yaml), args.repeat)
         mapkit.save(back, folder / "imported.map")
         t_mread, _ = best(lambda: mapkit.load(folder / "imported.map"), args.repeat)
-        print(f"read imported.map ({back.scan.num_points:,} points, {back.scan.num_lines:,} lines): "
-              f"{t_mread:.3f} s (baseline)")
-        print(f"read the {crop.width} x {crop.height} ROS map as a grid:         {t_rosread:.3f} s = "
-              f"{t_rosread / t_mread:.2f} x read")
-        print(f"import-ros of it (points + wall lines):            {t_imp:.3f} s = "
-              f"{t_imp / t_mread:.2f} x read")
+        print(
+            f"read imported.map ({back.scan.num_points:,} points, {back.scan.num_lines:,} lines): "
+            f"{t_mread:.3f} s (baseline)"
+        )
+        print(
+            f"read the {crop.width} x {crop.height} ROS map as a grid:         {t_rosread:.3f} s = "
+            f"{t_rosread / t_mread:.2f} x read"
+        )
+        print(
+            f"import-ros of it (points + wall lines):            {t_imp:.3f} s = "
+            f"{t_imp / t_mread:.2f} x read"
+        )
 
 
 if __name__ == "__main__":

@@ -11,22 +11,18 @@ from __future__ import annotations
 import argparse
 import sys
 import tempfile
-import time
-from collections.abc import Callable
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
-from bigmap import write_big_map  # noqa: E402
 from _timing import best  # noqa: E402
+from bigmap import write_big_map  # noqa: E402
 
 import mapkit  # noqa: E402
 from mapkit.mesh import export_mesh, wall_mesh  # noqa: E402
 from mapkit.render import render  # noqa: E402
-
-
 
 
 def main() -> None:
@@ -53,8 +49,10 @@ def main() -> None:
         "mesh STL + SDF world": lambda: export_mesh(m, out / "big.stl", world=out / "big.sdf"),
         "mesh GLB": lambda: export_mesh(m, out / "big.glb"),
     }
-    print(f"map: {src.name}, {m.scan.num_points:,} points, {m.scan.num_lines:,} lines, "
-          f"{len(m.objects)} objects ({src.stat().st_size / 1e6:.1f} MB)")
+    print(
+        f"map: {src.name}, {m.scan.num_points:,} points, {m.scan.num_lines:,} lines, "
+        f"{len(m.objects)} objects ({src.stat().st_size / 1e6:.1f} MB)"
+    )
     print(f"{'step':38s} {'seconds':>8s} {'x read':>7s}")
     print(f"{'read (mapkit.load), the baseline':38s} {base:8.3f} {1.0:7.2f}")
     for name, fn in steps.items():

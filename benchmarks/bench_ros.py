@@ -46,8 +46,10 @@ def make_map(path: Path, mb: float) -> int:
     rng = np.random.default_rng(7)
     pts = rng.integers(-50_000, 50_000, size=(n, 2)) // 20 * 20
     lines = rng.integers(-50_000, 50_000, size=(2000, 4))
-    m = MapData(scans=(Scan.from_arrays(pts, lines, resolution=20),),
-                objects=(MapObject("RobotHome", 0, 0, name="Home"),))
+    m = MapData(
+        scans=(Scan.from_arrays(pts, lines, resolution=20),),
+        objects=(MapObject("RobotHome", 0, 0, name="Home"),),
+    )
     save(m, path)
     return path.stat().st_size
 
@@ -100,25 +102,51 @@ def run_baseline(ros_env: dict[str, str], data: bytes, tmp: Path) -> tuple[float
     return seconds, got == data, len(got)
 
 
-def run_mapkit(ros_env: dict[str, str], path: Path, tmp: Path, name: str = "big.2d",
-               repeat: int = 3) -> tuple[list[float], bool, dict[str, object]]:
+def run_mapkit(
+    ros_env: dict[str, str], path: Path, tmp: Path, name: str = "big.2d", repeat: int = 3
+) -> tuple[list[float], bool, dict[str, object]]:
     """Push ``path`` ``repeat`` times (under fresh names) to one receiver; the times."""
     from mapkit.ros.transfer import push
 
     dest = tmp / "mapkit_rx"
     env = dict(ros_env, MAPKIT_SECRET=SECRET)
-    rx = subprocess.Popen([sys.executable, "-m", "mapkit", "ros", "receive", "-o", str(dest),
-                           "--name", "bench", "--channel", "bench", "--count", str(repeat)],
-                          env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
-                          cwd=ROOT)
+    rx = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "mapkit",
+            "ros",
+            "receive",
+            "-o",
+            str(dest),
+            "--name",
+            "bench",
+            "--channel",
+            "bench",
+            "--count",
+            str(repeat),
+        ],
+        env=env,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+        cwd=ROOT,
+    )
     assert rx.stderr is not None
     rx.stderr.readline()  # its banner: the node is up and announcing
     times, ok, extra = [], True, {}
     for k in range(repeat):
         each = f"{k}.{name}"
         t0 = time.perf_counter()
-        (res,) = push(str(path), channel="bench", secret=SECRET.encode(), name=each, expect=1,
-                      wait=30, idle_timeout=300)
+        (res,) = push(
+            str(path),
+            channel="bench",
+            secret=SECRET.encode(),
+            name=each,
+            expect=1,
+            wait=30,
+            idle_timeout=300,
+        )
         times.append(time.perf_counter() - t0)
         ok = ok and res.ok and (dest / each).read_bytes() == path.read_bytes()
         extra = {"chunks_sent": res.chunks_sent, "resent": res.chunks_resent}
@@ -130,10 +158,14 @@ def run_mapkit(ros_env: dict[str, str], path: Path, tmp: Path, name: str = "big.
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--mb", type=float, default=50.0, help="Size of the map in MB.")
-    ap.add_argument("--parse", action="store_true",
-                    help="Also push it as a .map, which the receiver parses before accepting it.")
-    ap.add_argument("--no-baseline", action="store_true",
-                    help="Skip the (slow) line-per-message run.")
+    ap.add_argument(
+        "--parse",
+        action="store_true",
+        help="Also push it as a .map, which the receiver parses before accepting it.",
+    )
+    ap.add_argument(
+        "--no-baseline", action="store_true", help="Skip the (slow) line-per-message run."
+    )
     ap.add_argument("--lines-receiver", nargs=2, metavar=("OUT", "COUNT"), help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.lines_receiver:
@@ -158,20 +190,26 @@ def main() -> None:
             start_node("bench_ros")
             times, mk_ok, extra = run_mapkit(ros.env, path, tmp)
             mk_s = min(times)
-            print("mapkit (MKT/1 over UInt8MultiArray, HMAC, acks, SHA-256 verified): best of "
-                  f"{len(times)} {mk_s:.2f} s ({', '.join(f'{t:.2f}' for t in times)}), "
-                  f"{size / 1e6 / mk_s:.1f} MB/s, verified {'yes' if mk_ok else 'NO'} ({extra})")
+            print(
+                "mapkit (MKT/1 over UInt8MultiArray, HMAC, acks, SHA-256 verified): best of "
+                f"{len(times)} {mk_s:.2f} s ({', '.join(f'{t:.2f}' for t in times)}), "
+                f"{size / 1e6 / mk_s:.1f} MB/s, verified {'yes' if mk_ok else 'NO'} ({extra})"
+            )
             if args.parse:
                 p_times, p_ok, _ = run_mapkit(ros.env, path, tmp, name="big.map", repeat=1)
-                print(f"mapkit, sent as .map (the receiver also parses it): {p_times[0]:.2f} s, "
-                      f"verified {'yes' if p_ok else 'NO'}")
+                print(
+                    f"mapkit, sent as .map (the receiver also parses it): {p_times[0]:.2f} s, "
+                    f"verified {'yes' if p_ok else 'NO'}"
+                )
             if args.no_baseline:
                 return
             bl_s, bl_ok, got = run_baseline(ros.env, data, tmp)
-            print(f"baseline (one std_msgs/String per line, {lines} messages): {bl_s:.2f} s, "
-                  f"{size / 1e6 / bl_s:.2f} MB/s, {lines / bl_s:.0f} lines/s; "
-                  f"identical {'yes' if bl_ok else f'NO ({got} of {size} bytes)'} "
-                  "(checked by the benchmark: the baseline cannot tell)")
+            print(
+                f"baseline (one std_msgs/String per line, {lines} messages): {bl_s:.2f} s, "
+                f"{size / 1e6 / bl_s:.2f} MB/s, {lines / bl_s:.0f} lines/s; "
+                f"identical {'yes' if bl_ok else f'NO ({got} of {size} bytes)'} "
+                "(checked by the benchmark: the baseline cannot tell)"
+            )
             print(f"ratio: mapkit is {bl_s / mk_s:.0f}x faster")
 
 

@@ -48,8 +48,13 @@ def run_once(argv: list[str]) -> float:
 def slowest_imports(argv: list[str], n: int = 15) -> list[tuple[int, str]]:
     """The ``n`` imports with the largest cumulative time (microseconds), from -X importtime."""
     env = dict(os.environ, PYTHONPATH=str(ROOT))
-    res = subprocess.run([argv[0], "-X", "importtime", *argv[1:]], capture_output=True,
-                         text=True, env=env, check=True)
+    res = subprocess.run(
+        [argv[0], "-X", "importtime", *argv[1:]],
+        capture_output=True,
+        text=True,
+        env=env,
+        check=True,
+    )
     rows = []
     for line in res.stderr.splitlines():
         if not line.startswith("import time:") or "cumulative" in line:
@@ -62,8 +67,11 @@ def slowest_imports(argv: list[str], n: int = 15) -> list[tuple[int, str]]:
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--runs", type=int, default=10, help="runs per case (default 10)")
-    ap.add_argument("--imports", metavar="CASE", help="show the slowest imports of a case whose "
-                    "name contains CASE, then exit")
+    ap.add_argument(
+        "--imports",
+        metavar="CASE",
+        help="show the slowest imports of a case whose name contains CASE, then exit",
+    )
     args = ap.parse_args()
     if args.imports:
         name = next(n for n in CASES if args.imports in n)

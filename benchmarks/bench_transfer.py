@@ -42,8 +42,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from mapkit.transfer import client as client_mod  # noqa: E402
-from mapkit.transfer import send_file  # noqa: E402
+from mapkit.transfer import client as client_mod, send_file  # noqa: E402
 
 SECRET = b"benchmark-secret-0123456789abcdef"
 
@@ -75,14 +74,16 @@ def make_file(path: Path, size: int) -> None:
 
 
 def plain_copy(src: Path, dst: Path) -> float:
-    proc = subprocess.Popen([sys.executable, "-c", SINK, str(dst)], stdout=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(
+        [sys.executable, "-c", SINK, str(dst)], stdout=subprocess.PIPE, text=True
+    )
     assert proc.stdout is not None
     port = int(proc.stdout.readline())
     t0 = time.perf_counter()
     with socket.create_connection(("127.0.0.1", port)) as s, open(src, "rb") as fh:
         buf = bytearray(1 << 20)
         view = memoryview(buf)
-        while (n := fh.readinto(buf)):
+        while n := fh.readinto(buf):
             s.sendall(view[:n])
         s.shutdown(socket.SHUT_WR)
         s.recv(1)
@@ -93,8 +94,22 @@ def plain_copy(src: Path, dst: Path) -> float:
 
 def start_serve(folder: Path, secret_file: Path | None) -> tuple[subprocess.Popen[str], int]:
     auth = ["--secret-file", str(secret_file)] if secret_file else ["--insecure"]
-    proc = subprocess.Popen([sys.executable, "-m", "mapkit", "-q", "serve", str(folder), "--listen",
-                             "127.0.0.1:0", *auth], stderr=subprocess.PIPE, text=True, cwd=ROOT)
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "mapkit",
+            "-q",
+            "serve",
+            str(folder),
+            "--listen",
+            "127.0.0.1:0",
+            *auth,
+        ],
+        stderr=subprocess.PIPE,
+        text=True,
+        cwd=ROOT,
+    )
     assert proc.stderr is not None
     line = proc.stderr.readline()
     m = re.search(r"on 127\.0\.0\.1:(\d+)", line)
@@ -104,8 +119,15 @@ def start_serve(folder: Path, secret_file: Path | None) -> tuple[subprocess.Pope
     return proc, int(m.group(1))
 
 
-def mkt_copy(src: Path, folder: Path, secret_file: Path | None, name: str, *, cold: bool = False,
-             auth: str = "blake2b") -> float:
+def mkt_copy(
+    src: Path,
+    folder: Path,
+    secret_file: Path | None,
+    name: str,
+    *,
+    cold: bool = False,
+    auth: str = "blake2b",
+) -> float:
     proc, port = start_serve(folder, secret_file)
     try:
         opts: dict[str, object] = {"insecure": True}
@@ -170,20 +192,24 @@ def main() -> None:
         robot = work / "robot"
         robot.mkdir()
         load0 = os.getloadavg()[0]
-        print(f"file: {size / 1e6:.0f} MB ({args.size} MiB), loopback, {os.cpu_count()} CPUs, "
-              f"load average {load0:.1f}")
+        print(
+            f"file: {size / 1e6:.0f} MB ({args.size} MiB), loopback, {os.cpu_count()} CPUs, "
+            f"load average {load0:.1f}"
+        )
         plain = min(plain_copy(src, work / "plain.out") for _ in range(args.runs))
         os.unlink(work / "plain.out")
-        cold = min(mkt_copy(src, robot, secret_file, "cold.2d", cold=True)
-                   for _ in range(args.runs))
+        cold = min(
+            mkt_copy(src, robot, secret_file, "cold.2d", cold=True) for _ in range(args.runs)
+        )
         warm = min(mkt_copy(src, robot, secret_file, f"warm{i}.2d") for i in range(args.runs))
         hmac_t = mkt_copy(src, robot, secret_file, "hmac.2d", auth="hmac-sha256")
         insecure = mkt_copy(src, robot, None, "insecure.2d")
         mb = size / 1e6
 
         def line(what: str, t: float, note: str = "") -> None:
-            print(f"{what:42s}{mb / t:7.1f} MB/s  ({t:5.2f} s)  "
-                  f"ratio {plain / t:.2f}x of plain{note}")
+            print(
+                f"{what:42s}{mb / t:7.1f} MB/s  ({t:5.2f} s)  ratio {plain / t:.2f}x of plain{note}"
+            )
 
         print(f"{'plain socket copy:':42s}{mb / plain:7.1f} MB/s  ({plain:5.2f} s)")
         line("MKT/1 auth (BLAKE2b), first send:", cold, " (target >= 0.5)")
@@ -197,11 +223,15 @@ def main() -> None:
         # CPU per byte: sender SHA-256 (first send only) + BLAKE2b + CRC; robot BLAKE2b + SHA-256
         warm_cpu = 2 / b2 + 1 / crc + 1 / sha
         cold_cpu = warm_cpu + 1 / sha
-        print(f"hash speed per core (CPU time):  SHA-256 {sha:.0f} MB/s, BLAKE2b {b2:.0f} MB/s, "
-              f"CRC-32 {crc:.0f} MB/s")
-        print(f"  hashing alone, both ends on 2 idle cores: >= {2 / cold_cpu:.0f} MB/s first send, "
-              f">= {2 / warm_cpu:.0f} MB/s hashed before; "
-              f"the robot's SHA-256 alone: {sha:.0f} MB/s")
+        print(
+            f"hash speed per core (CPU time):  SHA-256 {sha:.0f} MB/s, BLAKE2b {b2:.0f} MB/s, "
+            f"CRC-32 {crc:.0f} MB/s"
+        )
+        print(
+            f"  hashing alone, both ends on 2 idle cores: >= {2 / cold_cpu:.0f} MB/s first send, "
+            f">= {2 / warm_cpu:.0f} MB/s hashed before; "
+            f"the robot's SHA-256 alone: {sha:.0f} MB/s"
+        )
         # a 1 MB map end to end, and the same bytes as a file the robot does not parse
         m = work / "site.map"
         sample = real_map()
@@ -214,19 +244,25 @@ def main() -> None:
         try:
             res = {}
             for f in (m, work / "site.2d"):
-                res[f.suffix] = [_timed(lambda f=f: send_file(f, "127.0.0.1", port, secret=SECRET))
-                                 for _ in range(7)]
+                res[f.suffix] = [
+                    _timed(lambda f=f: send_file(f, "127.0.0.1", port, secret=SECRET))
+                    for _ in range(7)
+                ]
         finally:
             proc.terminate()
             proc.wait()
         assert (robot / "site.map").read_bytes() == m.read_bytes()
         kb = m.stat().st_size / 1e6
         which = sample.name if sample else "synthetic"
-        for suffix, what in ((".map", f"{kb:.1f} MB map ({which}) end to end"),
-                             (".2d", f"{kb:.1f} MB .2d (same bytes, not parsed)   ")):
+        for suffix, what in (
+            (".map", f"{kb:.1f} MB map ({which}) end to end"),
+            (".2d", f"{kb:.1f} MB .2d (same bytes, not parsed)   "),
+        ):
             t = res[suffix]
-            print(f"{what}: median {statistics.median(t) * 1000:5.0f} ms, best {min(t) * 1000:5.0f} ms"
-                  + (" (target < 100 ms)" if suffix == ".map" else ""))
+            print(
+                f"{what}: median {statistics.median(t) * 1000:5.0f} ms, "
+                f"best {min(t) * 1000:5.0f} ms" + (" (target < 100 ms)" if suffix == ".map" else "")
+            )
         print(f"  of which mapkit's parser on the robot: {parse_ms:.0f} ms for the map (best of 3)")
         print(f"load average at the end: {os.getloadavg()[0]:.1f}")
     finally:

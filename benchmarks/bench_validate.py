@@ -11,22 +11,19 @@ from __future__ import annotations
 import argparse
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
-from bigmap import write_big_map  # noqa: E402
 from _timing import best  # noqa: E402
+from bigmap import write_big_map  # noqa: E402
 
 import mapkit  # noqa: E402
 from mapkit.validate import validate  # noqa: E402
 
 RADIUS = 300.0
-
-
 
 
 def main() -> None:

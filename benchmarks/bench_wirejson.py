@@ -32,17 +32,45 @@ def _refuse(data: bytes, ftype: FrameType) -> None:
 
 
 def main() -> None:
-    offer = json.dumps({"name": "office.map", "size": 614400, "sha256": "ab" * 32,
-                        "chunk_size": 262144, "chunks": 3, "kind": "map", "md5": "cd" * 16,
-                        "mtime": 1795249871.148, "window": 16}).encode()
+    offer = json.dumps(
+        {
+            "name": "office.map",
+            "size": 614400,
+            "sha256": "ab" * 32,
+            "chunk_size": 262144,
+            "chunks": 3,
+            "kind": "map",
+            "md5": "cd" * 16,
+            "mtime": 1795249871.148,
+            "window": 16,
+        }
+    ).encode()
     ack = json.dumps({"next": 120, "sack": [[i * 3, i * 3 + 2] for i in range(41, 73)]}).encode()
-    listing = json.dumps({"maps": [{"name": f"map{i}.map", "size": 1000 + i, "md5": "cd" * 16,
-                                    "sha256": "ab" * 32, "mtime": 1.5, "kind": "map",
-                                    "active": i == 3} for i in range(1000)],
-                          "active": "map3.map", "active_md5": "cd" * 16, "previous": None}).encode()
+    listing = json.dumps(
+        {
+            "maps": [
+                {
+                    "name": f"map{i}.map",
+                    "size": 1000 + i,
+                    "md5": "cd" * 16,
+                    "sha256": "ab" * 32,
+                    "mtime": 1.5,
+                    "kind": "map",
+                    "active": i == 3,
+                }
+                for i in range(1000)
+            ],
+            "active": "map3.map",
+            "active_md5": "cd" * 16,
+            "previous": None,
+        }
+    ).encode()
     print(f"{'payload':<24}{'json.loads':>14}{'bounded':>14}{'ratio':>9}")
-    cases = (("OFFER", offer, FrameType.OFFER), ("ACK, 32 ranges", ack, FrameType.ACK),
-             ("LISTING, 1000 maps", listing, FrameType.LISTING))
+    cases = (
+        ("OFFER", offer, FrameType.OFFER),
+        ("ACK, 32 ranges", ack, FrameType.ACK),
+        ("LISTING, 1000 maps", listing, FrameType.LISTING),
+    )
     for name, data, ftype in cases:
         n = 2000 if len(data) < 10_000 else 20
         base = best(lambda d=data, n=n: [json.loads(d) for _ in range(n)], 5) / n
@@ -53,10 +81,13 @@ def main() -> None:
     t = best(lambda: _refuse(hello, FrameType.HELLO), 5)
     print(f"hostile HELLO (16 KiB, the handshake's limit), time to refuse: {t * 1e3:.2f} ms")
     print("hostile, 1 MiB (after authentication), time to refuse:")
-    for name, data in (("[ x 1 MiB", b"[" * (1 << 20)), ('{"a": x 1 MiB', b'{"a":' * (1 << 18)),
-                       ("string of [ x 1 MiB", b'{"s":"' + b"[" * (1 << 20) + b'"}'),
-                       ('\\" x 1 MiB unterminated', b'{"s":"' + b'\\"' * (1 << 19))):
-        data = data[:1 << 20]
+    for name, data in (
+        ("[ x 1 MiB", b"[" * (1 << 20)),
+        ('{"a": x 1 MiB', b'{"a":' * (1 << 18)),
+        ("string of [ x 1 MiB", b'{"s":"' + b"[" * (1 << 20) + b'"}'),
+        ('\\" x 1 MiB unterminated', b'{"s":"' + b'\\"' * (1 << 19)),
+    ):
+        data = data[: 1 << 20]
 
         def refuse(d: bytes = data) -> None:
             with contextlib.suppress(ProtocolError):

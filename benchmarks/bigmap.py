@@ -50,15 +50,25 @@ def make_big_map(seed: int = 1) -> MapData:
     x2 = np.where(horizontal, starts + length, walls)
     y2 = np.where(horizontal, walls, starts + length)
     lines = np.stack([x1, y1, x2, y2], axis=1)
-    objects = [MapObject("RobotHome", -47500, -47500, 0, name="Home"),
-               MapObject("Dock", -47500, -45000, 90, name="Dock 1")]
-    centres = [((i % 19) * room - side // 2 + room // 2, (i // 19) * room - side // 2 + room // 2)
-               for i in range(N_OBJECTS - 2)]
+    objects = [
+        MapObject("RobotHome", -47500, -47500, 0, name="Home"),
+        MapObject("Dock", -47500, -45000, 90, name="Dock 1"),
+    ]
+    centres = [
+        ((i % 19) * room - side // 2 + room // 2, (i // 19) * room - side // 2 + room // 2)
+        for i in range(N_OBJECTS - 2)
+    ]
     return _with_objects(points, lines, objects, centres, turn_back=False)
 
 
-def _with_objects(points: np.ndarray, lines: np.ndarray, objects: list[MapObject],
-                  centres: list[tuple[int, int]], *, turn_back: bool) -> MapData:
+def _with_objects(
+    points: np.ndarray,
+    lines: np.ndarray,
+    objects: list[MapObject],
+    centres: list[tuple[int, int]],
+    *,
+    turn_back: bool,
+) -> MapData:
     """The map of these points and lines, with ``objects`` and one object per room centre.
 
     Goals, goals with heading, forbidden areas (some turned 30 degrees) and forbidden lines in
@@ -70,8 +80,9 @@ def _with_objects(points: np.ndarray, lines: np.ndarray, objects: list[MapObject
         if kind == 0:
             objects.append(MapObject("Goal", cx, cy, 0, name=f"Goal room {i}"))
         elif kind == 1:
-            objects.append(MapObject("GoalWithHeading", cx, cy, (i * 37) % 360 - 179,
-                                     name=f"Station {i} west"))
+            objects.append(
+                MapObject("GoalWithHeading", cx, cy, (i * 37) % 360 - 179, name=f"Station {i} west")
+            )
         elif kind == 2:
             angle = 0.0 if i % 8 == 2 else 30.0
             ux, uy = cx, cy
@@ -79,15 +90,38 @@ def _with_objects(points: np.ndarray, lines: np.ndarray, objects: list[MapObject
                 th = np.radians(angle)
                 ux = round(cx * np.cos(th) + cy * np.sin(th))
                 uy = round(-cx * np.sin(th) + cy * np.cos(th))
-            objects.append(MapObject("ForbiddenArea", 0, 0, angle, name=f"Keep out {i}",
-                                     from_to=(ux - 600, uy - 400, ux + 600, uy + 400)))
+            objects.append(
+                MapObject(
+                    "ForbiddenArea",
+                    0,
+                    0,
+                    angle,
+                    name=f"Keep out {i}",
+                    from_to=(ux - 600, uy - 400, ux + 600, uy + 400),
+                )
+            )
         else:
-            objects.append(MapObject("ForbiddenLine", cx - 1000, cy + 1500, 0,
-                                     from_to=(cx - 1000, cy + 1500, cx + 1000, cy + 1500)))
+            objects.append(
+                MapObject(
+                    "ForbiddenLine",
+                    cx - 1000,
+                    cy + 1500,
+                    0,
+                    from_to=(cx - 1000, cy + 1500, cx + 1000, cy + 1500),
+                )
+            )
     scan = Scan.from_arrays(points, lines, resolution=20)
-    return MapData(scans=(scan,), objects=tuple(objects),
-                   info={"MapInfo": [("GoalType", "Name=Goal"), ("GoalType", "Name=GoalWithHeading"),
-                                     ("DockType", "Name=Dock")]})
+    return MapData(
+        scans=(scan,),
+        objects=tuple(objects),
+        info={
+            "MapInfo": [
+                ("GoalType", "Name=Goal"),
+                ("GoalType", "Name=GoalWithHeading"),
+                ("DockType", "Name=Dock"),
+            ]
+        },
+    )
 
 
 #: The big site of issue 16: a 415 x 270 m warehouse (at 2 cm: a 20,768 x 13,612 grid).
@@ -119,8 +153,10 @@ def make_site_map(size_mm: tuple[int, int] = SITE_MM, seed: int = 1) -> MapData:
     points = np.concatenate(pts)
     n_lines = int(N_LINES * wall_mm / (2 * 21 * 100_000))
     horizontal = rng.random(n_lines) < 0.5
-    starts = np.where(horizontal, rng.integers(0, sx // 20, n_lines),
-                      rng.integers(0, sy // 20, n_lines)) * 20
+    starts = (
+        np.where(horizontal, rng.integers(0, sx // 20, n_lines), rng.integers(0, sy // 20, n_lines))
+        * 20
+    )
     walls = np.where(horizontal, rng.integers(0, ny, n_lines), rng.integers(0, nx, n_lines)) * room
     length = rng.integers(5, 100, n_lines) * 20
     x1 = np.where(horizontal, starts, walls)
@@ -128,12 +164,16 @@ def make_site_map(size_mm: tuple[int, int] = SITE_MM, seed: int = 1) -> MapData:
     x2 = np.where(horizontal, np.minimum(starts + length, sx), walls)
     y2 = np.where(horizontal, walls, np.minimum(starts + length, sy))
     lines = np.stack([x1, y1, x2, y2], axis=1)
-    objects = [MapObject("RobotHome", 2500, 2500, 0, name="Home"),
-               MapObject("Dock", 2500, 5000 + 2500, 90, name="Dock 1")]
+    objects = [
+        MapObject("RobotHome", 2500, 2500, 0, name="Home"),
+        MapObject("Dock", 2500, 5000 + 2500, 90, name="Dock 1"),
+    ]
     rooms_x, rooms_y = sx // room, sy // room
     n_obj = int((N_OBJECTS - 2) * (sx * sy) / (100_000 * 100_000))
-    centres = [((i % rooms_x) * room + room // 2, (i // rooms_x) % rooms_y * room + room // 2)
-               for i in range(n_obj)]
+    centres = [
+        ((i % rooms_x) * room + room // 2, (i // rooms_x) % rooms_y * room + room // 2)
+        for i in range(n_obj)
+    ]
     return _with_objects(points, lines, objects, centres, turn_back=True)
 
 

@@ -97,25 +97,27 @@ _LAZY: dict[str, str] = {
 
 #: Subpackages reachable as ``mapkit.NAME`` after a bare ``import mapkit``. ``mapkit.validate``
 #: is both the package and (called) the :func:`mapkit.validate.validate` function.
-_SUBMODULES = frozenset({
-    "aria",
-    "arnet",
-    "build",
-    "diagnostics",
-    "edit",
-    "errors",
-    "formats",
-    "mesh",
-    "model",
-    "open",
-    "raster",
-    "render",
-    "ros",
-    "samples",
-    "simulate",
-    "transfer",
-    "validate",
-})
+_SUBMODULES = frozenset(
+    {
+        "aria",
+        "arnet",
+        "build",
+        "diagnostics",
+        "edit",
+        "errors",
+        "formats",
+        "mesh",
+        "model",
+        "open",
+        "raster",
+        "render",
+        "ros",
+        "samples",
+        "simulate",
+        "transfer",
+        "validate",
+    }
+)
 
 
 def __getattr__(name: str) -> Any:

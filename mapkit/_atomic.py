@@ -25,17 +25,17 @@ from typing import BinaryIO
 from mapkit._typing import PathLike
 
 __all__ = [
+    "STALE_AGE",
     "ReadOnlyFileError",
     "WriteError",
     "atomic_open",
     "atomic_write",
     "check_writable",
-    "STALE_AGE",
     "fsync_dir",
     "is_read_only",
     "remove_stale_temps",
-    "write_error",
     "replace_read_only",
+    "write_error",
 ]
 
 #: When true, a read-only file may be replaced (``mapkit ... --force`` sets it for one command).
@@ -51,8 +51,19 @@ class WriteError(OSError):
 
 #: Errors of writing the temp file or renaming it (not, say, a dropped connection in the body).
 _WRITE_ERRNOS = frozenset(
-    {errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EPERM, errno.EFBIG, errno.EIO,
-     errno.ENOENT, errno.EISDIR, errno.ENOTDIR, errno.EXDEV}
+    {
+        errno.ENOSPC,
+        errno.EDQUOT,
+        errno.EROFS,
+        errno.EACCES,
+        errno.EPERM,
+        errno.EFBIG,
+        errno.EIO,
+        errno.ENOENT,
+        errno.EISDIR,
+        errno.ENOTDIR,
+        errno.EXDEV,
+    }
 )
 
 
@@ -115,6 +126,7 @@ def check_writable(path: PathLike, *, probe: bool = True) -> None:
             raise write_error(shown, err) from err
         os.close(fd)
         os.unlink(tmp)
+
 
 #: Seconds after which a temp file of our pattern is stale even if its writer's pid is in use
 #: (pids are reused); no atomic write of mapkit takes that long.
@@ -218,8 +230,9 @@ def _pid_alive(pid: int) -> bool:
     return True
 
 
-def remove_stale_temps(path: PathLike, *, max_age: float = STALE_AGE,
-                       now: float | None = None) -> list[str]:
+def remove_stale_temps(
+    path: PathLike, *, max_age: float = STALE_AGE, now: float | None = None
+) -> list[str]:
     """Remove the stale temp files that interrupted atomic writes of ``path`` left beside it.
 
     A temp file of ``path`` is ``.NAME.PID-XXXXXXXX.tmp`` (or ``.NAME.XXXXXXXX.tmp`` from

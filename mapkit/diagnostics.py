@@ -132,8 +132,14 @@ class IssueCode(enum.IntEnum):
 
 #: One line per code: (default severity, summary). Extended by the validator's ranges.
 CODE_SUMMARY: dict[IssueCode, tuple[Severity, str]] = {
-    IssueCode.JUNK_BEFORE_INTRO: (Severity.WARNING, "lines before the intro line (ARIA skips them)"),
-    IssueCode.UNKNOWN_LINE: (Severity.INFO, "unknown header keyword, kept and written after the objects"),
+    IssueCode.JUNK_BEFORE_INTRO: (
+        Severity.WARNING,
+        "lines before the intro line (ARIA skips them)",
+    ),
+    IssueCode.UNKNOWN_LINE: (
+        Severity.INFO,
+        "unknown header keyword, kept and written after the objects",
+    ),
     IssueCode.BAD_DATA_ROW: (Severity.WARNING, "data row ARIA skips silently"),
     IssueCode.LAST_ROW_WITHOUT_NEWLINE: (
         Severity.WARNING,
@@ -158,7 +164,10 @@ CODE_SUMMARY: dict[IssueCode, tuple[Severity, str]] = {
         Severity.WARNING,
         "bounding box wider than 2 km: ARIA 2.9.4 recomputes it and sorts the data",
     ),
-    IssueCode.LOSSY_QUOTE: (Severity.WARNING, "a quote inside a quoted token: ARIA splits it there"),
+    IssueCode.LOSSY_QUOTE: (
+        Severity.WARNING,
+        "a quote inside a quoted token: ARIA splits it there",
+    ),
     IssueCode.NUMBER_OUT_OF_RANGE: (
         Severity.WARNING,
         "header integer beyond 32 bits: read as ARIA reads it (strtol saturates, the int wraps)",
@@ -173,7 +182,10 @@ CODE_SUMMARY: dict[IssueCode, tuple[Severity, str]] = {
         Severity.WARNING,
         "MinPos/MaxPos or LineMinPos/LineMaxPos do not enclose the data",
     ),
-    IssueCode.BOX_LARGER_THAN_DATA: (Severity.INFO, "bounding box larger than the data it describes"),
+    IssueCode.BOX_LARGER_THAN_DATA: (
+        Severity.INFO,
+        "bounding box larger than the data it describes",
+    ),
     IssueCode.BOX_MISSING: (
         Severity.INFO,
         "data without its bounding-box keywords: ARIA's box then includes (0, 0)",
@@ -183,11 +195,15 @@ CODE_SUMMARY: dict[IssueCode, tuple[Severity, str]] = {
         Severity.WARNING,
         "Resolution: not a plausible grid size for the points (1 to 1000 mm)",
     ),
-    IssueCode.NOT_MARKED_SORTED: (Severity.INFO, "PointsAreSorted:/LinesAreSorted: false or absent"),
+    IssueCode.NOT_MARKED_SORTED: (
+        Severity.INFO,
+        "PointsAreSorted:/LinesAreSorted: false or absent",
+    ),
     IssueCode.SORTED_FLAG_WRONG: (Severity.WARNING, "sorted flag true but the rows are not sorted"),
     IssueCode.CATEGORY_OLDER_THAN_CONTENT: (
         Severity.INFO,
-        "2D-Map-Ex2/Ex3 content under an older intro: read by ARIA, intro changed by ARIA 2.9.1 on save",
+        "2D-Map-Ex2/Ex3 content under an older intro: read by ARIA, intro changed by ARIA 2.9.1 "
+        "on save",
     ),
     IssueCode.TEMPLATES_NEED_EX4: (
         Severity.WARNING,
@@ -242,7 +258,10 @@ CODE_SUMMARY: dict[IssueCode, tuple[Severity, str]] = {
         Severity.WARNING,
         "goal, dock or home closer to an obstacle than the robot radius",
     ),
-    IssueCode.GOAL_IN_FORBIDDEN_AREA: (Severity.ERROR, "goal, dock or home inside a forbidden area"),
+    IssueCode.GOAL_IN_FORBIDDEN_AREA: (
+        Severity.ERROR,
+        "goal, dock or home inside a forbidden area",
+    ),
     IssueCode.NO_ROBOT_HOME: (Severity.INFO, "no RobotHome"),
     IssueCode.SEVERAL_ROBOT_HOMES: (Severity.INFO, "more than one RobotHome"),
     IssueCode.UNWRITABLE_TEXT: (
@@ -275,12 +294,18 @@ CODE_SUMMARY: dict[IssueCode, tuple[Severity, str]] = {
         Severity.WARNING,
         "ArgDesc whose Parent= is not the type or task declared above it",
     ),
-    IssueCode.ARGDESC_BAD_TYPE: (Severity.WARNING, "ArgDesc without Name= or with a Type= ARIA does not know"),
+    IssueCode.ARGDESC_BAD_TYPE: (
+        Severity.WARNING,
+        "ArgDesc without Name= or with a Type= ARIA does not know",
+    ),
     IssueCode.ARGDESC_BAD_VALUE: (
         Severity.WARNING,
         "ArgDesc Value/Min/Max that does not fit its Type=, or Value outside Min..Max",
     ),
-    IssueCode.PARAMS_UNKNOWN_OBJECT: (Severity.WARNING, "CairnInfo: Params for an object the map lacks"),
+    IssueCode.PARAMS_UNKNOWN_OBJECT: (
+        Severity.WARNING,
+        "CairnInfo: Params for an object the map lacks",
+    ),
     IssueCode.PARAMS_COUNT_MISMATCH: (
         Severity.WARNING,
         "CairnInfo: Params with another number of values than the type has ArgDesc lines",
@@ -293,9 +318,18 @@ CODE_SUMMARY: dict[IssueCode, tuple[Severity, str]] = {
         Severity.WARNING,
         "CairnInfo: GroupMember naming an unknown object, type, group type or argument",
     ),
-    IssueCode.LOG_BAD_HEADER_LINE: (Severity.ERROR, "log header line with values that cannot be read (ignored)"),
-    IssueCode.LOG_BAD_VALUE: (Severity.ERROR, "log record with a value that is not a number (record skipped)"),
-    IssueCode.LOG_NON_FINITE: (Severity.ERROR, "NaN or infinite number in a log record (record skipped)"),
+    IssueCode.LOG_BAD_HEADER_LINE: (
+        Severity.ERROR,
+        "log header line with values that cannot be read (ignored)",
+    ),
+    IssueCode.LOG_BAD_VALUE: (
+        Severity.ERROR,
+        "log record with a value that is not a number (record skipped)",
+    ),
+    IssueCode.LOG_NON_FINITE: (
+        Severity.ERROR,
+        "NaN or infinite number in a log record (record skipped)",
+    ),
     IssueCode.LOG_WRONG_READING_COUNT: (
         Severity.ERROR,
         "scan with another number of readings than its laser's sickKconf: (record skipped)",
@@ -306,7 +340,10 @@ CODE_SUMMARY: dict[IssueCode, tuple[Severity, str]] = {
     ),
     IssueCode.LOG_TRUNCATED: (Severity.ERROR, "log ends in the middle of a record or line"),
     IssueCode.LOG_UNKNOWN_TAG: (Severity.INFO, "unknown tag in a log, kept and written back"),
-    IssueCode.LOG_GARBAGE_LINE: (Severity.WARNING, "log line that is neither a tag nor a comment (skipped)"),
+    IssueCode.LOG_GARBAGE_LINE: (
+        Severity.WARNING,
+        "log line that is neither a tag nor a comment (skipped)",
+    ),
     IssueCode.LOG_NO_END_MARK: (
         Severity.INFO,
         "log without '# End of log': the logger did not shut down cleanly",
@@ -315,8 +352,14 @@ CODE_SUMMARY: dict[IssueCode, tuple[Severity, str]] = {
         Severity.WARNING,
         "scan from a laser the header does not describe (mount taken as 0 0 0)",
     ),
-    IssueCode.LOG_UNKNOWN_VERSION: (Severity.WARNING, "log version mapkit does not know (read as version 4)"),
-    IssueCode.LOG_UNPAIRED_LOOP: (Severity.WARNING, "loop: start without stop (or stop without start)"),
+    IssueCode.LOG_UNKNOWN_VERSION: (
+        Severity.WARNING,
+        "log version mapkit does not know (read as version 4)",
+    ),
+    IssueCode.LOG_UNPAIRED_LOOP: (
+        Severity.WARNING,
+        "loop: start without stop (or stop without start)",
+    ),
 }
 
 
@@ -339,8 +382,10 @@ class Location:
     def __str__(self) -> str:
         parts = []
         if self.source is not None or self.line is not None:
-            parts.append(f"{self.source or ''}{':' if self.line is not None else ''}"
-                         f"{self.line if self.line is not None else ''}")
+            parts.append(
+                f"{self.source or ''}{':' if self.line is not None else ''}"
+                f"{self.line if self.line is not None else ''}"
+            )
         if self.object is not None:
             parts.append(f'object "{self.object}"')
         if self.xy is not None:
@@ -382,7 +427,8 @@ class Issue:
 
     def __str__(self) -> str:
         where = str(self.location)
-        return f"{where + ': ' if where else ''}{self.severity.value} MK{int(self.code)}: {self.message}"
+        prefix = f"{where}: " if where else ""
+        return f"{prefix}{self.severity.value} MK{int(self.code)}: {self.message}"
 
     def to_dict(self) -> dict[str, Any]:
         """The issue as JSON-ready data."""

@@ -1,8 +1,8 @@
 #!/usr/bin/env python3
 """Write docs/cli.md: every command's --help, generated from the code so it stays true.
 
-    python scripts/make_cli_docs.py           # rewrite docs/cli.md
-    python scripts/make_cli_docs.py --check   # exit 1 if docs/cli.md is stale
+python scripts/make_cli_docs.py           # rewrite docs/cli.md
+python scripts/make_cli_docs.py --check   # exit 1 if docs/cli.md is stale
 """
 
 from __future__ import annotations
@@ -34,14 +34,18 @@ def commands(group: click.Group, prefix: list[str]) -> Iterator[tuple[list[str],
 
 
 def render() -> str:
-    parts = ["# Command reference\n",
-             "Generated from the code by `scripts/make_cli_docs.py`; a test fails when it is stale.",
-             "Shell completion: `eval \"$(_MAPKIT_COMPLETE=bash_source mapkit)\"` (bash; `zsh_source`,",
-             "`fish_source` for the others). Every command takes `-h/--help`; errors are one line",
-             "(`mapkit --debug COMMAND` shows the traceback), and exit statuses follow one rule,",
-             "printed at the end of `mapkit --help` below.\n"]
+    parts = [
+        "# Command reference\n",
+        "Generated from the code by `scripts/make_cli_docs.py`; a test fails when it is stale.",
+        'Shell completion: `eval "$(_MAPKIT_COMPLETE=bash_source mapkit)"` (bash; `zsh_source`,',
+        "`fish_source` for the others). Every command takes `-h/--help`; errors are one line",
+        "(`mapkit --debug COMMAND` shows the traceback), and exit statuses follow one rule,",
+        "printed at the end of `mapkit --help` below.\n",
+    ]
     for path, cmd in commands(cli, ["mapkit"]):
-        ctx = click.Context(cmd, info_name=" ".join(path), terminal_width=100, max_content_width=100)
+        ctx = click.Context(
+            cmd, info_name=" ".join(path), terminal_width=100, max_content_width=100
+        )
         parts.append(f"## `{' '.join(path)}`\n")
         parts.append("```text\n" + cmd.get_help(ctx) + "\n```\n")
     return "\n".join(parts)

@@ -11,9 +11,9 @@
   many goals, docks, forbidden areas and lines, and a speed-limit sector type with a parameter.
 
 * ``office-loop.2d`` — a laser log (version 4, 361 readings) simulated by driving the office from
-  home past every goal and back home, with drifting odometry and ``loop: start 1`` / ``loop: stop 1``
-  tags: input for ``mapkit build`` with a loop to close. ``office-loop.truth.tsv`` beside it holds
-  the true pose of every scan.
+  home past every goal and back home, with drifting odometry and ``loop: start 1`` /
+  ``loop: stop 1`` tags: input for ``mapkit build`` with a loop to close.
+  ``office-loop.truth.tsv`` beside it holds the true pose of every scan.
 * ``building-labs.2d`` — a version 3 log (181 readings) of the building from home through the
   corridors and six labs (no loop), with ``building-labs.truth.tsv``.
 
@@ -104,8 +104,19 @@ def rotated_area(
     """
     c, s = math.cos(math.radians(angle)), math.sin(math.radians(angle))
     sx, sy = c * cx + s * cy, -s * cx + c * cy
-    return MapObject("ForbiddenArea", 0, 0, angle, name=name, from_to=(
-        round(sx - width / 2), round(sy - height / 2), round(sx + width / 2), round(sy + height / 2)))
+    return MapObject(
+        "ForbiddenArea",
+        0,
+        0,
+        angle,
+        name=name,
+        from_to=(
+            round(sx - width / 2),
+            round(sy - height / 2),
+            round(sx + width / 2),
+            round(sy + height / 2),
+        ),
+    )
 
 
 def office() -> MapData:
@@ -122,8 +133,14 @@ def office() -> MapData:
     walls = cut_door(walls, 10500, 5000, 1200)
     walls = cut_door(walls, 0, 6000, 1600)  # entrance (west)
     lines = np.rint(np.array(walls)).astype(np.int64)
-    furniture = [(1000, 8500, 3000, 9300), (6000, 10500, 8000, 11300), (11000, 8200, 12600, 9000),
-                 (16000, 10000, 18500, 11000), (2000, 1500, 5000, 3000), (9000, 1500, 12000, 3500)]
+    furniture = [
+        (1000, 8500, 3000, 9300),
+        (6000, 10500, 8000, 11300),
+        (11000, 8200, 12600, 9000),
+        (16000, 10000, 18500, 11000),
+        (2000, 1500, 5000, 3000),
+        (9000, 1500, 12000, 3500),
+    ]
     points = np.concatenate([scan_points(walls, rng), clutter(rng, furniture, 160)])
     scan = Scan.from_arrays(points, lines, resolution=RES, sort=True)
     objects = (
@@ -139,10 +156,13 @@ def office() -> MapData:
         rotated_area("Printer corner", 17000, 2500, 1600, 1000, 30),
         MapObject("ForbiddenLine", 14000, 5600, 0, from_to=(14000, 5000, 14000, 7000)),
     )
-    info = {"MapInfo": [("GoalType", "Name=Goal", '"Label=Goal"'),
-                        ("GoalType", "Name=GoalWithHeading", '"Label=Goal with heading"',
-                         "Heading=Required"),
-                        ("DockType", "Name=Dock", '"Label=Dock"', "Heading=Required")]}
+    info = {
+        "MapInfo": [
+            ("GoalType", "Name=Goal", '"Label=Goal"'),
+            ("GoalType", "Name=GoalWithHeading", '"Label=Goal with heading"', "Heading=Required"),
+            ("DockType", "Name=Dock", '"Label=Dock"', "Heading=Required"),
+        ]
+    }
     return MapData(category="2D-Map", scans=(scan,), objects=objects, info=info)
 
 
@@ -195,22 +215,47 @@ def building() -> MapData:
         rotated_area("Server racks", 25500, 6000, 3000, 1500, 0),
         MapObject("ForbiddenLine", 45000, 12000, 0, from_to=(45000, 12000, 45000, 15000)),
         MapObject("ForbiddenLine", 15000, 25000, 0, from_to=(15000, 25000, 15000, 28000)),
-        MapObject("SpeedLimitSector", 0, 0, 0, name="Hall slow zone",
-                  from_to=(46000, 16000, 59000, 24000)),
-        MapObject("SpeedLimitSector", 0, 0, 0, name="Corridor crossing",
-                  from_to=(43000, 12000, 47000, 15000)),
+        MapObject(
+            "SpeedLimitSector", 0, 0, 0, name="Hall slow zone", from_to=(46000, 16000, 59000, 24000)
+        ),
+        MapObject(
+            "SpeedLimitSector",
+            0,
+            0,
+            0,
+            name="Corridor crossing",
+            from_to=(43000, 12000, 47000, 15000),
+        ),
     ]
     info = {
         "MapInfo": [
             ("GoalType", "Name=Goal", '"Label=Goal"'),
             ("GoalType", "Name=GoalWithHeading", '"Label=Goal with heading"', "Heading=Required"),
             ("DockType", "Name=Dock", '"Label=Dock"', "Heading=Required"),
-            ("SectorType", "Name=SpeedLimitSector", '"Label=Speed limit"', "Shape=Plain",
-             "Color0=0xffa000", "Vis=AlwaysOn"),
-            ("ArgDesc", "Name=MaxSpeed", "Parent=SpeedLimitSector", "Priority=Important",
-             "Type=int", "Value=500", "Min=0", "Max=2000", '"Desc=Maximum speed in mm/s"'),
+            (
+                "SectorType",
+                "Name=SpeedLimitSector",
+                '"Label=Speed limit"',
+                "Shape=Plain",
+                "Color0=0xffa000",
+                "Vis=AlwaysOn",
+            ),
+            (
+                "ArgDesc",
+                "Name=MaxSpeed",
+                "Parent=SpeedLimitSector",
+                "Priority=Important",
+                "Type=int",
+                "Value=500",
+                "Min=0",
+                "Max=2000",
+                '"Desc=Maximum speed in mm/s"',
+            ),
         ],
-        "CairnInfo": [("Params", '"Corridor crossing"', "300"), ("Params", '"Hall slow zone"', "250")],
+        "CairnInfo": [
+            ("Params", '"Corridor crossing"', "300"),
+            ("Params", '"Hall slow zone"', "250"),
+        ],
     }
     return MapData(category="2D-Map-Ex2", scans=(scan,), objects=tuple(objects), info=info)
 
@@ -253,12 +298,16 @@ def main() -> int:
     OUT.mkdir(parents=True, exist_ok=True)
     stale = []
     outputs: list[tuple[str, Callable[[], bytes]]] = [
-        (name, lambda make=make: dumpb(make())) for name, make in SAMPLES.items()]
+        (name, lambda make=make: dumpb(make())) for name, make in SAMPLES.items()
+    ]
     for name, make_log in LOG_SAMPLES.items():
         made: dict[str, bytes] = {}
 
-        def part(k: int, make_log: Callable[[], tuple[bytes, bytes]] = make_log,
-                 made: dict[str, bytes] = made) -> bytes:
+        def part(
+            k: int,
+            make_log: Callable[[], tuple[bytes, bytes]] = make_log,
+            made: dict[str, bytes] = made,
+        ) -> bytes:
             if not made:
                 made["log"], made["truth"] = make_log()
             return made["log" if k == 0 else "truth"]

@@ -36,7 +36,8 @@ def shared_dir() -> Path:
 
 
 def real_sample_names() -> list[str]:
-    """Names of the real ARIA samples (empty when ../shared is absent; the fixture then fails in CI)."""
+    """Names of the real ARIA samples (empty when ../shared is absent; the fixture then fails in
+    CI)."""
     folder = SHARED / "sample-data" / "real"
     names = sorted(p.name for p in folder.glob("*.map")) if folder.exists() else []
     if not names:

@@ -24,8 +24,9 @@ with atomic_open(sys.argv[1]) as fh:
 
 
 def _writer(target: Path) -> subprocess.Popen[str]:
-    p = subprocess.Popen([sys.executable, "-c", WRITER, str(target)], stdout=subprocess.PIPE,
-                         text=True)
+    p = subprocess.Popen(
+        [sys.executable, "-c", WRITER, str(target)], stdout=subprocess.PIPE, text=True
+    )
     assert p.stdout is not None and p.stdout.readline() == "writing\n"
     return p
 
@@ -58,9 +59,16 @@ def test_a_killed_writers_temp_file_goes_with_the_next_write(tmp_path) -> None:
 def test_only_our_pattern_for_this_target_and_age_for_old_names(tmp_path) -> None:
     target = tmp_path / "a.map"
     old = time.time() - STALE_AGE - 10
-    keep = [".a.map.bak", ".a.map.tmp", ".a.map.short.tmp", ".a.map.ABCDEFGH.tmp",
-            ".b.map.12345678.tmp", ".a.map.x.12345678.tmp", "a.map.12345678.tmp",
-            ".a.map.12345678.tmp.json"]
+    keep = [
+        ".a.map.bak",
+        ".a.map.tmp",
+        ".a.map.short.tmp",
+        ".a.map.ABCDEFGH.tmp",
+        ".b.map.12345678.tmp",
+        ".a.map.x.12345678.tmp",
+        "a.map.12345678.tmp",
+        ".a.map.12345678.tmp.json",
+    ]
     for name in keep:
         (tmp_path / name).write_bytes(b"x")
         os.utime(tmp_path / name, (old, old))
@@ -72,8 +80,9 @@ def test_only_our_pattern_for_this_target_and_age_for_old_names(tmp_path) -> Non
     removed = remove_stale_temps(target)
     assert [os.path.basename(p) for p in removed] == [".a.map.q9w8e7r6.tmp"]
     left = sorted(p.name for p in tmp_path.iterdir())
-    assert left == sorted([*keep, ".a.map.abcd1234.tmp", f".a.map.{os.getpid()}-zzzzzzzz.tmp",
-                           ".a.map.ignored.d"])
+    assert left == sorted(
+        [*keep, ".a.map.abcd1234.tmp", f".a.map.{os.getpid()}-zzzzzzzz.tmp", ".a.map.ignored.d"]
+    )
 
 
 def test_the_temp_file_names_its_writer(tmp_path, monkeypatch) -> None:

@@ -24,8 +24,10 @@ README = ROOT / "README.md"
 SETUP = "./scripts/setup && "
 TEST_COMMAND = "./scripts/setup && .venv/bin/python -m pytest -q"
 #: What a user has: docs must not send them to files outside the checkout.
-OUTSIDE = re.compile(r"\.\./shared|\bshared/|FORMATS\.md|ROS-MAPS\.md|TRANSFER\.md|ROS2-DDS\.md|"
-                     r"LANDSCAPE\.md|STYLE\.md|aria-peer")
+OUTSIDE = re.compile(
+    r"\.\./shared|\bshared/|FORMATS\.md|ROS-MAPS\.md|TRANSFER\.md|ROS2-DDS\.md|"
+    r"LANDSCAPE\.md|STYLE\.md|aria-peer"
+)
 
 
 def sh_blocks() -> list[str]:
@@ -46,12 +48,15 @@ def test_ci_runs_the_readme_test_command() -> None:
     assert TEST_COMMAND in (ROOT / ".ci" / "run").read_text()
 
 
-@pytest.mark.parametrize("page", sorted((ROOT / "docs").glob("*.md")) + [README],
-                         ids=lambda p: p.name)
+@pytest.mark.parametrize(
+    "page", [*sorted((ROOT / "docs").glob("*.md")), README], ids=lambda p: p.name
+)
 def test_docs_stand_on_their_own(page: Path) -> None:
-    hits = [f"{page.name}:{n}: {line.strip()}"
-            for n, line in enumerate(page.read_text(encoding="utf-8").splitlines(), 1)
-            if OUTSIDE.search(line)]
+    hits = [
+        f"{page.name}:{n}: {line.strip()}"
+        for n, line in enumerate(page.read_text(encoding="utf-8").splitlines(), 1)
+        if OUTSIDE.search(line)
+    ]
     assert not hits, "docs cite files a user does not have:\n" + "\n".join(hits)
 
 
@@ -64,8 +69,9 @@ def test_the_python_api_block_runs(tmp_path: Path) -> None:
     blocks = python_blocks()
     assert blocks and any("mapkit.edit" in b for b in blocks)
     for i, block in enumerate(blocks):
-        result = subprocess.run([sys.executable, "-c", block], cwd=tmp_path,
-                                capture_output=True, text=True, timeout=300)
+        result = subprocess.run(
+            [sys.executable, "-c", block], cwd=tmp_path, capture_output=True, text=True, timeout=300
+        )
         assert result.returncode == 0, f"README python block {i + 1}:\n{result.stderr[-3000:]}"
 
 
@@ -96,16 +102,26 @@ def test_every_readme_command_runs(tmp_path: Path) -> None:
         if text == TEST_COMMAND:
             continue  # the suite running this test is that command
         if text.startswith(SETUP):
-            text = text[len(SETUP):]
+            text = text[len(SETUP) :]
         script.append(f"echo '--- README block {i + 1}' >&2")
         script.append(text)
     python = [f"python - <<'MAPKIT_README_PY'\n{b}MAPKIT_README_PY" for b in python_blocks()]
     script.extend([*python, 'echo "$PWD" > "$HOME/tour-folder"'])
-    env = dict(os.environ, PATH=f"{Path(sys.prefix) / 'bin'}{os.pathsep}{os.environ['PATH']}",
-               HOME=str(home), TMPDIR=str(scratch))
+    env = dict(
+        os.environ,
+        PATH=f"{Path(sys.prefix) / 'bin'}{os.pathsep}{os.environ['PATH']}",
+        HOME=str(home),
+        TMPDIR=str(scratch),
+    )
     env.pop("MAPKIT_SECRET", None)
-    result = subprocess.run(["bash", "-c", "\n".join(script)], cwd=checkout, env=env,
-                            capture_output=True, text=True, timeout=600)
+    result = subprocess.run(
+        ["bash", "-c", "\n".join(script)],
+        cwd=checkout,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert result.returncode == 0, result.stderr[-4000:] + result.stdout[-2000:]
     # nothing left in the checkout; the tour's files are in its scratch folder
     assert sorted(p.name for p in checkout.iterdir()) == [".venv", "scripts"]
@@ -114,4 +130,5 @@ def test_every_readme_command_runs(tmp_path: Path) -> None:
     # the README's picture is what `mapkit demo` draws today
     drawn = home / "mapkit-demo" / "office.png"
     assert _image_difference(drawn, ROOT / "docs" / "img" / "demo-office.png") < 1e-4, (
-        "docs/img/demo-office.png is stale: copy ~/mapkit-demo/office.png of `mapkit demo`")
+        "docs/img/demo-office.png is stale: copy ~/mapkit-demo/office.png of `mapkit demo`"
+    )

@@ -94,8 +94,15 @@ class AriaClient:
         AriaProtocolError: When it sends something that is not ArNetworking.
     """
 
-    def __init__(self, host: str, port: int = DEFAULT_PORT, *, user: str = "",
-                 password: str | bytes = "", timeout: float = 15.0) -> None:
+    def __init__(
+        self,
+        host: str,
+        port: int = DEFAULT_PORT,
+        *,
+        user: str = "",
+        password: str | bytes = "",
+        timeout: float = 15.0,
+    ) -> None:
         self.host, self.port, self.user, self.timeout = host, port, user, timeout
         self._password = password
         self._sock: socket.socket | None = None
@@ -138,7 +145,8 @@ class AriaClient:
             sock = socket.create_connection((self.host, self.port), timeout=self.timeout)
         except OSError as e:
             raise AriaConnectionError(
-                f"cannot connect to the robot at {self.address}: {e.strerror or e}") from e
+                f"cannot connect to the robot at {self.address}: {e.strerror or e}"
+            ) from e
         sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
         self._sock = sock
         self._last = time.monotonic()
@@ -172,8 +180,9 @@ class AriaClient:
             self.open()
         return self
 
-    def __exit__(self, et: type[BaseException] | None, ev: BaseException | None,
-                 tb: TracebackType | None) -> None:
+    def __exit__(
+        self, et: type[BaseException] | None, ev: BaseException | None, tb: TracebackType | None
+    ) -> None:
         self.close()
 
     # -- the pump -------------------------------------------------------------------------------
@@ -190,11 +199,13 @@ class AriaClient:
         except TimeoutError as e:
             self._drop()
             raise AriaTimeoutError(
-                f"the robot at {self.address} accepted no data for {self.timeout:g} s") from e
+                f"the robot at {self.address} accepted no data for {self.timeout:g} s"
+            ) from e
         except OSError as e:
             self._drop()
             raise AriaConnectionError(
-                f"the connection to {self.address} broke while sending: {e.strerror or e}") from e
+                f"the connection to {self.address} broke while sending: {e.strerror or e}"
+            ) from e
 
     def _pump(self, what: str, deadline: float | None = None) -> bool:
         """Receive once (bounded by the timeout) and route the events; False on ``deadline``."""
@@ -209,8 +220,9 @@ class AriaClient:
             limit = deadline
         if limit <= now:
             self._drop()
-            raise AriaTimeoutError(f"the robot at {self.address} sent nothing for "
-                                   f"{self.timeout:g} s while {what}")
+            raise AriaTimeoutError(
+                f"the robot at {self.address} sent nothing for {self.timeout:g} s while {what}"
+            )
         try:
             self._sock.settimeout(limit - now)
             n = self._sock.recv_into(self._buf)
@@ -218,16 +230,19 @@ class AriaClient:
             if deadline is not None and deadline <= limit:
                 return False
             self._drop()
-            raise AriaTimeoutError(f"the robot at {self.address} sent nothing for "
-                                   f"{self.timeout:g} s while {what}") from None
+            raise AriaTimeoutError(
+                f"the robot at {self.address} sent nothing for {self.timeout:g} s while {what}"
+            ) from None
         except OSError as e:
             self._drop()
-            raise AriaConnectionError(f"the connection to {self.address} broke while {what}: "
-                                      f"{e.strerror or e}") from e
+            raise AriaConnectionError(
+                f"the connection to {self.address} broke while {what}: {e.strerror or e}"
+            ) from e
         if n == 0:
             self._drop()
-            raise AriaConnectionError(f"the robot at {self.address} closed the connection "
-                                      f"while {what}")
+            raise AriaConnectionError(
+                f"the robot at {self.address} closed the connection while {what}"
+            )
         self.bytes_received += n
         try:
             events = self._conn.receive_data(memoryview(self._buf)[:n])
@@ -253,11 +268,13 @@ class AriaClient:
                 who = f" for user '{self.user}'" if self.user else " (no user name given)"
                 text = f": {ev.text}" if ev.text else ""
                 raise AriaLoginError(
-                    f"the robot at {self.address} refused the login{who}: {reason}{text}", ev.code)
+                    f"the robot at {self.address} refused the login{who}: {reason}{text}", ev.code
+                )
             elif isinstance(ev, ServerClosed):
                 self._drop()
-                raise AriaConnectionError(f"the robot at {self.address} shut the connection "
-                                          f"down while {what}")
+                raise AriaConnectionError(
+                    f"the robot at {self.address} shut the connection down while {what}"
+                )
             elif isinstance(ev, Ready):
                 log.debug("%s offers %d commands", self.address, len(ev.commands))
         return True

@@ -81,15 +81,20 @@ class State(enum.Enum):
     CLOSED = "closed"
 
 
-def login_digest(password_key: bytes, password: str | bytes, server_key: str | bytes = b"") -> bytes:
+def login_digest(
+    password_key: bytes, password: str | bytes, server_key: str | bytes = b""
+) -> bytes:
     """The 16-byte MD5 the client sends: ``MD5(server_key + password_key + password)``.
 
     Examples:
-        >>> login_digest(b"abc", "secret1").hex() == __import__("hashlib").md5(b"abcsecret1").hexdigest()
+        >>> import hashlib
+        >>> login_digest(b"abc", "secret1").hex() == hashlib.md5(b"abcsecret1").hexdigest()
         True
     """
+
     def b(v: str | bytes) -> bytes:
         return v if isinstance(v, bytes) else v.encode("utf-8")
+
     return hashlib.md5(b(server_key) + password_key + b(password)).digest()
 
 
@@ -103,8 +108,14 @@ class ClientConnection:
         max_length: The largest packet accepted from the server.
     """
 
-    def __init__(self, user: str = "", password: str | bytes = "", *, server_key: str = "",
-                 max_length: int | None = None) -> None:
+    def __init__(
+        self,
+        user: str = "",
+        password: str | bytes = "",
+        *,
+        server_key: str = "",
+        max_length: int | None = None,
+    ) -> None:
         self.user = user
         self._password = password
         self._server_key = server_key
@@ -152,14 +163,18 @@ class ClientConnection:
     def start_request(self, name: str, interval_ms: int = -1, data: bytes = b"") -> None:
         """Queue a standing request (REQUEST): every ``interval_ms``, or -1 for broadcasts only."""
         cmd = self.command(name)
-        self._out.append(encode(ClientCommand.REQUEST,
-                                Payload().ubyte2(cmd.id).byte4(interval_ms).bytes() + data))
+        self._out.append(
+            encode(
+                ClientCommand.REQUEST, Payload().ubyte2(cmd.id).byte4(interval_ms).bytes() + data
+            )
+        )
         self.standing.add(name)
 
     def stop_request(self, name: str) -> None:
         """Queue REQUESTSTOP for a standing request."""
-        self._out.append(encode(ClientCommand.REQUESTSTOP,
-                                Payload().ubyte2(self.command(name).id).bytes()))
+        self._out.append(
+            encode(ClientCommand.REQUESTSTOP, Payload().ubyte2(self.command(name).id).bytes())
+        )
         self.standing.discard(name)
 
     def close(self) -> None:
@@ -196,11 +211,13 @@ class ClientConnection:
         if p.command >= FIRST_DATA_ID:
             if self.state is not State.READY:
                 raise AriaProtocolError(
-                    f"the server sent data (command {p.command}) while {self.state.value}")
+                    f"the server sent data (command {p.command}) while {self.state.value}"
+                )
             info = self._by_id.get(p.command)
             if info is None:
                 raise AriaProtocolError(
-                    f"the server sent command {p.command}, which is not in its command list")
+                    f"the server sent command {p.command}, which is not in its command list"
+                )
             return Data(info.name, p.command, p.data)
         if p.command == ServerCommand.INTRODUCTION:
             return self._on_introduction(p)
@@ -247,9 +264,15 @@ class ClientConnection:
         version = f.string() if f.remaining else ""
         intro = Introduced(udp_port, password_key, version)
         self.introduction = intro
-        answer = (Payload().ubyte2(0).string(self.user)
-                  .raw(login_digest(password_key, self._password, self._server_key))
-                  .string("").byte(0).bytes())
+        answer = (
+            Payload()
+            .ubyte2(0)
+            .string(self.user)
+            .raw(login_digest(password_key, self._password, self._server_key))
+            .string("")
+            .byte(0)
+            .bytes()
+        )
         self._out.append(encode(ClientCommand.INTRODUCTION, answer))
         self._out.append(encode(ClientCommand.TCP_ONLY))
         self._password = ""
@@ -266,8 +289,9 @@ class ClientConnection:
             values = [f.string() for _ in keys]
             if what == "LIST":
                 if cid < FIRST_DATA_ID:
-                    raise AriaProtocolError(f"the server's LIST gives data command id {cid} "
-                                            f"(below {FIRST_DATA_ID})")
+                    raise AriaProtocolError(
+                        f"the server's LIST gives data command id {cid} (below {FIRST_DATA_ID})"
+                    )
                 info = CommandInfo(cid, values[0])
                 self._extra.setdefault(cid, {})["description"] = values[1]
                 old = self._by_id.get(cid)
@@ -276,18 +300,25 @@ class ClientConnection:
                 self._by_id[cid] = info
                 self.commands[info.name] = info
             else:
-                self._extra.setdefault(cid, {}).update(zip(keys, values))
+                self._extra.setdefault(cid, {}).update(zip(keys, values, strict=True))
         if f.remaining:
-            raise AriaProtocolError(f"the server's {what} has {f.remaining} bytes after its "
-                                    f"{count} entries")
+            raise AriaProtocolError(
+                f"the server's {what} has {f.remaining} bytes after its {count} entries"
+            )
         self._merge()
 
     def _merge(self) -> None:
         for cid, info in list(self._by_id.items()):
             extra = self._extra.get(cid, {})
             flags = tuple(x for x in str(extra.get("flags", "")).split("|") if x)
-            new = CommandInfo(cid, info.name, str(extra.get("description", info.description)),
-                              str(extra.get("arguments", "")), str(extra.get("returns", "")),
-                              str(extra.get("group", "")), flags)
+            new = CommandInfo(
+                cid,
+                info.name,
+                str(extra.get("description", info.description)),
+                str(extra.get("arguments", "")),
+                str(extra.get("returns", "")),
+                str(extra.get("group", "")),
+                flags,
+            )
             self._by_id[cid] = new
             self.commands[new.name] = new

@@ -9,12 +9,19 @@ server that says goodbye :class:`ServerClosed`.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Union
 
 from mapkit.arnet.packet import Fields
 
-__all__ = ["Accepted", "CommandInfo", "Data", "Event", "Introduced", "Ready", "Rejected",
-           "ServerClosed"]
+__all__ = [
+    "Accepted",
+    "CommandInfo",
+    "Data",
+    "Event",
+    "Introduced",
+    "Ready",
+    "Rejected",
+    "ServerClosed",
+]
 
 
 @dataclass(frozen=True)
@@ -81,4 +88,4 @@ class Data:
         return Fields(self.data, f"{self.name} reply")
 
 
-Event = Union[Introduced, Accepted, Ready, Rejected, ServerClosed, Data]
+Event = Introduced | Accepted | Ready | Rejected | ServerClosed | Data

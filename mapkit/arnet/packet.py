@@ -127,8 +127,9 @@ class Fields:
         if n < 0 or self._pos + n > len(self._data):
             raise AriaProtocolError(
                 f"{self.what}: the server's packet ends inside a {kind} field "
-                f"(offset {self._pos}, {self.remaining} bytes left, {n} needed)")
-        out = self._data[self._pos:self._pos + n]
+                f"(offset {self._pos}, {self.remaining} bytes left, {n} needed)"
+            )
+        out = self._data[self._pos : self._pos + n]
         self._pos += n
         return out
 
@@ -173,8 +174,9 @@ class Fields:
         end = self._data.find(b"\0", self._pos)
         if end < 0:
             raise AriaProtocolError(
-                f"{self.what}: a string at offset {self._pos} has no terminating NUL")
-        out = self._data[self._pos:end]
+                f"{self.what}: a string at offset {self._pos} has no terminating NUL"
+            )
+        out = self._data[self._pos : end]
         self._pos = end + 1
         return out
 

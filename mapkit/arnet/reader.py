@@ -11,6 +11,7 @@ not guess, so here they end the connection with :class:`AriaProtocolError`.
 from __future__ import annotations
 
 import struct
+
 from mapkit.arnet.errors import AriaProtocolError
 from mapkit.arnet.packet import MAX_LENGTH, MIN_LENGTH, SYNC, Packet, checksum
 
@@ -60,31 +61,34 @@ class PacketReader:
             p = self._pos
             if buf[p] != SYNC[0] or buf[p + 1] != SYNC[1]:
                 raise AriaProtocolError(
-                    f"the server sent {bytes(buf[p:p + 2]).hex()} where a packet must start "
-                    f"with 0f0c (byte {self.bytes - avail} of the connection)")
+                    f"the server sent {bytes(buf[p : p + 2]).hex()} where a packet must start "
+                    f"with 0f0c (byte {self.bytes - avail} of the connection)"
+                )
             length = buf[p + 2] | (buf[p + 3] << 8)
             if length < MIN_LENGTH or length > self.max_length:
                 raise AriaProtocolError(
                     f"the server announced a {length}-byte packet; ArNetworking packets are "
-                    f"{MIN_LENGTH} to {self.max_length} bytes")
+                    f"{MIN_LENGTH} to {self.max_length} bytes"
+                )
             if avail < length:
                 break
-            frame = memoryview(buf)[p:p + length]
+            frame = memoryview(buf)[p : p + length]
             try:
                 want = checksum(frame, length)
                 got = struct.unpack_from(">H", frame, length - 2)[0]
                 command = struct.unpack_from("<H", frame, 4)[0]
-                data = bytes(frame[6:length - 2])
+                data = bytes(frame[6 : length - 2])
             finally:
                 frame.release()
             if want != got:
                 raise AriaProtocolError(
                     f"packet {self.packets + 1} from the server (command {command}, {length} "
-                    f"bytes) has checksum {got:#06x}, expected {want:#06x}")
+                    f"bytes) has checksum {got:#06x}, expected {want:#06x}"
+                )
             self._pos = p + length
             self.packets += 1
             out.append(Packet(command, data))
         if self._pos >= _COMPACT_AT or self._pos == len(buf):
-            del buf[:self._pos]
+            del buf[: self._pos]
             self._pos = 0
         return out

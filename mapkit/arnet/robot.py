@@ -51,7 +51,7 @@ from mapkit.arnet.services import (
 from mapkit.formats.map import dumpb, loads
 from mapkit.model import MapData
 
-__all__ = ["FetchedMap", "LoadResult", "MapChange", "Robot", "SERVICES", "connect"]
+__all__ = ["SERVICES", "FetchedMap", "LoadResult", "MapChange", "Robot", "connect"]
 
 log = logging.getLogger(__name__)
 
@@ -142,8 +142,9 @@ class Robot:
     def __enter__(self) -> Robot:
         return self
 
-    def __exit__(self, et: type[BaseException] | None, ev: BaseException | None,
-                 tb: TracebackType | None) -> None:
+    def __exit__(
+        self, et: type[BaseException] | None, ev: BaseException | None, tb: TracebackType | None
+    ) -> None:
         self.close()
 
     # -- the map service ------------------------------------------------------------------------
@@ -161,8 +162,10 @@ class Robot:
 
     def services(self) -> dict[str, dict[str, bool]]:
         """For each service mapkit uses, which of its commands this user may use."""
-        return {svc: {name: self.client.offers(name) for name in names}
-                for svc, names in SERVICES.items()}
+        return {
+            svc: {name: self.client.offers(name) for name in names}
+            for svc, names in SERVICES.items()
+        }
 
     def info(self) -> dict[str, Any]:
         """The robot, its active map and what this user may do (JSON-ready)."""
@@ -173,9 +176,14 @@ class Robot:
             "address": self.address,
             "user": self.client.user,
             "map": name,
-            "map_id": None if mid is None else {
-                "file": mid.file_name, "md5": mid.md5, "size": mid.size,
-                "timestamp": mid.timestamp},
+            "map_id": None
+            if mid is None
+            else {
+                "file": mid.file_name,
+                "md5": mid.md5,
+                "size": mid.size,
+                "timestamp": mid.timestamp,
+            },
             "services": svc,
             "can": {
                 "fetch_map": svc["map"]["getMap"] or svc["files"]["getFile"],
@@ -196,15 +204,22 @@ class Robot:
             line = reply.fields().str_bytes()
             total += len(line) + 1
             if total > max_size:
-                raise AriaProtocolError(f"{self.address}: the map service sent more than "
-                                        f"{max_size} bytes of map")
+                raise AriaProtocolError(
+                    f"{self.address}: the map service sent more than {max_size} bytes of map"
+                )
             parts.append(line)
         if parts and parts[-1] == b"":
             parts.pop()
         return b"".join(p + b"\n" for p in parts)
 
-    def fetch(self, name: str | None = None, *, via: str = "auto",
-              max_size: int = MAX_MAP_BYTES, progress: Progress | None = None) -> FetchedMap:
+    def fetch(
+        self,
+        name: str | None = None,
+        *,
+        via: str = "auto",
+        max_size: int = MAX_MAP_BYTES,
+        progress: Progress | None = None,
+    ) -> FetchedMap:
         """Fetch and parse the active map, or map file ``name`` from the robot's folder.
 
         Args:
@@ -227,8 +242,9 @@ class Robot:
         is_active = target == active
         mid = self.map_id() if is_active else None
         robot_md5 = mid.md5 if mid is not None else ""
-        use_file = via == "file" or (via == "auto" and (self.client.offers("getFile")
-                                                        or not is_active))
+        use_file = via == "file" or (
+            via == "auto" and (self.client.offers("getFile") or not is_active)
+        )
         if use_file:
             digest = hashlib.md5()
             parts = []
@@ -241,14 +257,21 @@ class Robot:
                 if via == "file" or not self.client.offers("getMap"):
                     raise AriaRemoteError(
                         f"robot file '{target}' (MD5 {md5}) is not the map the robot has loaded "
-                        f"(MD5 {robot_md5}): it changed on the robot since it was loaded")
-                log.warning("robot file %s (MD5 %s) differs from the loaded map (MD5 %s); "
-                            "taking the loaded map from the map service", target, md5, robot_md5)
+                        f"(MD5 {robot_md5}): it changed on the robot since it was loaded"
+                    )
+                log.warning(
+                    "robot file %s (MD5 %s) differs from the loaded map (MD5 %s); "
+                    "taking the loaded map from the map service",
+                    target,
+                    md5,
+                    robot_md5,
+                )
                 use_file = False
         if not use_file:
             if not is_active:
-                raise AriaRemoteError(f"the map service sends only the active map ('{active}'), "
-                                      f"not '{target}'")
+                raise AriaRemoteError(
+                    f"the map service sends only the active map ('{active}'), not '{target}'"
+                )
             self.client.command_check("getMap")
             data = self._map_lines(max_size)
             md5, source = _md5(data), "map service"
@@ -259,8 +282,9 @@ class Robot:
         """The active map (or map file ``name``) as :class:`MapData`."""
         return self.fetch(name).map
 
-    def save_map(self, path: str | os.PathLike[str], name: str | None = None,
-                 **kw: Any) -> FetchedMap:
+    def save_map(
+        self, path: str | os.PathLike[str], name: str | None = None, **kw: Any
+    ) -> FetchedMap:
         """Fetch (see :meth:`fetch`) and write the bytes atomically to ``path``."""
         got = self.fetch(name, **kw)
         atomic_write(path, got.data)
@@ -276,8 +300,9 @@ class Robot:
             out.extend(dir_listing(reply.fields(), folder)[1])
         return sorted(out, key=lambda e: (not e.is_dir, e.name))
 
-    def _file_chunks(self, remote: str, max_size: int,
-                     progress: Progress | None) -> Iterator[bytes]:
+    def _file_chunks(
+        self, remote: str, max_size: int, progress: Progress | None
+    ) -> Iterator[bytes]:
         arg = Payload().string(remote).ubyte2(0).bytes()
         total = 0
         ended = False
@@ -290,22 +315,31 @@ class Robot:
                 continue
             total += len(chunk.data)
             if total > max_size:
-                raise AriaProtocolError(f"{self.address}: robot file '{remote}' is larger than "
-                                        f"{max_size} bytes")
+                raise AriaProtocolError(
+                    f"{self.address}: robot file '{remote}' is larger than {max_size} bytes"
+                )
             if progress is not None:
                 progress(total, 0)
             yield chunk.data
         if not ended:
-            raise AriaProtocolError(f"{self.address}: the reply for '{remote}' ended without "
-                                    "its end-of-file packet")
+            raise AriaProtocolError(
+                f"{self.address}: the reply for '{remote}' ended without its end-of-file packet"
+            )
 
-    def read_file(self, remote: str, *, max_size: int = MAX_MAP_BYTES,
-                  progress: Progress | None = None) -> bytes:
+    def read_file(
+        self, remote: str, *, max_size: int = MAX_MAP_BYTES, progress: Progress | None = None
+    ) -> bytes:
         """A robot file's bytes (in memory; see :meth:`get_file` for large files)."""
         return b"".join(self._file_chunks(remote, max_size, progress))
 
-    def get_file(self, remote: str, local: str | os.PathLike[str], *,
-                 max_size: int = MAX_FILE_BYTES, progress: Progress | None = None) -> int:
+    def get_file(
+        self,
+        remote: str,
+        local: str | os.PathLike[str],
+        *,
+        max_size: int = MAX_FILE_BYTES,
+        progress: Progress | None = None,
+    ) -> int:
         """Download a robot file to ``local`` (atomically: all of it or nothing); its size."""
         n = 0
         with atomic_open(local) as fh:
@@ -314,8 +348,9 @@ class Robot:
                 n += len(part)
         return n
 
-    def put_file(self, data: bytes | mmap.mmap | memoryview, remote: str, *,
-                 progress: Progress | None = None) -> None:
+    def put_file(
+        self, data: bytes | mmap.mmap | memoryview, remote: str, *, progress: Progress | None = None
+    ) -> None:
         """Upload ``data`` (bytes, or any buffer such as a mapped file) as robot file ``remote``
         (the robot stages it and renames it)."""
         self.client.command_check("putFile")
@@ -395,15 +430,26 @@ class Robot:
             put_back = ""
             if previous and self.map_name != previous:
                 again = self._set_config("Files", {"Map": previous})
-                put_back = (f"; put '{previous}' back" if not again
-                            else f"; putting '{previous}' back failed too: {again}")
-            raise AriaRemoteError(f"the robot could not load '{name}': {error}"
-                                  + (put_back or f"; it still uses '{previous}'"))
+                put_back = (
+                    f"; put '{previous}' back"
+                    if not again
+                    else f"; putting '{previous}' back failed too: {again}"
+                )
+            raise AriaRemoteError(
+                f"the robot could not load '{name}': {error}"
+                + (put_back or f"; it still uses '{previous}'")
+            )
         return LoadResult(name, previous, broadcast, robot_md5)
 
-    def send_map(self, map_or_path: MapData | str | os.PathLike[str] | bytes,
-                 name: str | None = None, *, load: bool = False, check: bool = True,
-                 progress: Progress | None = None) -> dict[str, Any]:
+    def send_map(
+        self,
+        map_or_path: MapData | str | os.PathLike[str] | bytes,
+        name: str | None = None,
+        *,
+        load: bool = False,
+        check: bool = True,
+        progress: Progress | None = None,
+    ) -> dict[str, Any]:
         """Upload a map (checked first), and with ``load`` make it the robot's active map.
 
         Args:
@@ -439,10 +485,13 @@ class Robot:
                 res = self.load_map(name, expect_md5=md5)
             except AriaRemoteError as e:
                 self._undo_upload(name, old)
-                raise AriaRemoteError(f"{e}; {'restored' if old is not None else 'removed'} "
-                                      f"robot file '{name}'", e.code) from e
-            result.update(loaded=True, previous=res.previous, broadcast=res.broadcast,
-                          robot_md5=res.robot_md5)
+                raise AriaRemoteError(
+                    f"{e}; {'restored' if old is not None else 'removed'} robot file '{name}'",
+                    e.code,
+                ) from e
+            result.update(
+                loaded=True, previous=res.previous, broadcast=res.broadcast, robot_md5=res.robot_md5
+            )
         return result
 
     def _undo_upload(self, name: str, old: bytes | None) -> None:
@@ -467,8 +516,14 @@ class Robot:
 
     # -- watching -------------------------------------------------------------------------------
 
-    def watch(self, *, save_dir: str | os.PathLike[str] | None = None, initial: bool = True,
-              stop: Callable[[], bool] | None = None, tick: float = 1.0) -> Iterator[MapChange]:
+    def watch(
+        self,
+        *,
+        save_dir: str | os.PathLike[str] | None = None,
+        initial: bool = True,
+        stop: Callable[[], bool] | None = None,
+        tick: float = 1.0,
+    ) -> Iterator[MapChange]:
         """Yield the active map now (``initial``) and again each time the robot changes it.
 
         Args:
@@ -506,14 +561,21 @@ class Robot:
                 saved = os.path.join(save_dir, f"{stem}-{when}-{got.md5[:8]}.map")
                 os.makedirs(save_dir, exist_ok=True)
                 atomic_write(saved, got.data)
-            yield MapChange(got.name, got.md5, len(got.data), got.source, got.map, got.data,
-                            was_first, saved)
+            yield MapChange(
+                got.name, got.md5, len(got.data), got.source, got.map, got.data, was_first, saved
+            )
             if stop is not None and stop():
                 return
 
 
-def connect(address: str, *, user: str = "", password: str | bytes = "",
-            port: int | None = None, timeout: float = 15.0) -> Robot:
+def connect(
+    address: str,
+    *,
+    user: str = "",
+    password: str | bytes = "",
+    port: int | None = None,
+    timeout: float = 15.0,
+) -> Robot:
     """Connect and log in to a robot's ArNetworking server (``host[:port]``, port 7272).
 
     Raises:
@@ -522,4 +584,3 @@ def connect(address: str, *, user: str = "", password: str | bytes = "",
     host, p = parse_host(address, DEFAULT_PORT if port is None else port)
     client = AriaClient(host, p, user=user, password=password, timeout=timeout)
     return Robot(client.open())
-

@@ -37,19 +37,30 @@ __all__ = [
 #: getDirListing return codes.
 DIR_CODES = {1: "is outside the folders the server shares", 2: "is not a folder on the robot"}
 #: getFile return codes.
-GET_CODES = {1: "is outside the folders the server shares", 2: "does not exist on the robot",
-             3: "is an empty file name", 4: "could not be read on the robot"}
+GET_CODES = {
+    1: "is outside the folders the server shares",
+    2: "does not exist on the robot",
+    3: "is an empty file name",
+    4: "could not be read on the robot",
+}
 #: putFile return codes (0 stored, 1 still receiving).
 PUT_CODES = {
-    2: "is outside the folders the server shares", 3: "names a folder that does not exist",
-    4: "is not a valid file name", 5: "could not be written on the robot (temporary file)",
+    2: "is outside the folders the server shares",
+    3: "names a folder that does not exist",
+    4: "is not a valid file name",
+    5: "could not be written on the robot (temporary file)",
     6: "could not be moved into place on the robot",
-    7: "is being uploaded by another client", 8: "was taken over by another client",
-    9: "is not being uploaded (the server lost the upload)", 11: "upload was cancelled",
+    7: "is being uploaded by another client",
+    8: "was taken over by another client",
+    9: "is not being uploaded (the server lost the upload)",
+    11: "upload was cancelled",
 }
 #: deleteFile return codes.
-DELETE_CODES = {1: "is outside the folders the server shares", 2: "does not exist on the robot",
-                3: "is an empty file name"}
+DELETE_CODES = {
+    1: "is outside the folders the server shares",
+    2: "does not exist on the robot",
+    3: "is an empty file name",
+}
 
 #: Data bytes per putFile packet (what ARIA's own client sends at most).
 PUT_CHUNK = 30000
@@ -134,12 +145,14 @@ def file_chunk(f: Fields, remote: str, max_chunk: int = MAX_DATA) -> FileChunk:
     ret = f.ubyte2()
     path = f.string()
     if ret != 0:
-        raise AriaRemoteError(f"robot file '{remote}' {GET_CODES.get(ret, f'was refused (code {ret})')}",
-                              ret)
+        raise AriaRemoteError(
+            f"robot file '{remote}' {GET_CODES.get(ret, f'was refused (code {ret})')}", ret
+        )
     n = f.ubyte4()
     if n > max_chunk or n != f.remaining:
         raise AriaProtocolError(
-            f"{f.what}: the packet says it carries {n} bytes of '{remote}' but holds {f.remaining}")
+            f"{f.what}: the packet says it carries {n} bytes of '{remote}' but holds {f.remaining}"
+        )
     return FileChunk(path, f.rest())
 
 
@@ -152,7 +165,7 @@ def put_payloads(remote: str, data: bytes | bytearray | memoryview | mmap.mmap) 
     yield Payload().ubyte2(0).raw(name).bytes()
     view = memoryview(data)
     for start in range(0, len(view), room):
-        part = view[start:start + room]
+        part = view[start : start + room]
         yield b"".join((b"\x01\x00", name, len(part).to_bytes(4, "little"), part))
     yield Payload().ubyte2(2).raw(name).bytes()
 
@@ -166,8 +179,9 @@ def put_result(f: Fields, remote: str) -> int:
     ret = f.ubyte2()
     if ret in (0, 1, 10):
         return ret
-    raise AriaRemoteError(f"robot file '{remote}' {PUT_CODES.get(ret, f'was refused (code {ret})')}",
-                          ret)
+    raise AriaRemoteError(
+        f"robot file '{remote}' {PUT_CODES.get(ret, f'was refused (code {ret})')}", ret
+    )
 
 
 def delete_result(f: Fields, remote: str) -> None:
@@ -179,11 +193,14 @@ def delete_result(f: Fields, remote: str) -> None:
     ret = f.ubyte2()
     if ret != 0:
         raise AriaRemoteError(
-            f"robot file '{remote}' {DELETE_CODES.get(ret, f'could not be deleted (code {ret})')}", ret)
+            f"robot file '{remote}' {DELETE_CODES.get(ret, f'could not be deleted (code {ret})')}",
+            ret,
+        )
 
 
 def config_payload(section: str, values: dict[str, str]) -> bytes:
-    """The data of a setConfig/setConfigBySectionsV2 packet: ``Section NAME`` then name/value pairs."""
+    """The data of a setConfig/setConfigBySectionsV2 packet: ``Section NAME`` then name/value
+    pairs."""
     p = Payload().string("Section").string(section)
     for k, v in values.items():
         p.string(k).string(v)

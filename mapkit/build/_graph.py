@@ -1,8 +1,8 @@
 """A 2D pose graph and its Gauss-Newton optimisation (sparse, scipy).
 
 Nodes are poses ``(x mm, y mm, theta radians)``; an edge says "pose j seen from pose i is z" with
-a 3x3 information matrix (in the frame of the expected pose j, as the error is). Node 0 is held fixed. Loop edges get a robust
-(Huber) weight so that one bad closure cannot bend the whole map.
+a 3x3 information matrix (in the frame of the expected pose j, as the error is). Node 0 is held
+fixed. Loop edges get a robust (Huber) weight so that one bad closure cannot bend the whole map.
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ def wrap(a: Any) -> Any:
 
 def sigma_info(sx: float, sy: float, sth: float) -> FloatArray:
     """A diagonal information matrix from standard deviations (mm, mm, radians)."""
-    return np.diag([1.0 / sx ** 2, 1.0 / sy ** 2, 1.0 / sth ** 2])
+    return np.diag([1.0 / sx**2, 1.0 / sy**2, 1.0 / sth**2])
 
 
 def between(a: FloatArray, b: FloatArray) -> FloatArray:
@@ -62,7 +62,7 @@ class PoseGraph:
         n = len(x)
         if n < 2 or not self.i:
             return x
-        I = np.array(self.i)
+        I = np.array(self.i)  # noqa: E741 (I, J: the edges' node indices, as in the maths)
         J = np.array(self.j)
         Z = np.array(self.z)
         OM = np.array(self.info)
@@ -75,8 +75,9 @@ class PoseGraph:
             # e = Rz^T (Ri^T (tj - ti) - tz), theta_j - theta_i - theta_z
             ux = ci * dx + si * dy - Z[:, 0]
             uy = -si * dx + ci * dy - Z[:, 1]
-            e = np.stack([cz * ux + sz * uy, -sz * ux + cz * uy,
-                          wrap(xj[:, 2] - xi[:, 2] - Z[:, 2])], axis=1)
+            e = np.stack(
+                [cz * ux + sz * uy, -sz * ux + cz * uy, wrap(xj[:, 2] - xi[:, 2] - Z[:, 2])], axis=1
+            )
             # Jacobians (E, 3, 3)
             A = np.zeros((len(I), 3, 3))
             B = np.zeros((len(I), 3, 3))
@@ -103,14 +104,21 @@ class PoseGraph:
             bj = np.einsum("eka,ek->ea", Bo, e)
             r3 = np.arange(3)
             rows, cols, vals = [], [], []
-            for blk, ra, cb in ((Hii, I, I), (Hij, I, J), (Hij.transpose(0, 2, 1), J, I), (Hjj, J, J)):
+            for blk, ra, cb in (
+                (Hii, I, I),
+                (Hij, I, J),
+                (Hij.transpose(0, 2, 1), J, I),
+                (Hjj, J, J),
+            ):
                 rr = (3 * ra[:, None, None] + r3[None, :, None]).repeat(3, axis=2)
                 cc = (3 * cb[:, None, None] + r3[None, None, :]).repeat(3, axis=1)
                 rows.append(rr.ravel())
                 cols.append(cc.ravel())
                 vals.append(blk.ravel())
-            H = coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-                           shape=(3 * n, 3 * n)).tocsr()
+            H = coo_matrix(
+                (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                shape=(3 * n, 3 * n),
+            ).tocsr()
             b = np.zeros(3 * n)
             np.add.at(b, (3 * I[:, None] + r3).ravel(), bi.ravel())
             np.add.at(b, (3 * J[:, None] + r3).ravel(), bj.ravel())

@@ -53,8 +53,12 @@ def _split(p: FloatArray, tol: float, min_pts: int, min_len: float, out: list[Fl
 
 
 def extract_lines(
-    pts: FloatArray, *, resolution: float = 20.0, min_length: float = 300.0,
-    tolerance: float | None = None, gap: float | None = None,
+    pts: FloatArray,
+    *,
+    resolution: float = 20.0,
+    min_length: float = 300.0,
+    tolerance: float | None = None,
+    gap: float | None = None,
 ) -> FloatArray:
     """Line segments fitted to map points.
 
@@ -97,14 +101,14 @@ def extract_lines(
     cxy = (dd[..., 0] * dd[..., 1]).sum(axis=1)
     phi = np.mod(0.5 * np.arctan2(2 * cxy, cxx - cyy), math.pi)  # line direction in [0, pi)
     tr = cxx + cyy
-    disc = np.sqrt(np.maximum((cxx - cyy) ** 2 / 4 + cxy ** 2, 0))
+    disc = np.sqrt(np.maximum((cxx - cyy) ** 2 / 4 + cxy**2, 0))
     lin = np.where(tr > 0, 2 * disc / np.maximum(tr, 1e-12), 0.0)
     ok = (cnt >= 4) & (lin > 0.6)
     step = math.radians(4.0)
     segs: list[FloatArray] = []
     for shift in (0.0, 0.5):
         # Two staggered binnings so that a wall on a bin border is whole in one of them.
-        ab = np.floor(phi / step + shift).astype(np.int64) % int(round(math.pi / step))
+        ab = np.floor(phi / step + shift).astype(np.int64) % round(math.pi / step)
         ang = (ab - shift + 0.5) * step
         nx, ny = -np.sin(ang), np.cos(ang)
         rho = pts[:, 0] * nx + pts[:, 1] * ny
@@ -130,8 +134,9 @@ def extract_lines(
     return merge_segments(np.array(segs), tol=tol, gap=gap)
 
 
-def merge_segments(segs: FloatArray, *, tol: float, gap: float,
-                   max_angle: float = math.radians(4.0)) -> FloatArray:
+def merge_segments(
+    segs: FloatArray, *, tol: float, gap: float, max_angle: float = math.radians(4.0)
+) -> FloatArray:
     """Merge collinear segments that overlap or nearly touch (longest first)."""
     segs = np.asarray(segs, dtype=np.float64)
     length = np.hypot(segs[:, 2] - segs[:, 0], segs[:, 3] - segs[:, 1])
@@ -163,7 +168,9 @@ def merge_segments(segs: FloatArray, *, tol: float, gap: float,
             e2 = np.abs((q2 - p1) @ nrm)
             od = q2 - q1
             oang = np.arctan2(od[:, 1], od[:, 0])
-            dang = np.abs(np.mod(oang - math.atan2(u[1], u[0]) + math.pi / 2, math.pi) - math.pi / 2)
+            dang = np.abs(
+                np.mod(oang - math.atan2(u[1], u[0]) + math.pi / 2, math.pi) - math.pi / 2
+            )
             t1 = (q1 - p1) @ u
             t2 = (q2 - p1) @ u
             lo = np.minimum(t1, t2)
@@ -173,7 +180,9 @@ def merge_segments(segs: FloatArray, *, tol: float, gap: float,
                 continue
             js = others[close]
             allp = np.concatenate([segs[[i]].reshape(-1, 2), segs[js].reshape(-1, 2)])
-            wts = np.concatenate([[ln, ln], np.repeat(np.hypot(*(segs[js][:, 2:] - segs[js][:, :2]).T), 2)])
+            wts = np.concatenate(
+                [[ln, ln], np.repeat(np.hypot(*(segs[js][:, 2:] - segs[js][:, :2]).T), 2)]
+            )
             c = (allp * wts[:, None]).sum(axis=0) / wts.sum()
             dd = (allp - c) * np.sqrt(wts)[:, None]
             _, v = np.linalg.eigh(dd.T @ dd)

@@ -21,8 +21,15 @@ MAX_SAMPLES = 4_000_000
 STOP_CELLS = 2.5
 
 
-def pass_counts(hits: FloatArray, origins: FloatArray, res: float, cells: np.ndarray[Any, Any],
-                *, max_samples: int = MAX_SAMPLES, chunk: int = 2_000_000) -> FloatArray:
+def pass_counts(
+    hits: FloatArray,
+    origins: FloatArray,
+    res: float,
+    cells: np.ndarray[Any, Any],
+    *,
+    max_samples: int = MAX_SAMPLES,
+    chunk: int = 2_000_000,
+) -> FloatArray:
     """How many beams passed through each of ``cells`` (estimated when beams are subsampled).
 
     Args:

@@ -58,12 +58,12 @@ def scan_normals(pts: FloatArray, window: int = 3) -> FloatArray:
     l1, l2 = tr / 2 + disc, tr / 2 - disc
     step = np.hypot(np.diff(pts[:, 0]), np.diff(pts[:, 1]))
     gaps = np.lib.stride_tricks.sliding_window_view(step, w - 1).max(axis=1)
-    span = np.hypot(pts[w - 1:, 0] - pts[: n - w + 1, 0], pts[w - 1:, 1] - pts[: n - w + 1, 1])
+    span = np.hypot(pts[w - 1 :, 0] - pts[: n - w + 1, 0], pts[w - 1 :, 1] - pts[: n - w + 1, 1])
     rng = np.hypot(mx + pts[:, 0].mean(), my + pts[:, 1].mean())
     good = (l2 < 0.05 * np.maximum(l1, 1e-9)) & (gaps < 0.08 * rng + 60.0) & (span > 20.0)
     nrm = np.stack([-np.sin(ang), np.cos(ang)], axis=1)
     nrm[~good] = np.nan
-    out[window:n - window] = nrm
+    out[window : n - window] = nrm
     return out
 
 
@@ -120,15 +120,30 @@ def _solve3(H: FloatArray, g: FloatArray) -> FloatArray | None:
     D = a * f - c * c
     E = b * c - a * e
     F = a * d - b * b
-    return np.array([-(A * g0 + B * g1 + C * g2) / det, -(B * g0 + D * g1 + E * g2) / det,
-                     -(C * g0 + E * g1 + F * g2) / det])
+    return np.array(
+        [
+            -(A * g0 + B * g1 + C * g2) / det,
+            -(B * g0 + D * g1 + E * g2) / det,
+            -(C * g0 + E * g1 + F * g2) / det,
+        ]
+    )
 
 
 def icp(
-    src: FloatArray, tree: Any, tgt_pts: FloatArray, tgt_nrm: FloatArray, init: FloatArray, *,
-    schedule: tuple[float, ...] = (250.0, 100.0, 50.0), max_iter: int = 12,
-    huber: float = 20.0, min_points: int = 20, prior: FloatArray | None = None,
-    prior_info: FloatArray | None = None, sigma: float = 15.0, cauchy: float | None = None,
+    src: FloatArray,
+    tree: Any,
+    tgt_pts: FloatArray,
+    tgt_nrm: FloatArray,
+    init: FloatArray,
+    *,
+    schedule: tuple[float, ...] = (250.0, 100.0, 50.0),
+    max_iter: int = 12,
+    huber: float = 20.0,
+    min_points: int = 20,
+    prior: FloatArray | None = None,
+    prior_info: FloatArray | None = None,
+    sigma: float = 15.0,
+    cauchy: float | None = None,
 ) -> MatchResult:
     """Point-to-line ICP of ``src`` (robot frame) against a target with normals.
 
@@ -211,8 +226,9 @@ def icp(
     info = nn.T @ nn / cnt
     weakest = float(np.linalg.eigvalsh(info)[0])
     J = np.stack([nn[:, 0], nn[:, 1], nn[:, 1] * vx - nn[:, 0] * vy], axis=1)
-    return MatchResult(pose, True, cnt / n_src, float(np.sqrt(np.mean(r * r))), cnt, weakest,
-                       J.T @ J, info)
+    return MatchResult(
+        pose, True, cnt / n_src, float(np.sqrt(np.mean(r * r))), cnt, weakest, J.T @ J, info
+    )
 
 
 def _likelihood(tgt_pts: FloatArray, cell: float) -> tuple[FloatArray, np.ndarray[Any, Any]]:
@@ -228,8 +244,15 @@ def _likelihood(tgt_pts: FloatArray, cell: float) -> tuple[FloatArray, np.ndarra
     return lo, np.exp(-0.5 * (dist / cell) ** 2).astype(np.float32)
 
 
-def _search(src: FloatArray, lo: FloatArray, like: np.ndarray[Any, Any], cell: float,
-            center: FloatArray, k: int, ths: FloatArray) -> tuple[FloatArray, float]:
+def _search(
+    src: FloatArray,
+    lo: FloatArray,
+    like: np.ndarray[Any, Any],
+    cell: float,
+    center: FloatArray,
+    k: int,
+    ths: FloatArray,
+) -> tuple[FloatArray, float]:
     shape = like.shape
     offs = np.arange(-k, k + 1)
     best_sc, best = -1.0, center.copy()
@@ -248,8 +271,13 @@ def _search(src: FloatArray, lo: FloatArray, like: np.ndarray[Any, Any], cell: f
 
 
 def correlative(
-    src: FloatArray, tgt_pts: FloatArray, center: FloatArray, *, xy_window: float,
-    th_window: float, cell: float = 50.0,
+    src: FloatArray,
+    tgt_pts: FloatArray,
+    center: FloatArray,
+    *,
+    xy_window: float,
+    th_window: float,
+    cell: float = 50.0,
 ) -> tuple[FloatArray, float]:
     """Brute-force search of the pose that best lays ``src`` on ``tgt_pts``, coarse to fine.
 
@@ -264,7 +292,7 @@ def correlative(
         return center.copy(), 0.0
     coarse = 4 * cell
     lo, like = _likelihood(tgt_pts, coarse)
-    k = max(1, int(round(xy_window / coarse)))
+    k = max(1, round(float(xy_window / coarse)))
     step = math.radians(2.0)
     ths = center[2] + np.arange(-th_window, th_window + 1e-12, step)
     best, _ = _search(src, lo, like, coarse, center, k, ths)

@@ -86,15 +86,15 @@ class _OdometryModel:
             return float(np.percentile(np.einsum("ni,ni->n", D, x), 80))
 
         lo, hi = _MIN_LOG_SCALE, 2.0  # log10 of the scale, never below the floor
-        if median_chi(10 ** lo) <= self._CHI2_3_MEDIAN:
-            self.scale = 10 ** lo
+        if median_chi(10**lo) <= self._CHI2_3_MEDIAN:
+            self.scale = 10**lo
             return
-        if median_chi(10 ** hi) >= self._CHI2_3_MEDIAN:
-            self.scale = 10 ** hi
+        if median_chi(10**hi) >= self._CHI2_3_MEDIAN:
+            self.scale = 10**hi
             return
         for _ in range(20):
             mid = (lo + hi) / 2
-            if median_chi(10 ** mid) > self._CHI2_3_MEDIAN:
+            if median_chi(10**mid) > self._CHI2_3_MEDIAN:
                 lo = mid
             else:
                 hi = mid
@@ -131,13 +131,19 @@ class _Calibration:
 
     def differs(self, other: _Calibration) -> bool:
         """Whether the factors differ from ``other``'s by enough to matter."""
-        return (abs(self.dist - other.dist) > 0.003 or abs(self.turn - other.turn) > 0.01
-                or abs(self.drift - other.drift) > math.radians(0.02) / 1000.0)
+        return (
+            abs(self.dist - other.dist) > 0.003
+            or abs(self.turn - other.turn) > 0.01
+            or abs(self.drift - other.drift) > math.radians(0.02) / 1000.0
+        )
 
     def summary(self) -> dict[str, float]:
         """The factors, for the build's summary."""
-        return {"distance_scale": round(self.dist, 5), "turn_scale": round(self.turn, 5),
-                "drift_deg_per_m": round(math.degrees(self.drift) * 1000.0, 4)}
+        return {
+            "distance_scale": round(self.dist, 5),
+            "turn_scale": round(self.turn, 5),
+            "drift_deg_per_m": round(math.degrees(self.drift) * 1000.0, 4),
+        }
 
     def correct(self, raw: FloatArray) -> FloatArray:
         out = raw.copy()
@@ -146,8 +152,14 @@ class _Calibration:
         out[2] = wrap(raw[2] * self.turn + self.drift * trans)
         return out
 
-    def observe(self, raw: FloatArray, step: FloatArray, dv: FloatArray, scan_info: FloatArray,
-                heading: float) -> None:
+    def observe(
+        self,
+        raw: FloatArray,
+        step: FloatArray,
+        dv: FloatArray,
+        scan_info: FloatArray,
+        heading: float,
+    ) -> None:
         trans_raw = math.hypot(raw[0], raw[1])
         trans = math.hypot(step[0], step[1])
         var = np.diag(np.linalg.inv(scan_info + np.diag([1e-8, 1e-8, 1e-4])))
@@ -160,8 +172,11 @@ class _Calibration:
                 self._dist.append((trans + float(dv[:2] @ u)) / trans_raw)
             if abs(raw[2]) < math.radians(2.0) and math.sqrt(var[2]) < math.radians(0.2):
                 self._drift.append((float(step[2] + dv[2]) - raw[2] * self.turn) / trans_raw)
-        elif trans < 50.0 and abs(raw[2]) > math.radians(5.0) \
-                and math.sqrt(var[2]) < 0.05 * abs(raw[2]):
+        elif (
+            trans < 50.0
+            and abs(raw[2]) > math.radians(5.0)
+            and math.sqrt(var[2]) < 0.05 * abs(raw[2])
+        ):
             self._turn.append(float(step[2] + dv[2]) / raw[2])
         self._seen += 1
         if self._seen % (25 if self._seen < 1000 else 250) == 0:

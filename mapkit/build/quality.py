@@ -38,11 +38,11 @@ def distance_to_segments(points: Any, segments: Any, *, chunk: int = 4096) -> Fl
     ll = np.einsum("ij,ij->i", d, d)
     ll = np.where(ll > 0, ll, 1.0)
     for k in range(0, len(p), chunk):
-        q = p[k:k + chunk]
+        q = p[k : k + chunk]
         rel = q[:, None, :] - a[None, :, :]
         t = np.clip(np.einsum("nmj,mj->nm", rel, d) / ll, 0.0, 1.0)
         diff = rel - t[..., None] * d[None, :, :]
-        out[k:k + chunk] = np.sqrt(np.einsum("nmj,nmj->nm", diff, diff).min(axis=1))
+        out[k : k + chunk] = np.sqrt(np.einsum("nmj,nmj->nm", diff, diff).min(axis=1))
     return out
 
 

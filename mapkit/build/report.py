@@ -32,8 +32,10 @@ _HEADER = "scanId\tx\ty\tth\todo_x\todo_y\todo_th"
 def poses_text(result: BuildResult) -> str:
     """The trajectory TSV's text: a header line, then one scan per line."""
     rows = [_HEADER]
-    for sid, p, o in zip(result.scan_ids, result.poses, result.odometry):
-        rows.append(f"{int(sid)}\t{p[0]:.1f}\t{p[1]:.1f}\t{p[2]:.3f}\t{o[0]:.1f}\t{o[1]:.1f}\t{o[2]:.3f}")
+    for sid, p, o in zip(result.scan_ids, result.poses, result.odometry, strict=True):
+        rows.append(
+            f"{int(sid)}\t{p[0]:.1f}\t{p[1]:.1f}\t{p[2]:.3f}\t{o[0]:.1f}\t{o[1]:.1f}\t{o[2]:.3f}"
+        )
     return "\n".join(rows) + "\n"
 
 
@@ -65,12 +67,16 @@ def read_poses(path: PathLike) -> tuple[np.ndarray[Any, Any], FloatArray, FloatA
                 ids.append(int(parts[0]))
                 vals = [float(v) for v in parts[1:]]
             except ValueError:
-                raise MapkitError(f"{os.fspath(path)}:{lineno}: expected "
-                                  "'scanId x y th odo_x odo_y odo_th'") from None
+                raise MapkitError(
+                    f"{os.fspath(path)}:{lineno}: expected 'scanId x y th odo_x odo_y odo_th'"
+                ) from None
             poses.append(vals[:3])
             odo.append(vals[3:])
-    return (np.array(ids, dtype=np.int64), np.array(poses, dtype=np.float64).reshape(-1, 3),
-            np.array(odo, dtype=np.float64).reshape(-1, 3))
+    return (
+        np.array(ids, dtype=np.int64),
+        np.array(poses, dtype=np.float64).reshape(-1, 3),
+        np.array(odo, dtype=np.float64).reshape(-1, 3),
+    )
 
 
 def report_figures(result: BuildResult) -> dict[str, Any]:
@@ -83,14 +89,22 @@ def report_figures(result: BuildResult) -> dict[str, Any]:
         return round(float(np.percentile(a, q)), 1) if len(a) else None
 
     return {
-        "scans": int(len(result.poses)),
-        "matched": int(len(good)),
+        "scans": len(result.poses),
+        "matched": len(good),
         "residual_mm": {"median": pct(good, 50), "p90": pct(good, 90), "max": pct(good, 100)},
-        "worst_scans": [int(result.scan_ids[k]) for k in np.argsort(-np.nan_to_num(res, nan=-1))[:5]
-                        if np.isfinite(res[k])] if len(res) else [],
-        "loops_closed": int(len(result.closures)),
-        "moved_from_odometry_mm": {"median": pct(moved, 50), "p90": pct(moved, 90),
-                                   "max": pct(moved, 100)},
+        "worst_scans": [
+            int(result.scan_ids[k])
+            for k in np.argsort(-np.nan_to_num(res, nan=-1))[:5]
+            if np.isfinite(res[k])
+        ]
+        if len(res)
+        else [],
+        "loops_closed": len(result.closures),
+        "moved_from_odometry_mm": {
+            "median": pct(moved, 50),
+            "p90": pct(moved, 90),
+            "max": pct(moved, 100),
+        },
     }
 
 
@@ -107,14 +121,30 @@ def render_report(result: BuildResult) -> bytes:
     pts = result.map.points
     if len(pts):
         ax.scatter(pts[:, 0] / 1000, pts[:, 1] / 1000, s=0.3, c="0.3", linewidths=0)
-    ax.plot(result.odometry[:, 0] / 1000, result.odometry[:, 1] / 1000, color="tab:red", lw=0.8,
-            alpha=0.7, label="odometry")
-    ax.plot(result.poses[:, 0] / 1000, result.poses[:, 1] / 1000, color="tab:blue", lw=0.9,
-            label="built")
+    ax.plot(
+        result.odometry[:, 0] / 1000,
+        result.odometry[:, 1] / 1000,
+        color="tab:red",
+        lw=0.8,
+        alpha=0.7,
+        label="odometry",
+    )
+    ax.plot(
+        result.poses[:, 0] / 1000,
+        result.poses[:, 1] / 1000,
+        color="tab:blue",
+        lw=0.9,
+        label="built",
+    )
     for n, (a, b) in enumerate(result.closures):
         pa, pb = result.poses[a], result.poses[b]
-        ax.plot([pa[0] / 1000, pb[0] / 1000], [pa[1] / 1000, pb[1] / 1000], color="tab:green",
-                lw=1.2, label="loop closed" if n == 0 else None)
+        ax.plot(
+            [pa[0] / 1000, pb[0] / 1000],
+            [pa[1] / 1000, pb[1] / 1000],
+            color="tab:green",
+            lw=1.2,
+            label="loop closed" if n == 0 else None,
+        )
     ax.set_aspect("equal")
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
@@ -124,7 +154,7 @@ def render_report(result: BuildResult) -> bytes:
     ax1 = fig.add_subplot(grid[0, 1])
     if len(result.residuals):
         ax1.plot(idx, result.residuals, ".", ms=2, color="tab:blue")
-    for a, b in result.closures:
+    for _a, b in result.closures:
         ax1.axvline(b, color="tab:green", lw=0.5, alpha=0.6)
     ax1.set_ylabel("match residual (mm)")
     ax1.set_title("residual of each scan's match (green: loop closed)")

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-
 import click
 
 from mapkit.cli.options import InputFile, check_outputs, force_option

@@ -20,18 +20,20 @@ def summary(m: MapData) -> dict[str, Any]:
     """The facts ``mapkit info`` prints, as JSON-ready data."""
     scans = []
     for s in m.scans:
-        scans.append({
-            "name": s.name,
-            "num_points": s.num_points,
-            "num_lines": s.num_lines,
-            "min_pos": list(s.min_pos) if s.min_pos else None,
-            "max_pos": list(s.max_pos) if s.max_pos else None,
-            "line_min_pos": list(s.line_min_pos) if s.line_min_pos else None,
-            "line_max_pos": list(s.line_max_pos) if s.line_max_pos else None,
-            "resolution": s.resolution,
-            "points_sorted": s.points_sorted,
-            "lines_sorted": s.lines_sorted,
-        })
+        scans.append(
+            {
+                "name": s.name,
+                "num_points": s.num_points,
+                "num_lines": s.num_lines,
+                "min_pos": list(s.min_pos) if s.min_pos else None,
+                "max_pos": list(s.max_pos) if s.max_pos else None,
+                "line_min_pos": list(s.line_min_pos) if s.line_min_pos else None,
+                "line_max_pos": list(s.line_max_pos) if s.line_max_pos else None,
+                "resolution": s.resolution,
+                "points_sorted": s.points_sorted,
+                "lines_sorted": s.lines_sorted,
+            }
+        )
     return {
         "file": m.provenance.source if m.provenance else None,
         "category": m.category,
@@ -50,12 +52,14 @@ def summary(m: MapData) -> dict[str, Any]:
     }
 
 
-
 @click.command()
 @click.argument("map_file", required=False, type=InputFile())
 @click.option("--sample", help="Use a bundled sample map by name (e.g. office).")
-@click.option("--thumbnail", type=click.Path(dir_okay=False),
-              help="Also write a small picture of the map (PNG; .svg/.pdf by suffix).")
+@click.option(
+    "--thumbnail",
+    type=click.Path(dir_okay=False),
+    help="Also write a small picture of the map (PNG; .svg/.pdf by suffix).",
+)
 @json_option
 def info(map_file: str | None, sample: str | None, thumbnail: str | None, as_json: bool) -> None:
     """Show what MAP_FILE holds: category, counts, bounds, objects, info sections, MD5.
@@ -91,9 +95,11 @@ def info(map_file: str | None, sample: str | None, thumbnail: str | None, as_jso
         label = f"source {s['name']!r}" if s["name"] else "scan"
         box = f"{s['min_pos']} .. {s['max_pos']}" if s["num_points"] else "-"
         lbox = f"{s['line_min_pos']} .. {s['line_max_pos']}" if s["num_lines"] else "-"
-        click.echo(f"  {label}: {plural(s['num_points'], 'point')} (box {box}, resolution "
-                   f"{s['resolution']} mm, sorted {str(s['points_sorted']).lower()}), "
-                   f"{plural(s['num_lines'], 'line')} (box {lbox})")
+        click.echo(
+            f"  {label}: {plural(s['num_points'], 'point')} (box {box}, resolution "
+            f"{s['resolution']} mm, sorted {str(s['points_sorted']).lower()}), "
+            f"{plural(s['num_lines'], 'line')} (box {lbox})"
+        )
     if data["objects"]:
         objs = ", ".join(f"{n} {t}" for t, n in sorted(data["objects"].items()))
         click.echo(f"  objects: {objs}")

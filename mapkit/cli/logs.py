@@ -25,7 +25,9 @@ def _floats(text: str, n: tuple[int, ...], what: str) -> tuple[float, ...]:
     except ValueError:
         raise click.BadParameter(f"{what}: expected numbers, got {text!r}") from None
     if len(vals) not in n:
-        raise click.BadParameter(f"{what}: expected {' or '.join(map(str, n))} numbers, got {text!r}")
+        raise click.BadParameter(
+            f"{what}: expected {' or '.join(map(str, n))} numbers, got {text!r}"
+        )
     return vals
 
 
@@ -37,56 +39,168 @@ def _check_output(path: str, force: bool) -> None:
 @click.argument("map_file", required=False, type=InputFile())
 @output_option("The .2d log to write.", required=True)
 @click.option("--sample", help="Use a bundled sample map by name (e.g. office).")
-@click.option("--version", "log_version", type=click.IntRange(1, 4), default=4, show_default=True,
-              help="Logger version to write (1 to 4).")
-@click.option("--waypoints", help="Points to visit, 'x,y x,y ...' in mm (default: the map's goals).")
+@click.option(
+    "--version",
+    "log_version",
+    type=click.IntRange(1, 4),
+    default=4,
+    show_default=True,
+    help="Logger version to write (1 to 4).",
+)
+@click.option(
+    "--waypoints", help="Points to visit, 'x,y x,y ...' in mm (default: the map's goals)."
+)
 @click.option("--start", "start", help="Start pose 'x,y[,th]' (default: RobotHome, else Dock).")
 @click.option("--loop", is_flag=True, help="Return to the start and write loop: start/stop tags.")
-@click.option("--laps", type=click.IntRange(1, 1000), default=1, show_default=True,
-              help="Drive the route this many times.")
-@click.option("--fov", type=click.FloatRange(1, 360), default=180.0, show_default=True,
-              help="Laser field of view (degrees).")
-@click.option("--readings", type=click.IntRange(2, 10000), default=361, show_default=True,
-              help="Readings per sweep.")
-@click.option("--max-range", type=click.FloatRange(100), default=16000.0, show_default=True,
-              help="Laser range (mm).")
-@click.option("--range-noise", type=click.FloatRange(0), default=10.0, show_default=True,
-              help="Range noise, standard deviation (mm).")
-@click.option("--laser-pose", default="160,0,0", show_default=True,
-              help="Laser mount on the robot 'x,y,th'.")
-@click.option("--trans-error", type=click.FloatRange(0), default=0.01, show_default=True,
-              help="Odometry distance error (fraction of each step, random).")
-@click.option("--rot-error", type=click.FloatRange(0), default=0.02, show_default=True,
-              help="Odometry turn error (fraction of each turn, random).")
-@click.option("--drift", type=float, default=0.05, show_default=True,
-              help="Systematic heading drift (degrees per metre).")
-@click.option("--dist-step", type=click.FloatRange(1), default=300.0, show_default=True,
-              help="Log a scan after this many mm ...")
-@click.option("--deg-step", type=click.FloatRange(0.1), default=25.0, show_default=True,
-              help="... or this many degrees of turning.")
+@click.option(
+    "--laps",
+    type=click.IntRange(1, 1000),
+    default=1,
+    show_default=True,
+    help="Drive the route this many times.",
+)
+@click.option(
+    "--fov",
+    type=click.FloatRange(1, 360),
+    default=180.0,
+    show_default=True,
+    help="Laser field of view (degrees).",
+)
+@click.option(
+    "--readings",
+    type=click.IntRange(2, 10000),
+    default=361,
+    show_default=True,
+    help="Readings per sweep.",
+)
+@click.option(
+    "--max-range",
+    type=click.FloatRange(100),
+    default=16000.0,
+    show_default=True,
+    help="Laser range (mm).",
+)
+@click.option(
+    "--range-noise",
+    type=click.FloatRange(0),
+    default=10.0,
+    show_default=True,
+    help="Range noise, standard deviation (mm).",
+)
+@click.option(
+    "--laser-pose", default="160,0,0", show_default=True, help="Laser mount on the robot 'x,y,th'."
+)
+@click.option(
+    "--trans-error",
+    type=click.FloatRange(0),
+    default=0.01,
+    show_default=True,
+    help="Odometry distance error (fraction of each step, random).",
+)
+@click.option(
+    "--rot-error",
+    type=click.FloatRange(0),
+    default=0.02,
+    show_default=True,
+    help="Odometry turn error (fraction of each turn, random).",
+)
+@click.option(
+    "--drift",
+    type=float,
+    default=0.05,
+    show_default=True,
+    help="Systematic heading drift (degrees per metre).",
+)
+@click.option(
+    "--dist-step",
+    type=click.FloatRange(1),
+    default=300.0,
+    show_default=True,
+    help="Log a scan after this many mm ...",
+)
+@click.option(
+    "--deg-step",
+    type=click.FloatRange(0.1),
+    default=25.0,
+    show_default=True,
+    help="... or this many degrees of turning.",
+)
 @click.option("--raw-ranges", is_flag=True, help="Also write raw ranges (sick1: lines).")
-@click.option("--odometry-origin", type=click.Choice(["start", "zero"]), default="start",
-              show_default=True, help="Odometry starts at the true start pose, or at 0 0 0.")
-@click.option("--goal-names", type=click.Choice(["map", "aria"]), default="map", show_default=True,
-              help="Goal events named after the map's goals, or goal1, goal2... as ARIA does.")
-@click.option("--scale-error", type=click.FloatRange(-0.4, 0.4), default=0.0, show_default=True,
-              help="Systematic odometry distance error (fraction, e.g. 0.01).")
-@click.option("--turn-slip", type=click.FloatRange(-0.4, 0.4), default=0.0, show_default=True,
-              help="Extra turn odometry reports while turning on the spot (fraction).")
-@click.option("--outliers", type=click.FloatRange(0, 0.9), default=0.0, show_default=True,
-              help="Fraction of spurious (short) laser readings.")
-@click.option("--people", type=click.IntRange(0, 100), default=0, show_default=True,
-              help="People walking about in the laser's view.")
+@click.option(
+    "--odometry-origin",
+    type=click.Choice(["start", "zero"]),
+    default="start",
+    show_default=True,
+    help="Odometry starts at the true start pose, or at 0 0 0.",
+)
+@click.option(
+    "--goal-names",
+    type=click.Choice(["map", "aria"]),
+    default="map",
+    show_default=True,
+    help="Goal events named after the map's goals, or goal1, goal2... as ARIA does.",
+)
+@click.option(
+    "--scale-error",
+    type=click.FloatRange(-0.4, 0.4),
+    default=0.0,
+    show_default=True,
+    help="Systematic odometry distance error (fraction, e.g. 0.01).",
+)
+@click.option(
+    "--turn-slip",
+    type=click.FloatRange(-0.4, 0.4),
+    default=0.0,
+    show_default=True,
+    help="Extra turn odometry reports while turning on the spot (fraction).",
+)
+@click.option(
+    "--outliers",
+    type=click.FloatRange(0, 0.9),
+    default=0.0,
+    show_default=True,
+    help="Fraction of spurious (short) laser readings.",
+)
+@click.option(
+    "--people",
+    type=click.IntRange(0, 100),
+    default=0,
+    show_default=True,
+    help="People walking about in the laser's view.",
+)
 @click.option("--seed", type=int, default=0, show_default=True, help="Random seed.")
 @click.option("--no-truth", is_flag=True, help="Do not write the NAME.truth.tsv sidecar.")
 @force_option
-def simulate(map_file: str | None, output: str, sample: str | None, log_version: int,
-             waypoints: str | None, start: str | None, loop: bool, laps: int, fov: float,
-             readings: int, max_range: float, range_noise: float, laser_pose: str,
-             trans_error: float, rot_error: float, drift: float, dist_step: float,
-             deg_step: float, raw_ranges: bool, odometry_origin: str, goal_names: str,
-             scale_error: float, turn_slip: float, outliers: float, people: int, seed: int,
-             no_truth: bool, force: bool) -> None:
+def simulate(
+    map_file: str | None,
+    output: str,
+    sample: str | None,
+    log_version: int,
+    waypoints: str | None,
+    start: str | None,
+    loop: bool,
+    laps: int,
+    fov: float,
+    readings: int,
+    max_range: float,
+    range_noise: float,
+    laser_pose: str,
+    trans_error: float,
+    rot_error: float,
+    drift: float,
+    dist_step: float,
+    deg_step: float,
+    raw_ranges: bool,
+    odometry_origin: str,
+    goal_names: str,
+    scale_error: float,
+    turn_slip: float,
+    outliers: float,
+    people: int,
+    seed: int,
+    no_truth: bool,
+    force: bool,
+) -> None:
     """Drive a simulated robot through MAP_FILE and write the laser log it would record.
 
     The laser sees the map's lines and points; odometry drifts. The true pose of every scan goes
@@ -98,7 +212,7 @@ def simulate(map_file: str | None, output: str, sample: str | None, log_version:
       mapkit simulate office.map -o office.2d --loop
       mapkit simulate office.map -o noisy.2d --loop --scale-error 0.01 --turn-slip 0.03 --outliers 0.02 --people 3
       mapkit simulate --sample building -o b.2d --version 3 --waypoints "5000,12000 55000,12000"
-    """
+    """  # noqa: E501 (an example command line, shown whole in --help)
     from mapkit.formats.map import load
     from mapkit.samples import sample_path
     from mapkit.simulate import simulate_log
@@ -113,12 +227,31 @@ def simulate(map_file: str | None, output: str, sample: str | None, log_version:
     lp = _floats(laser_pose, (3,), "--laser-pose")
     m = load(str(sample_path(sample)) if sample else map_file)  # type: ignore[arg-type]
     sim = simulate_log(
-        m, waypoints=wps, start=st, loop=loop, laps=laps, version=log_version, fov=fov,
-        readings=readings, max_range=max_range, range_noise=range_noise, laser_pose=lp,
-        translation_error=trans_error, rotation_error=rot_error, drift=drift,
-        dist_step=dist_step, deg_step=deg_step, raw_ranges=raw_ranges,
-        odometry_origin=odometry_origin, goal_names=goal_names, scale_error=scale_error,
-        turn_slip=turn_slip, outliers=outliers, people=people, seed=seed)
+        m,
+        waypoints=wps,
+        start=st,
+        loop=loop,
+        laps=laps,
+        version=log_version,
+        fov=fov,
+        readings=readings,
+        max_range=max_range,
+        range_noise=range_noise,
+        laser_pose=lp,
+        translation_error=trans_error,
+        rotation_error=rot_error,
+        drift=drift,
+        dist_step=dist_step,
+        deg_step=deg_step,
+        raw_ranges=raw_ranges,
+        odometry_origin=odometry_origin,
+        goal_names=goal_names,
+        scale_error=scale_error,
+        turn_slip=turn_slip,
+        outliers=outliers,
+        people=people,
+        seed=seed,
+    )
     click.echo(sim.save(output, truth=not no_truth))
     if sim.skipped:
         err(f"mapkit: no path to {', '.join(sim.skipped)}: left out of the route")
@@ -151,32 +284,78 @@ class _Bar:
 @click.command()
 @click.argument("log_file", type=InputFile())
 @output_option("The .map to write.", required=True)
-@click.option("--resolution", type=click.IntRange(1, 1000), default=20, show_default=True,
-              help="Grid of the map's points (mm).")
+@click.option(
+    "--resolution",
+    type=click.IntRange(1, 1000),
+    default=20,
+    show_default=True,
+    help="Grid of the map's points (mm).",
+)
 @click.option("--no-register", is_flag=True, help="No scan matching: the raw odometry map.")
 @click.option("--no-loops", is_flag=True, help="Register scans but close no loops.")
-@click.option("--pose", "pose_source", type=click.Choice(["robot", "robotGlobal"]),
-              default="robot", show_default=True,
-              help="Pose of each scan: odometry (robot:) or the corrected one (robotGlobal:).")
-@click.option("--max-range", type=click.FloatRange(100), default=16000.0, show_default=True,
-              help="Ignore readings this far or farther (mm).")
-@click.option("--min-hits", type=click.IntRange(1), default=2, show_default=True,
-              help="Laser hits a map point needs.")
+@click.option(
+    "--pose",
+    "pose_source",
+    type=click.Choice(["robot", "robotGlobal"]),
+    default="robot",
+    show_default=True,
+    help="Pose of each scan: odometry (robot:) or the corrected one (robotGlobal:).",
+)
+@click.option(
+    "--max-range",
+    type=click.FloatRange(100),
+    default=16000.0,
+    show_default=True,
+    help="Ignore readings this far or farther (mm).",
+)
+@click.option(
+    "--min-hits",
+    type=click.IntRange(1),
+    default=2,
+    show_default=True,
+    help="Laser hits a map point needs.",
+)
 @click.option("--no-lines", is_flag=True, help="Do not fit line segments.")
-@click.option("--tolerant", is_flag=True, help="Skip bad records (and report them) instead of failing.")
-@click.option("--keep-all-tags", is_flag=True,
-              help="One goal per cairn: event (default: goals of one name merged at their mean pose).")
-@click.option("--poses", "poses_file", type=click.Path(dir_okay=False),
-              help="Also write the trajectory here (TSV: scanId x y th odo_x odo_y odo_th).")
-@click.option("--report", "report_file", type=click.Path(dir_okay=False),
-              help="Also draw a report (PNG): trajectory, loops closed, residual per scan, how far "
-                   "scans moved from odometry; its figures are printed.")
+@click.option(
+    "--tolerant", is_flag=True, help="Skip bad records (and report them) instead of failing."
+)
+@click.option(
+    "--keep-all-tags",
+    is_flag=True,
+    help="One goal per cairn: event (default: goals of one name merged at their mean pose).",
+)
+@click.option(
+    "--poses",
+    "poses_file",
+    type=click.Path(dir_okay=False),
+    help="Also write the trajectory here (TSV: scanId x y th odo_x odo_y odo_th).",
+)
+@click.option(
+    "--report",
+    "report_file",
+    type=click.Path(dir_okay=False),
+    help="Also draw a report (PNG): trajectory, loops closed, residual per scan, how far "
+    "scans moved from odometry; its figures are printed.",
+)
 @force_option
 @json_option
-def build(log_file: str, output: str, resolution: int, no_register: bool, no_loops: bool,
-          pose_source: str, max_range: float, min_hits: int, no_lines: bool, tolerant: bool,
-          keep_all_tags: bool, poses_file: str | None, report_file: str | None,
-          force: bool, as_json: bool) -> None:
+def build(
+    log_file: str,
+    output: str,
+    resolution: int,
+    no_register: bool,
+    no_loops: bool,
+    pose_source: str,
+    max_range: float,
+    min_hits: int,
+    no_lines: bool,
+    tolerant: bool,
+    keep_all_tags: bool,
+    poses_file: str | None,
+    report_file: str | None,
+    force: bool,
+    as_json: bool,
+) -> None:
     """Build a map from a .2d laser log, as Mapper3 did.
 
     Replays odometry, registers each scan against the map so far (ICP), closes loops (loop:
@@ -198,10 +377,19 @@ def build(log_file: str, output: str, resolution: int, no_register: bool, no_loo
             _check_output(path, force)
     bar = _Bar("registering scans", enabled=not as_json and not no_register)
     try:
-        result = build_map(log_file, resolution=resolution, register=not no_register,
-                           loop_closure=not no_loops, pose_source=pose_source,
-                           max_range=max_range, min_hits=min_hits, lines=not no_lines,
-                           strict=not tolerant, merge_goals=not keep_all_tags, progress=bar)
+        result = build_map(
+            log_file,
+            resolution=resolution,
+            register=not no_register,
+            loop_closure=not no_loops,
+            pose_source=pose_source,
+            max_range=max_range,
+            min_hits=min_hits,
+            lines=not no_lines,
+            strict=not tolerant,
+            merge_goals=not keep_all_tags,
+            progress=bar,
+        )
     finally:
         bar.close()
     md5 = save(result.map, output)
@@ -211,26 +399,41 @@ def build(log_file: str, output: str, resolution: int, no_register: bool, no_loo
     s = result.summary
     if as_json:
         extra = {"poses": poses_file, "report": report_file, "report_figures": figures}
-        echo_json({**s, "output": output, "md5": md5, **extra,
-                   "issues": [i.to_dict() for i in result.issues]})
+        echo_json(
+            {
+                **s,
+                "output": output,
+                "md5": md5,
+                **extra,
+                "issues": [i.to_dict() for i in result.issues],
+            }
+        )
         return
     for issue in result.issues:
         err(str(issue))
     reg = s["registration"]
     loops = s["loops"]
-    click.echo(f"wrote {output} (MD5 {md5}): {plural(s['points'], 'point')}, "
-               f"{plural(s['lines'], 'line')}, {plural(s['goals'], 'goal')}, RobotHome at the start")
-    click.echo(f"  scans: {s['scans_used']} used of {s['scans_in_log']}, path {s['path_length_m']} m")
+    click.echo(
+        f"wrote {output} (MD5 {md5}): {plural(s['points'], 'point')}, "
+        f"{plural(s['lines'], 'line')}, {plural(s['goals'], 'goal')}, RobotHome at the start"
+    )
+    click.echo(
+        f"  scans: {s['scans_used']} used of {s['scans_in_log']}, path {s['path_length_m']} m"
+    )
     if s["register"]:
-        click.echo(f"  registration: {plural(reg['registered'], 'scan')} matched, "
-                   f"{reg['odometry_only']} on "
-                   f"odometry alone, median residual {reg['median_residual_mm']} mm")
-        click.echo(f"  loops: {plural(loops['tags'], 'loop tag')} ({loops['tags_matched']} matched), "
-                   f"{plural(loops['revisits'], 'revisit')} closed, "
-                   f"{plural(loops['optimisations'], 'optimisation')}, "
-                   f"largest correction {loops['max_correction_mm']} mm / "
-                   f"{loops['max_correction_deg']} deg; the end moved "
-                   f"{s['end_shift_from_odometry_mm']} mm from odometry")
+        click.echo(
+            f"  registration: {plural(reg['registered'], 'scan')} matched, "
+            f"{reg['odometry_only']} on "
+            f"odometry alone, median residual {reg['median_residual_mm']} mm"
+        )
+        click.echo(
+            f"  loops: {plural(loops['tags'], 'loop tag')} ({loops['tags_matched']} matched), "
+            f"{plural(loops['revisits'], 'revisit')} closed, "
+            f"{plural(loops['optimisations'], 'optimisation')}, "
+            f"largest correction {loops['max_correction_mm']} mm / "
+            f"{loops['max_correction_deg']} deg; the end moved "
+            f"{s['end_shift_from_odometry_mm']} mm from odometry"
+        )
     else:
         click.echo("  raw odometry (no registration)")
     sec = s["seconds"]
@@ -239,11 +442,13 @@ def build(log_file: str, output: str, resolution: int, no_register: bool, no_loo
         click.echo(f"wrote {poses_file}: {len(result.poses)} poses")
     if figures is not None:
         r, mv = figures["residual_mm"], figures["moved_from_odometry_mm"]
-        click.echo(f"wrote {report_file} (PNG): {figures['matched']} of {figures['scans']} scans "
-                   f"matched, residual median {r['median']} / p90 {r['p90']} / max {r['max']} mm "
-                   f"(worst scans {', '.join(map(str, figures['worst_scans'])) or 'none'}); "
-                   f"{figures['loops_closed']} loops closed; moved from odometry median "
-                   f"{mv['median']} / p90 {mv['p90']} / max {mv['max']} mm")
+        click.echo(
+            f"wrote {report_file} (PNG): {figures['matched']} of {figures['scans']} scans "
+            f"matched, residual median {r['median']} / p90 {r['p90']} / max {r['max']} mm "
+            f"(worst scans {', '.join(map(str, figures['worst_scans'])) or 'none'}); "
+            f"{figures['loops_closed']} loops closed; moved from odometry median "
+            f"{mv['median']} / p90 {mv['p90']} / max {mv['max']} mm"
+        )
 
 
 @click.command("log-info")
@@ -265,16 +470,22 @@ def log_info(log_file: str, tolerant: bool, as_json: bool) -> None:
     if as_json:
         echo_json(s)
         return
-    click.echo(f"{s['file']}: .2d laser log version {s['version']}"
-               f"{'' if s['complete'] else ' (no End of log line: truncated or not closed)'}")
+    click.echo(
+        f"{s['file']}: .2d laser log version {s['version']}"
+        f"{'' if s['complete'] else ' (no End of log line: truncated or not closed)'}"
+    )
     for las in s["lasers"]:
         name = f" {las['name']!r}" if las["name"] else ""
         x, y, th = las["pose"]
-        click.echo(f"  laser {las['number']}{name}: {las['readings']} readings from "
-                   f"{las['first_angle']:g} to {las['last_angle']:g} deg, mounted at "
-                   f"({x:g}, {y:g}, {th:g})")
-    click.echo(f"  scans: {s['scans']} ({s['readings']} readings, "
-               f"{100 * s['valid_fraction']:.1f}% with a return)")
+        click.echo(
+            f"  laser {las['number']}{name}: {las['readings']} readings from "
+            f"{las['first_angle']:g} to {las['last_angle']:g} deg, mounted at "
+            f"({x:g}, {y:g}, {th:g})"
+        )
+    click.echo(
+        f"  scans: {s['scans']} ({s['readings']} readings, "
+        f"{100 * s['valid_fraction']:.1f}% with a return)"
+    )
     ev = ", ".join(f"{n} {k}" for k, n in sorted(s["events"].items())) or "none"
     click.echo(f"  events: {ev}")
     if s["goals"]:

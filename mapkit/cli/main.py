@@ -28,42 +28,147 @@ from mapkit.errors import MapkitError
 COMMANDS: dict[str, tuple[str, str]] = {
     "add-dock": ("mapkit.cli.edit:add_dock_cmd", "Add a dock NAME at X Y (millimetres)."),
     "add-goal": ("mapkit.cli.edit:add_goal_cmd", "Add a goal NAME at X Y (millimetres)."),
-    "add-home": ("mapkit.cli.edit:add_home_cmd", "Add a RobotHome: a start pose X Y [--heading] or a start region --area."),  # noqa: E501
-    "add-object": ("mapkit.cli.edit:add_object_cmd", "Add an object of any TYPE the map declares: sectors, boundaries, goal/dock/location types."),  # noqa: E501
-    "aria": ("mapkit.cli.aria:aria", "ARNL/ARAM robots over ArNetworking (port 7272): maps, files, the active map."),  # noqa: E501
+    "add-home": (
+        "mapkit.cli.edit:add_home_cmd",
+        "Add a RobotHome: a start pose X Y [--heading] or a start region --area.",
+    ),
+    "add-object": (
+        "mapkit.cli.edit:add_object_cmd",
+        "Add an object of any TYPE the map declares: sectors, boundaries, "
+        "goal/dock/location types.",
+    ),
+    "aria": (
+        "mapkit.cli.aria:aria",
+        "ARNL/ARAM robots over ArNetworking (port 7272): maps, files, the active map.",
+    ),
     "build": ("mapkit.cli.logs:build", "Build a map from a .2d laser log, as Mapper3 did."),
-    "codes": ("mapkit.cli.validate:codes", "List every finding code: number, name, default severity, summary."),  # noqa: E501
-    "convert": ("mapkit.cli.convert:convert", "Read SRC and write DST in the format its suffix names."),  # noqa: E501
-    "crop": ("mapkit.cli.edit:crop_cmd", "Keep only the data inside a region; objects wholly outside it are removed."),  # noqa: E501
-    "demo": ("mapkit.cli.demo:demo", "Run the whole job on a bundled sample into FOLDER (default: mapkit-demo)."),  # noqa: E501
+    "codes": (
+        "mapkit.cli.validate:codes",
+        "List every finding code: number, name, default severity, summary.",
+    ),
+    "convert": (
+        "mapkit.cli.convert:convert",
+        "Read SRC and write DST in the format its suffix names.",
+    ),
+    "crop": (
+        "mapkit.cli.edit:crop_cmd",
+        "Keep only the data inside a region; objects wholly outside it are removed.",
+    ),
+    "demo": (
+        "mapkit.cli.demo:demo",
+        "Run the whole job on a bundled sample into FOLDER (default: mapkit-demo).",
+    ),
     "diff": ("mapkit.cli.edit:diff_cmd", "Show what differs from map A to map B."),
-    "draw-line": ("mapkit.cli.edit:draw_line_cmd", "Add a line segment from X1 Y1 to X2 Y2 to the map data (a wall the scan missed)."),  # noqa: E501
-    "edit": ("mapkit.cli.edit:edit_cmd", "Apply a batch of edits from a YAML or JSON file as one atomic change."),  # noqa: E501
-    "erase": ("mapkit.cli.edit:erase_cmd", "Remove the points inside a region and cut away the parts of lines inside it."),  # noqa: E501
-    "export-mesh": ("mapkit.cli.mesh:export_mesh", "A 3D wall mesh (STL/OBJ/GLB/DAE) and a Gazebo world."),  # noqa: E501
-    "fetch": ("mapkit.cli.transfer:fetch", "Fetch the map NAME from a robot (`mapkit maps` lists them; `active.map` is the active one)."),  # noqa: E501
-    "forbid": ("mapkit.cli.edit:forbid_cmd", "Add a ForbiddenArea (--area) or a ForbiddenLine (--line)."),  # noqa: E501
-    "import-ros": ("mapkit.cli.rasterize:import_ros", "Turn a ROS map_server map (YAML + image) into an ARIA .map."),  # noqa: E501
-    "info": ("mapkit.cli.info:info", "Show what MAP_FILE holds: category, counts, bounds, objects, info sections, MD5."),  # noqa: E501
-    "load": ("mapkit.cli.transfer:load", "Make the map NAME on the robot its active map (checked: MD5, then parsed)."),  # noqa: E501
-    "log-info": ("mapkit.cli.logs:log_info", "Show what a .2d laser log holds: version, lasers, scans, events, time, path length."),  # noqa: E501
-    "maps": ("mapkit.cli.transfer:maps", "List the maps on a robot: name, size, MD5 and which one is active."),  # noqa: E501
-    "merge": ("mapkit.cli.edit:merge_cmd", "Insert map OTHER into BASE (Mapper3's Insert Map); BASE changes unless -o."),  # noqa: E501
-    "move": ("mapkit.cli.edit:move_cmd", "Move the object NAME (or #N) to X Y, or --by DX DY; and/or set its --heading."),  # noqa: E501
-    "objects": ("mapkit.cli.edit:objects_cmd", "List the objects of MAP, numbered as #N for remove, rename and move."),  # noqa: E501
-    "open": ("mapkit.cli.open:open_cmd", "Edit FILE (an ARIA .map, or a ROS map YAML and its keepout zones) in the browser."),  # noqa: E501
-    "rasterize": ("mapkit.cli.rasterize:rasterize", "Rasterise MAP_FILE into a ROS map_server / Nav2 map (YAML + image)."),  # noqa: E501
-    "receive": ("mapkit.cli.transfer:receive", "Receive maps and .2d logs that a robot sends here (`mapkit send` on the robot)."),  # noqa: E501
-    "remove": ("mapkit.cli.edit:remove_cmd", "Remove objects by NAME (case-insensitive) or #N (see mapkit objects)."),  # noqa: E501
-    "rename": ("mapkit.cli.edit:rename_cmd", "Rename the object NAME (or #N) to NEW_NAME; its CairnInfo: Params follow."),  # noqa: E501
+    "draw-line": (
+        "mapkit.cli.edit:draw_line_cmd",
+        "Add a line segment from X1 Y1 to X2 Y2 to the map data (a wall the scan missed).",
+    ),
+    "edit": (
+        "mapkit.cli.edit:edit_cmd",
+        "Apply a batch of edits from a YAML or JSON file as one atomic change.",
+    ),
+    "erase": (
+        "mapkit.cli.edit:erase_cmd",
+        "Remove the points inside a region and cut away the parts of lines inside it.",
+    ),
+    "export-mesh": (
+        "mapkit.cli.mesh:export_mesh",
+        "A 3D wall mesh (STL/OBJ/GLB/DAE) and a Gazebo world.",
+    ),
+    "fetch": (
+        "mapkit.cli.transfer:fetch",
+        "Fetch the map NAME from a robot (`mapkit maps` lists them; "
+        "`active.map` is the active one).",
+    ),
+    "forbid": (
+        "mapkit.cli.edit:forbid_cmd",
+        "Add a ForbiddenArea (--area) or a ForbiddenLine (--line).",
+    ),
+    "import-ros": (
+        "mapkit.cli.rasterize:import_ros",
+        "Turn a ROS map_server map (YAML + image) into an ARIA .map.",
+    ),
+    "info": (
+        "mapkit.cli.info:info",
+        "Show what MAP_FILE holds: category, counts, bounds, objects, info sections, MD5.",
+    ),
+    "load": (
+        "mapkit.cli.transfer:load",
+        "Make the map NAME on the robot its active map (checked: MD5, then parsed).",
+    ),
+    "log-info": (
+        "mapkit.cli.logs:log_info",
+        "Show what a .2d laser log holds: version, lasers, scans, events, time, path length.",
+    ),
+    "maps": (
+        "mapkit.cli.transfer:maps",
+        "List the maps on a robot: name, size, MD5 and which one is active.",
+    ),
+    "merge": (
+        "mapkit.cli.edit:merge_cmd",
+        "Insert map OTHER into BASE (Mapper3's Insert Map); BASE changes unless -o.",
+    ),
+    "move": (
+        "mapkit.cli.edit:move_cmd",
+        "Move the object NAME (or #N) to X Y, or --by DX DY; and/or set its --heading.",
+    ),
+    "objects": (
+        "mapkit.cli.edit:objects_cmd",
+        "List the objects of MAP, numbered as #N for remove, rename and move.",
+    ),
+    "open": (
+        "mapkit.cli.open:open_cmd",
+        "Edit FILE (an ARIA .map, or a ROS map YAML and its keepout zones) in the browser.",
+    ),
+    "rasterize": (
+        "mapkit.cli.rasterize:rasterize",
+        "Rasterise MAP_FILE into a ROS map_server / Nav2 map (YAML + image).",
+    ),
+    "receive": (
+        "mapkit.cli.transfer:receive",
+        "Receive maps and .2d logs that a robot sends here (`mapkit send` on the robot).",
+    ),
+    "remove": (
+        "mapkit.cli.edit:remove_cmd",
+        "Remove objects by NAME (case-insensitive) or #N (see mapkit objects).",
+    ),
+    "rename": (
+        "mapkit.cli.edit:rename_cmd",
+        "Rename the object NAME (or #N) to NEW_NAME; its CairnInfo: Params follow.",
+    ),
     "render": ("mapkit.cli.render:render", "Draw a map as PNG, SVG or PDF, or in a window."),
-    "ros": ("mapkit.cli.ros:ros", "Maps over ROS 1: transfer between nodes, and a map server for ARIA maps."),  # noqa: E501
-    "samples": ("mapkit.cli.samples:samples", "List the maps and laser logs bundled with mapkit, or copy some into a folder."),  # noqa: E501
-    "send": ("mapkit.cli.transfer:send", "Send FILE (a .map or .2d) to a robot or terminal at HOST[:PORT] (default port 7373)."),  # noqa: E501
-    "serve": ("mapkit.cli.transfer:serve", "Serve the maps in FOLDER to terminals: push, pull, list and load (run on the robot)."),  # noqa: E501
-    "simulate": ("mapkit.cli.logs:simulate", "Drive a simulated robot through MAP_FILE and write the laser log it would record."),  # noqa: E501
-    "transform": ("mapkit.cli.edit:transform_cmd", "Move the whole map: points, lines and every object together; headings follow."),  # noqa: E501
-    "validate": ("mapkit.cli.validate:validate", "Check MAP_FILE and list every finding with a stable code (mapkit codes lists them)."),  # noqa: E501
+    "ros": (
+        "mapkit.cli.ros:ros",
+        "Maps over ROS 1: transfer between nodes, and a map server for ARIA maps.",
+    ),
+    "ros2": (
+        "mapkit.cli.ros2:ros2",
+        "Maps on ROS 2 (Humble, Jazzy) over DDS; needs `pip install 'mapkit[ros2]'`, not ROS 2.",
+    ),
+    "samples": (
+        "mapkit.cli.samples:samples",
+        "List the maps and laser logs bundled with mapkit, or copy some into a folder.",
+    ),
+    "send": (
+        "mapkit.cli.transfer:send",
+        "Send FILE (a .map or .2d) to a robot or terminal at HOST[:PORT] (default port 7373).",
+    ),
+    "serve": (
+        "mapkit.cli.transfer:serve",
+        "Serve the maps in FOLDER to terminals: push, pull, list and load (run on the robot).",
+    ),
+    "simulate": (
+        "mapkit.cli.logs:simulate",
+        "Drive a simulated robot through MAP_FILE and write the laser log it would record.",
+    ),
+    "transform": (
+        "mapkit.cli.edit:transform_cmd",
+        "Move the whole map: points, lines and every object together; headings follow.",
+    ),
+    "validate": (
+        "mapkit.cli.validate:validate",
+        "Check MAP_FILE and list every finding with a stable code (mapkit codes lists them).",
+    ),
 }
 
 #: Exit status and error output, the same for every command.
@@ -97,7 +202,10 @@ def error_message(err: BaseException) -> tuple[str, int]:
     from mapkit._atomic import ReadOnlyFileError, WriteError
 
     if isinstance(err, ReadOnlyFileError):
-        return f"cannot write {err.filename}: {err.strerror}; add --force to replace it", EXIT_FAILED
+        return (
+            f"cannot write {err.filename}: {err.strerror}; add --force to replace it",
+            EXIT_FAILED,
+        )
     if isinstance(err, WriteError):
         return f"cannot write {err.filename}: {err.strerror}", EXIT_FAILED
     if (
@@ -131,8 +239,9 @@ def _stop_on_broken_pipe() -> NoReturn:
 class MapkitGroup(click.Group):
     """A click group with commands imported on first use and one error rule for all of them."""
 
-    def __init__(self, *args: Any, lazy: dict[str, tuple[str, str]] | None = None,
-                 **kwargs: Any) -> None:
+    def __init__(
+        self, *args: Any, lazy: dict[str, tuple[str, str]] | None = None, **kwargs: Any
+    ) -> None:
         super().__init__(*args, **kwargs)
         self.lazy = dict(lazy or {})
 
@@ -151,9 +260,12 @@ class MapkitGroup(click.Group):
         names = self.list_commands(ctx)
         limit = formatter.width - 6 - max((len(n) for n in names), default=0)
         rows = [
-            (name, click.Command(name, help=self.lazy[name][1]).get_short_help_str(limit)
-             if name in self.lazy and name not in self.commands
-             else self.commands[name].get_short_help_str(limit))
+            (
+                name,
+                click.Command(name, help=self.lazy[name][1]).get_short_help_str(limit)
+                if name in self.lazy and name not in self.commands
+                else self.commands[name].get_short_help_str(limit),
+            )
             for name in names
         ]
         if rows:
@@ -186,12 +298,20 @@ def quiet_requested() -> bool:
     return bool(ctx and isinstance(ctx.find_root().obj, dict) and ctx.find_root().obj.get("quiet"))
 
 
-@click.group(cls=MapkitGroup, lazy=COMMANDS, epilog=EXIT_RULE,
-             context_settings={"help_option_names": ["-h", "--help"]})
+@click.group(
+    cls=MapkitGroup,
+    lazy=COMMANDS,
+    epilog=EXIT_RULE,
+    context_settings={"help_option_names": ["-h", "--help"]},
+)
 @click.version_option(mapkit.__version__, "--version", prog_name="mapkit")
 @click.option("-v", "--verbose", count=True, help="More log output (repeat for debug).")
-@click.option("-q", "--quiet", is_flag=True,
-              help="Print only errors (and what --json asks for); the exit status tells the rest.")
+@click.option(
+    "-q",
+    "--quiet",
+    is_flag=True,
+    help="Print only errors (and what --json asks for); the exit status tells the rest.",
+)
 @click.option("--debug", is_flag=True, help="Show tracebacks instead of one-line errors.")
 @click.pass_context
 def cli(ctx: click.Context, verbose: int, quiet: bool, debug: bool) -> None:
@@ -203,7 +323,9 @@ def cli(ctx: click.Context, verbose: int, quiet: bool, debug: bool) -> None:
     ctx.ensure_object(dict)
     ctx.obj["debug"] = debug
     ctx.obj["quiet"] = quiet
-    level = logging.ERROR if quiet else (logging.WARNING, logging.INFO, logging.DEBUG)[min(verbose, 2)]  # noqa: E501
+    level = (
+        logging.ERROR if quiet else (logging.WARNING, logging.INFO, logging.DEBUG)[min(verbose, 2)]
+    )
     logging.basicConfig(level=level, format="mapkit: %(message)s", stream=sys.stderr)
     if quiet:  # reports, notes and progress go nowhere; errors are printed after this closes
         ctx.obj["stdout"] = sys.stdout

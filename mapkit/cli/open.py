@@ -13,11 +13,20 @@ __all__ = ["open_cmd"]
 
 @click.command("open")
 @click.argument("map_file", metavar="FILE", type=InputFile())
-@click.option("--port", type=click.IntRange(0, 65535), default=0, show_default=True,
-              help="Port on 127.0.0.1 (0 picks a free one).")
+@click.option(
+    "--port",
+    type=click.IntRange(0, 65535),
+    default=0,
+    show_default=True,
+    help="Port on 127.0.0.1 (0 picks a free one).",
+)
 @click.option("--no-browser", is_flag=True, help="Print the address only; open no browser.")
-@click.option("--keepout", type=InputFile(), metavar="MASK.yaml",
-              help="A ROS map's keepout mask (default: NAME_keepout.yaml beside the map).")
+@click.option(
+    "--keepout",
+    type=InputFile(),
+    metavar="MASK.yaml",
+    help="A ROS map's keepout mask (default: NAME_keepout.yaml beside the map).",
+)
 def open_cmd(map_file: str, port: int, no_browser: bool, keepout: str | None) -> None:
     """Edit FILE (an ARIA .map, or a ROS map YAML and its keepout zones) in the browser.
 

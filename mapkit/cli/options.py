@@ -66,7 +66,8 @@ def check_outputs(paths: list[str], force: bool, *, same_as: str | None = None) 
     from mapkit._atomic import check_writable
 
     existing = [
-        p for p in paths
+        p
+        for p in paths
         if os.path.exists(p) and not (same_as and os.path.abspath(p) == os.path.abspath(same_as))
     ]
     if existing and not force:
@@ -86,7 +87,9 @@ def _allow_read_only(ctx: click.Context, _param: click.Parameter, force: bool) -
     return force
 
 
-json_option = click.option("--json", "as_json", is_flag=True, help="Print one JSON document for machines.")
+json_option = click.option(
+    "--json", "as_json", is_flag=True, help="Print one JSON document for machines."
+)
 force_option = click.option(
     "--force",
     is_flag=True,
@@ -98,7 +101,9 @@ backup_option = click.option("--backup", is_flag=True, help="Keep the previous f
 
 def output_option(help: str = "Output file.", required: bool = False) -> Callable[[F], F]:
     """``-o/--output PATH``."""
-    return click.option("-o", "--output", type=click.Path(dir_okay=False), required=required, help=help)
+    return click.option(
+        "-o", "--output", type=click.Path(dir_okay=False), required=required, help=help
+    )
 
 
 def echo_json(data: Any) -> None:
@@ -128,8 +133,9 @@ class RowsBar:
 
     def update(self, done: int, total: int) -> None:
         if self._bar is None:
-            self._bar = click.progressbar(length=total, label=self.label, file=sys.stderr,
-                                          show_eta=True)
+            self._bar = click.progressbar(
+                length=total, label=self.label, file=sys.stderr, show_eta=True
+            )
             self._bar.__enter__()
         self._bar.update(done - self._done)
         self._done = done

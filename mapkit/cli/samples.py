@@ -13,8 +13,13 @@ from mapkit.samples import list_samples, sample_path
 
 @click.command()
 @click.argument("names", nargs=-1)
-@click.option("-o", "--output", "folder", type=click.Path(file_okay=False),
-              help="Copy the named samples (or all, with --all) into this folder.")
+@click.option(
+    "-o",
+    "--output",
+    "folder",
+    type=click.Path(file_okay=False),
+    help="Copy the named samples (or all, with --all) into this folder.",
+)
 @click.option("--all", "copy_all", is_flag=True, help="With -o: copy every sample.")
 @json_option
 def samples(names: tuple[str, ...], folder: str | None, copy_all: bool, as_json: bool) -> None:

@@ -37,32 +37,62 @@ def _auth_text(secret: bytes | None) -> str:
 
 
 def _secret_options(f: F) -> F:
-    f = click.option("--insecure", is_flag=True,
-                     help="Go without authentication (the other side must say so too).")(f)
-    f = click.option("--secret-file", type=click.Path(dir_okay=False),
-                     help="File with the shared secret (else $MAPKIT_SECRET).")(f)
+    f = click.option(
+        "--insecure",
+        is_flag=True,
+        help="Go without authentication (the other side must say so too).",
+    )(f)
+    f = click.option(
+        "--secret-file",
+        type=click.Path(dir_okay=False),
+        help="File with the shared secret (else $MAPKIT_SECRET).",
+    )(f)
     return f
 
 
 def _client_options(f: F) -> F:
     f = _secret_options(f)
-    f = click.option("--tls", "use_tls", is_flag=True, help="Use TLS (the robot runs with --tls-cert).")(f)
-    f = click.option("--tls-ca", type=InputFile(),
-                     help="Trust this CA or the robot's own certificate (implies --tls).")(f)
-    f = click.option("--tls-no-verify", is_flag=True,
-                     help="TLS without checking the certificate (the secret still authenticates).")(f)
-    f = click.option("--timeout", type=float, default=10.0, show_default=True,
-                     help="Seconds to wait for the robot.")(f)
+    f = click.option(
+        "--tls", "use_tls", is_flag=True, help="Use TLS (the robot runs with --tls-cert)."
+    )(f)
+    f = click.option(
+        "--tls-ca",
+        type=InputFile(),
+        help="Trust this CA or the robot's own certificate (implies --tls).",
+    )(f)
+    f = click.option(
+        "--tls-no-verify",
+        is_flag=True,
+        help="TLS without checking the certificate (the secret still authenticates).",
+    )(f)
+    f = click.option(
+        "--timeout",
+        type=float,
+        default=10.0,
+        show_default=True,
+        help="Seconds to wait for the robot.",
+    )(f)
     return f
 
 
-def _client(address: str, secret_file: str | None, insecure: bool, use_tls: bool,
-            tls_ca: str | None, tls_no_verify: bool, timeout: float) -> Client:
+def _client(
+    address: str,
+    secret_file: str | None,
+    insecure: bool,
+    use_tls: bool,
+    tls_ca: str | None,
+    tls_no_verify: bool,
+    timeout: float,
+) -> Client:
     from mapkit.transfer import Client, client_tls_context, load_secret, parse_address
 
     host, port = parse_address(address, DEFAULT_PORT)
     secret = load_secret(path=secret_file)
-    tls = client_tls_context(tls_ca, verify=not tls_no_verify) if (use_tls or tls_ca or tls_no_verify) else None
+    tls = (
+        client_tls_context(tls_ca, verify=not tls_no_verify)
+        if (use_tls or tls_ca or tls_no_verify)
+        else None
+    )
     return Client(host, port, secret=secret, insecure=insecure, tls=tls, timeout=timeout)
 
 
@@ -80,8 +110,14 @@ def _progress(label: str, quiet: bool) -> Iterator[Callable[[int, int], None] | 
     def cb(done: int, total: int) -> None:
         bar = state["bar"]
         if bar is None:
-            bar = click.progressbar(length=max(total, 1), label=label, file=sys.stderr,
-                                    show_eta=True, show_percent=True, item_show_func=show)
+            bar = click.progressbar(
+                length=max(total, 1),
+                label=label,
+                file=sys.stderr,
+                show_eta=True,
+                show_percent=True,
+                item_show_func=show,
+            )
             bar.__enter__()
             state["bar"] = bar
         dt = time.monotonic() - state["t0"]
@@ -125,15 +161,22 @@ def _serve(server: MapServer) -> None:
         server.close()
 
 
-def _server_setup(listen_addr: str, secret_file: str | None, insecure: bool, tls_cert: str | None,
-                  tls_key: str | None) -> tuple[str, int, bytes | None, Any]:
+def _server_setup(
+    listen_addr: str,
+    secret_file: str | None,
+    insecure: bool,
+    tls_cert: str | None,
+    tls_key: str | None,
+) -> tuple[str, int, bytes | None, Any]:
     from mapkit.transfer import load_secret, parse_address, server_tls_context
 
     host, port = parse_address(listen_addr, DEFAULT_PORT, default_host="0.0.0.0")
     secret = load_secret(path=secret_file)
     if secret is None and not insecure:
-        raise click.UsageError("no shared secret: give --secret-file or set MAPKIT_SECRET "
-                               "(or --insecure to accept anyone)")
+        raise click.UsageError(
+            "no shared secret: give --secret-file or set MAPKIT_SECRET "
+            "(or --insecure to accept anyone)"
+        )
     if tls_key and not tls_cert:
         raise click.UsageError("--tls-key needs --tls-cert")
     tls = server_tls_context(tls_cert, tls_key) if tls_cert else None
@@ -144,19 +187,49 @@ def _server_setup(listen_addr: str, secret_file: str | None, insecure: bool, tls
 
 @click.command()
 @click.argument("folder", type=click.Path(file_okay=False))
-@click.option("--listen", "listen_addr", default=f"0.0.0.0:{DEFAULT_PORT}", show_default=True,
-              metavar="HOST:PORT", help="Address to listen on (port 0: any free port).")
+@click.option(
+    "--listen",
+    "listen_addr",
+    default=f"0.0.0.0:{DEFAULT_PORT}",
+    show_default=True,
+    metavar="HOST:PORT",
+    help="Address to listen on (port 0: any free port).",
+)
 @_secret_options
 @click.option("--tls-cert", type=InputFile(), help="TLS certificate (PEM).")
 @click.option("--tls-key", type=InputFile(), help="TLS private key (PEM).")
-@click.option("--max-size", type=int, default=1 << 30, show_default=True, help="Largest file accepted (bytes).")
-@click.option("--handshake-timeout", type=click.FloatRange(min=0.1), default=5.0, show_default=True,
-              help="Seconds a client has from connecting to proving the secret.")
-@click.option("--partial-ttl", type=click.FloatRange(min=0), default=24 * 3600.0, show_default=True,
-              help="Seconds after which an interrupted transfer's partial file is deleted.")
-def serve(folder: str, listen_addr: str, secret_file: str | None, insecure: bool,
-          tls_cert: str | None, tls_key: str | None, max_size: int, handshake_timeout: float,
-          partial_ttl: float) -> None:
+@click.option(
+    "--max-size",
+    type=int,
+    default=1 << 30,
+    show_default=True,
+    help="Largest file accepted (bytes).",
+)
+@click.option(
+    "--handshake-timeout",
+    type=click.FloatRange(min=0.1),
+    default=5.0,
+    show_default=True,
+    help="Seconds a client has from connecting to proving the secret.",
+)
+@click.option(
+    "--partial-ttl",
+    type=click.FloatRange(min=0),
+    default=24 * 3600.0,
+    show_default=True,
+    help="Seconds after which an interrupted transfer's partial file is deleted.",
+)
+def serve(
+    folder: str,
+    listen_addr: str,
+    secret_file: str | None,
+    insecure: bool,
+    tls_cert: str | None,
+    tls_key: str | None,
+    max_size: int,
+    handshake_timeout: float,
+    partial_ttl: float,
+) -> None:
     """Serve the maps in FOLDER to terminals: push, pull, list and load (run on the robot).
 
     Received maps are parsed before they replace anything; `load` makes a map active by writing
@@ -171,27 +244,57 @@ def serve(folder: str, listen_addr: str, secret_file: str | None, insecure: bool
     from mapkit.transfer import MapFolder, MapServer
 
     host, port, secret, tls = _server_setup(listen_addr, secret_file, insecure, tls_cert, tls_key)
-    srv = MapServer(MapFolder(folder, max_size=max_size), host=host, port=port, secret=secret,
-                    insecure=insecure, tls=tls, handshake_timeout=handshake_timeout,
-                    partial_ttl=partial_ttl)
+    srv = MapServer(
+        MapFolder(folder, max_size=max_size),
+        host=host,
+        port=port,
+        secret=secret,
+        insecure=insecure,
+        tls=tls,
+        handshake_timeout=handshake_timeout,
+        partial_ttl=partial_ttl,
+    )
     h, p = srv.address
-    err(f"mapkit serve: serving {srv.folder.root} on {h}:{p} "
-        f"(auth {_auth_text(secret)}, tls {'on' if tls else 'off'})")
+    err(
+        f"mapkit serve: serving {srv.folder.root} on {h}:{p} "
+        f"(auth {_auth_text(secret)}, tls {'on' if tls else 'off'})"
+    )
     _serve(srv)
 
 
 @click.command()
-@click.option("--listen", "listen_addr", default=f"0.0.0.0:{DEFAULT_PORT}", show_default=True,
-              metavar="HOST:PORT", help="Address to listen on.")
-@click.option("-o", "--output", "folder", type=click.Path(file_okay=False), default=".",
-              show_default=True, help="Folder for received files.")
+@click.option(
+    "--listen",
+    "listen_addr",
+    default=f"0.0.0.0:{DEFAULT_PORT}",
+    show_default=True,
+    metavar="HOST:PORT",
+    help="Address to listen on.",
+)
+@click.option(
+    "-o",
+    "--output",
+    "folder",
+    type=click.Path(file_okay=False),
+    default=".",
+    show_default=True,
+    help="Folder for received files.",
+)
 @_secret_options
 @click.option("--tls-cert", type=InputFile(), help="TLS certificate (PEM).")
 @click.option("--tls-key", type=InputFile(), help="TLS private key (PEM).")
 @click.option("--once", is_flag=True, help="Exit after the first file received.")
 @json_option
-def receive(listen_addr: str, folder: str, secret_file: str | None, insecure: bool,
-            tls_cert: str | None, tls_key: str | None, once: bool, as_json: bool) -> None:
+def receive(
+    listen_addr: str,
+    folder: str,
+    secret_file: str | None,
+    insecure: bool,
+    tls_cert: str | None,
+    tls_key: str | None,
+    once: bool,
+    as_json: bool,
+) -> None:
     """Receive maps and .2d logs that a robot sends here (`mapkit send` on the robot).
 
     Only pushes are accepted. Each file is written atomically into the folder (a .map must
@@ -208,17 +311,29 @@ def receive(listen_addr: str, folder: str, secret_file: str | None, insecure: bo
     root = os.path.abspath(folder)
 
     def listening(address: tuple[str, int]) -> None:
-        err(f"mapkit receive: waiting on {address[0]}:{address[1]} for files into {root} "
-            f"(auth {_auth_text(secret)}, tls {'on' if tls else 'off'})")
+        err(
+            f"mapkit receive: waiting on {address[0]}:{address[1]} for files into {root} "
+            f"(auth {_auth_text(secret)}, tls {'on' if tls else 'off'})"
+        )
 
     def show(info: dict[str, Any]) -> None:
         if not as_json:
-            click.echo(f"received {info['name']} ({_size(info['size'])}, SHA-256 {info['sha256'][:16]}…) "
-                       f"from {info['peer']}")
+            click.echo(
+                f"received {info['name']} ({_size(info['size'])}, SHA-256 {info['sha256'][:16]}…) "
+                f"from {info['peer']}"
+            )
 
     if once:
-        first = receive_files(folder, host, port, count=1, secret=secret, insecure=insecure, tls=tls,
-                              on_listening=listening)
+        first = receive_files(
+            folder,
+            host,
+            port,
+            count=1,
+            secret=secret,
+            insecure=insecure,
+            tls=tls,
+            on_listening=listening,
+        )
         for info in first:
             show(info)
         if as_json:
@@ -230,8 +345,16 @@ def receive(listen_addr: str, folder: str, secret_file: str | None, insecure: bo
         got.append(info)
         show(info)
 
-    srv = MapServer(MapFolder(folder), host=host, port=port, secret=secret, insecure=insecure,
-                    tls=tls, push_only=True, on_received=received)
+    srv = MapServer(
+        MapFolder(folder),
+        host=host,
+        port=port,
+        secret=secret,
+        insecure=insecure,
+        tls=tls,
+        push_only=True,
+        on_received=received,
+    )
     listening(srv.address)
     _serve(srv)
     if as_json:
@@ -245,9 +368,19 @@ def receive(listen_addr: str, folder: str, secret_file: str | None, insecure: bo
 @click.option("--load", "and_load", is_flag=True, help="Then make it the robot's active map.")
 @_client_options
 @json_option
-def send(file: str, address: str, name: str | None, and_load: bool, secret_file: str | None,
-         insecure: bool, use_tls: bool, tls_ca: str | None, tls_no_verify: bool, timeout: float,
-         as_json: bool) -> None:
+def send(
+    file: str,
+    address: str,
+    name: str | None,
+    and_load: bool,
+    secret_file: str | None,
+    insecure: bool,
+    use_tls: bool,
+    tls_ca: str | None,
+    tls_no_verify: bool,
+    timeout: float,
+    as_json: bool,
+) -> None:
     """Send FILE (a .map or .2d) to a robot or terminal at HOST[:PORT] (default port 7373).
 
     The receiver checks it (SHA-256; a .map must parse) before it replaces anything. An
@@ -257,56 +390,97 @@ def send(file: str, address: str, name: str | None, and_load: bool, secret_file:
     Example:
       mapkit send office.map robot1 --secret-file secret --load
     """
-    with _client(address, secret_file, insecure, use_tls, tls_ca, tls_no_verify, timeout) as c, \
-            _progress(name or file, as_json or _quiet(as_json)) as cb:
+    with (
+        _client(address, secret_file, insecure, use_tls, tls_ca, tls_no_verify, timeout) as c,
+        _progress(name or file, as_json or _quiet(as_json)) as cb,
+    ):
         result = c.send(file, name=name, progress=cb)
         if and_load:
             result["loaded"] = c.load(result["name"], md5=result.get("md5"))
     if as_json:
         echo_json(result)
         return
-    resumed = f", {plural(result['chunks_skipped'], 'chunk was', 'chunks were')} already there" if result["chunks_skipped"] else ""
-    click.echo(f"sent {result['name']} to {address}: {_size(result['size'])} in "
-               f"{result['seconds']:.2f} s ({result['mb_per_s'] or 0:.1f} MB/s), SHA-256 verified{resumed}")
+    resumed = (
+        f", {plural(result['chunks_skipped'], 'chunk was', 'chunks were')} already there"
+        if result["chunks_skipped"]
+        else ""
+    )
+    click.echo(
+        f"sent {result['name']} to {address}: {_size(result['size'])} in "
+        f"{result['seconds']:.2f} s ({result['mb_per_s'] or 0:.1f} MB/s), SHA-256 verified{resumed}"
+    )
     if and_load:
-        click.echo(f"active map on {address} is now {result['loaded']['name']} (MD5 {result['loaded']['md5']})")
+        click.echo(
+            f"active map on {address} is now {result['loaded']['name']} "
+            f"(MD5 {result['loaded']['md5']})"
+        )
 
 
 @click.command()
 @click.argument("address", metavar="HOST[:PORT]")
 @click.argument("name")
-@click.option("-o", "--output", type=click.Path(), help="Local file or folder (default: NAME here).")
+@click.option(
+    "-o", "--output", type=click.Path(), help="Local file or folder (default: NAME here)."
+)
 @click.option("--if-changed", is_flag=True, help="Skip when the local file already matches (MD5).")
 @_client_options
 @json_option
-def fetch(address: str, name: str, output: str | None, if_changed: bool, secret_file: str | None,
-          insecure: bool, use_tls: bool, tls_ca: str | None, tls_no_verify: bool, timeout: float,
-          as_json: bool) -> None:
+def fetch(
+    address: str,
+    name: str,
+    output: str | None,
+    if_changed: bool,
+    secret_file: str | None,
+    insecure: bool,
+    use_tls: bool,
+    tls_ca: str | None,
+    tls_no_verify: bool,
+    timeout: float,
+    as_json: bool,
+) -> None:
     """Fetch the map NAME from a robot (`mapkit maps` lists them; `active.map` is the active one).
 
     \b
     Example:
       mapkit fetch robot1 office.map -o office.map --if-changed
     """
-    with _client(address, secret_file, insecure, use_tls, tls_ca, tls_no_verify, timeout) as c, \
-            _progress(name, as_json or _quiet(as_json)) as cb:
+    with (
+        _client(address, secret_file, insecure, use_tls, tls_ca, tls_no_verify, timeout) as c,
+        _progress(name, as_json or _quiet(as_json)) as cb,
+    ):
         result = c.fetch(name, output or name, if_changed=if_changed, progress=cb)
     if as_json:
         echo_json(result)
     elif not result["modified"]:
-        click.echo(f"{result['path']} is up to date (MD5 {result.get('md5') or '-'}), nothing fetched")
+        click.echo(
+            f"{result['path']} is up to date (MD5 {result.get('md5') or '-'}), nothing fetched"
+        )
     else:
-        resumed = f", {plural(result['chunks_resumed'], 'chunk')} resumed" if result["chunks_resumed"] else ""
-        click.echo(f"fetched {name} from {address} into {result['path']}: {_size(result['size'])} in "
-                   f"{result['seconds']:.2f} s, SHA-256 verified{resumed}")
+        resumed = (
+            f", {plural(result['chunks_resumed'], 'chunk')} resumed"
+            if result["chunks_resumed"]
+            else ""
+        )
+        click.echo(
+            f"fetched {name} from {address} into {result['path']}: {_size(result['size'])} in "
+            f"{result['seconds']:.2f} s, SHA-256 verified{resumed}"
+        )
 
 
 @click.command()
 @click.argument("address", metavar="HOST[:PORT]")
 @_client_options
 @json_option
-def maps(address: str, secret_file: str | None, insecure: bool, use_tls: bool, tls_ca: str | None,
-         tls_no_verify: bool, timeout: float, as_json: bool) -> None:
+def maps(
+    address: str,
+    secret_file: str | None,
+    insecure: bool,
+    use_tls: bool,
+    tls_ca: str | None,
+    tls_no_verify: bool,
+    timeout: float,
+    as_json: bool,
+) -> None:
     """List the maps on a robot: name, size, MD5 and which one is active.
 
     \b
@@ -330,23 +504,39 @@ def print_listing(listing: dict[str, Any], where: str) -> None:
     width = max(len(m["name"]) for m in rows)
     for m in rows:
         mark = "*" if m.get("active") else " "
-        click.echo(f"{mark} {m['name']:<{width}}  {_size(m['size']):>9}  {m['md5']}  "
-                   f"{time.strftime('%Y-%m-%d %H:%M', time.localtime(m['mtime']))}")
+        click.echo(
+            f"{mark} {m['name']:<{width}}  {_size(m['size']):>9}  {m['md5']}  "
+            f"{time.strftime('%Y-%m-%d %H:%M', time.localtime(m['mtime']))}"
+        )
     if listing.get("active"):
-        click.echo(f"active: {listing['active']} (MD5 {listing.get('active_md5')})"
-                   + (f", previous: {listing['previous']}" if listing.get("previous") else ""))
+        click.echo(
+            f"active: {listing['active']} (MD5 {listing.get('active_md5')})"
+            + (f", previous: {listing['previous']}" if listing.get("previous") else "")
+        )
 
 
 @click.command()
 @click.argument("address", metavar="HOST[:PORT]")
 @click.argument("name", required=False)
-@click.option("--md5", help="Only load if the robot's file has this MD5 (default: the MD5 it lists now).")
+@click.option(
+    "--md5", help="Only load if the robot's file has this MD5 (default: the MD5 it lists now)."
+)
 @click.option("--rollback", is_flag=True, help="Re-activate the previous map.")
 @_client_options
 @json_option
-def load(address: str, name: str | None, md5: str | None, rollback: bool, secret_file: str | None,
-         insecure: bool, use_tls: bool, tls_ca: str | None, tls_no_verify: bool, timeout: float,
-         as_json: bool) -> None:
+def load(
+    address: str,
+    name: str | None,
+    md5: str | None,
+    rollback: bool,
+    secret_file: str | None,
+    insecure: bool,
+    use_tls: bool,
+    tls_ca: str | None,
+    tls_no_verify: bool,
+    timeout: float,
+    as_json: bool,
+) -> None:
     """Make the map NAME on the robot its active map (checked: MD5, then parsed).
 
     \b
@@ -362,8 +552,10 @@ def load(address: str, name: str | None, md5: str | None, rollback: bool, secret
         echo_json(state)
         return
     prev = (state.get("previous") or {}).get("name")
-    click.echo(f"active map on {address} is now {state['name']} (MD5 {state['md5']})"
-               + (f"; previous: {prev}" if prev else ""))
+    click.echo(
+        f"active map on {address} is now {state['name']} (MD5 {state['md5']})"
+        + (f"; previous: {prev}" if prev else "")
+    )
 
 
 COMMANDS = [serve, receive, send, fetch, maps, load]

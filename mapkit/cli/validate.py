@@ -10,8 +10,7 @@ import click
 from mapkit.cli.options import InputFile, echo_json, json_option, plural
 from mapkit.diagnostics import Issue, Severity
 from mapkit.errors import MapkitError
-from mapkit.validate import DEFAULT_ROBOT_RADIUS, ValidationReport
-from mapkit.validate import validate as run_validate
+from mapkit.validate import DEFAULT_ROBOT_RADIUS, ValidationReport, validate as run_validate
 from mapkit.validate.codes import code_rows, codes_markdown
 
 #: Exit code when the file cannot be read at all.

@@ -28,7 +28,6 @@ from mapkit.model.map import missing_rows
 
 __all__ = [
     "COORD_LIMIT",
-    "missing_rows",
     "SPAN_LIMIT",
     "check_coord",
     "check_data_range",
@@ -37,6 +36,7 @@ __all__ = [
     "check_span",
     "check_text",
     "check_type_name",
+    "missing_rows",
 ]
 
 #: Largest absolute coordinate (mm) an edit writes.
@@ -158,4 +158,3 @@ def check_type_name(value: Any) -> str:
     if not isinstance(value, str) or not _TYPE_TOKEN.match(value):
         raise EditError(f"object type {value!r} must be one word without spaces or quotes")
     return value
-

@@ -126,9 +126,7 @@ def _exponent(sign: str, digits: str) -> int:
     return -value if sign == "-" else value
 
 
-def _significand(
-    whole: str, frac: str, exp: int, step: int, keep: int
-) -> tuple[str, int] | None:
+def _significand(whole: str, frac: str, exp: int, step: int, keep: int) -> tuple[str, int] | None:
     """``whole.frac * base**exp`` as significant digits and an exponent in units of ``step``.
 
     ``step`` is 1 for decimal digits (powers of 10) and 4 for hexadecimal ones (powers of 2).
@@ -148,8 +146,9 @@ def _significand(
 
 
 def _value(neg: bool, whole: str, frac: str, exp: int, hexa: bool) -> float:
-    step, keep, top, bottom = (4, _MAX_HEX_DIGITS, 1100, -1200) if hexa else (
-        1, _MAX_DEC_DIGITS, 310, -330)
+    step, keep, top, bottom = (
+        (4, _MAX_HEX_DIGITS, 1100, -1200) if hexa else (1, _MAX_DEC_DIGITS, 310, -330)
+    )
     found = _significand(whole, frac, exp, step, keep)
     if found is None:
         return -0.0 if neg else 0.0

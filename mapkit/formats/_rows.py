@@ -375,8 +375,10 @@ def column_extremes(values: IntArray) -> tuple[IntArray, IntArray]:
     (``values.min(axis=0)`` on a narrow array is many times slower.)
     """
     cols = range(values.shape[1])
-    return (np.array([values[:, j].min() for j in cols]),
-            np.array([values[:, j].max() for j in cols]))
+    return (
+        np.array([values[:, j].min() for j in cols]),
+        np.array([values[:, j].max() for j in cols]),
+    )
 
 
 def parse_rows(seg: bytes, ncols: int) -> tuple[IntArray, list[int]]:

@@ -65,8 +65,10 @@ def _lookup(table: dict[str, Any], lazy: dict[str, str], path: PathLike, what: s
         importlib.import_module(lazy[suffix])
     if suffix not in table:
         known = ", ".join(sorted(set(table) | set(lazy)))
-        raise UnsupportedFormatError(f"cannot {what} {os.fspath(path)!r}: no format for suffix "
-                                     f"{suffix or '(none)'!r} (known: {known})")
+        raise UnsupportedFormatError(
+            f"cannot {what} {os.fspath(path)!r}: no format for suffix "
+            f"{suffix or '(none)'!r} (known: {known})"
+        )
     return table[suffix]
 
 
@@ -95,6 +97,11 @@ def convert_file(src: PathLike, dst: PathLike) -> str:
 
 
 # raster: ROS map_server maps (NAME.yaml + NAME.pgm) both ways.
-LAZY_WRITERS.update({".yaml": "mapkit.raster.export", ".yml": "mapkit.raster.export",
-                     ".pgm": "mapkit.raster.export"})
+LAZY_WRITERS.update(
+    {
+        ".yaml": "mapkit.raster.export",
+        ".yml": "mapkit.raster.export",
+        ".pgm": "mapkit.raster.export",
+    }
+)
 LAZY_READERS.update({".yaml": "mapkit.raster.export", ".yml": "mapkit.raster.export"})

@@ -9,6 +9,13 @@ from mapkit.model.map import (
     Scan,
     ScanHeader,
 )
+from mapkit.model.objects import (
+    BUILTIN_LINE_TYPES,
+    BUILTIN_POINT_TYPES,
+    BUILTIN_RECT_TYPES,
+    MapObject,
+    normalize_theta,
+)
 from mapkit.model.scan import (
     LaserConfig,
     LaserLog,
@@ -17,13 +24,6 @@ from mapkit.model.scan import (
     LogHeader,
     LogRecord,
     Pose2D,
-)
-from mapkit.model.objects import (
-    BUILTIN_LINE_TYPES,
-    BUILTIN_POINT_TYPES,
-    BUILTIN_RECT_TYPES,
-    MapObject,
-    normalize_theta,
 )
 
 __all__ = [

@@ -176,9 +176,7 @@ class Scan:
         )
         return base.with_data(sort=sort)
 
-    def with_data(
-        self, points: Any = None, lines: Any = None, *, sort: bool | None = None
-    ) -> Scan:
+    def with_data(self, points: Any = None, lines: Any = None, *, sort: bool | None = None) -> Scan:
         """A copy with new points and/or lines and boxes recomputed from the data.
 
         Args:
@@ -251,8 +249,17 @@ class Scan:
             and np.array_equal(self.lines, other.lines)
             and all(
                 getattr(self, f) == getattr(other, f)
-                for f in ("name", "display", "resolution", "points_sorted", "lines_sorted",
-                          "min_pos", "max_pos", "line_min_pos", "line_max_pos")
+                for f in (
+                    "name",
+                    "display",
+                    "resolution",
+                    "points_sorted",
+                    "lines_sorted",
+                    "min_pos",
+                    "max_pos",
+                    "line_min_pos",
+                    "line_max_pos",
+                )
             )
         )
 
@@ -296,15 +303,21 @@ class Provenance:
     first_data_line: int = 0
 
 
-def _freeze_info(info: Mapping[str, Iterable[Iterable[str]]] | None) -> Mapping[str, tuple[InfoLine, ...]]:
+def _freeze_info(
+    info: Mapping[str, Iterable[Iterable[str]]] | None,
+) -> Mapping[str, tuple[InfoLine, ...]]:
     out: dict[str, tuple[InfoLine, ...]] = {}
     for key, lines in (info or {}).items():
         if key not in INFO_KEYWORDS:
-            raise ValueError(f"unknown info section {key!r}; expected one of {', '.join(INFO_KEYWORDS)}")
+            raise ValueError(
+                f"unknown info section {key!r}; expected one of {', '.join(INFO_KEYWORDS)}"
+            )
         frozen = tuple(tuple(line) for line in lines)
         if frozen:
             out[key] = frozen
-    return types.MappingProxyType(dict(sorted(out.items(), key=lambda kv: INFO_KEYWORDS.index(kv[0]))))
+    return types.MappingProxyType(
+        dict(sorted(out.items(), key=lambda kv: INFO_KEYWORDS.index(kv[0])))
+    )
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -350,7 +363,9 @@ class MapData:
 
     def __post_init__(self) -> None:
         if self.category not in CATEGORIES:
-            raise ValueError(f"unknown map category {self.category!r}; expected one of {CATEGORIES}")
+            raise ValueError(
+                f"unknown map category {self.category!r}; expected one of {CATEGORIES}"
+            )
         scans = tuple(self.scans)
         if not scans:
             raise ValueError("a map has at least one scan source")
@@ -427,7 +442,8 @@ class MapData:
         """Active objects with this name (and type), compared case-insensitively as ARIA does."""
         n = name.lower()
         return [
-            o for o in self.objects
+            o
+            for o in self.objects
             if o.name.lower() == n and (type is None or o.type.lower() == type.lower())
         ]
 
@@ -438,7 +454,8 @@ class MapData:
         return replace(self, scans=tuple(scans))
 
     def replace(self, **changes: Any) -> MapData:
-        """A copy with fields replaced (the provenance is kept; it says where the original came from)."""
+        """A copy with fields replaced (the provenance is kept: it says where the original came
+        from)."""
         return replace(self, **changes)
 
     def equals(self, other: MapData) -> bool:
@@ -447,7 +464,7 @@ class MapData:
             isinstance(other, MapData)
             and self.category == other.category
             and len(self.scans) == len(other.scans)
-            and all(a.equals(b) for a, b in zip(self.scans, other.scans))
+            and all(a.equals(b) for a, b in zip(self.scans, other.scans, strict=True))
             and self.objects == other.objects
             and self.inactive_objects == other.inactive_objects
             and self.child_objects == other.child_objects

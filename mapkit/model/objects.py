@@ -81,7 +81,8 @@ class MapObject:
 
     @property
     def base_type(self) -> str:
-        """The type without a ``WithHeading`` suffix, as ARIA's lookups use it (point objects only)."""
+        """The type without a ``WithHeading`` suffix, as ARIA's lookups use it (point objects
+        only)."""
         suffix = "WithHeading"
         if self.from_to is None and len(self.type) > len(suffix) and self.type.endswith(suffix):
             return self.type[: -len(suffix)]

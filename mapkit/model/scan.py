@@ -31,7 +31,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
-from typing import Any, NamedTuple, Union
+from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -69,8 +69,9 @@ def _ro(a: Any, dtype: Any, shape_tail: tuple[int, ...]) -> np.ndarray[Any, Any]
     if arr.size == 0:
         arr = arr.reshape((0, *shape_tail))
     if arr.shape[1:] != shape_tail or arr.ndim != 1 + len(shape_tail):
-        raise ValueError(f"expected an array of shape (N, {', '.join(map(str, shape_tail))}), "
-                         f"got {arr.shape}")
+        raise ValueError(
+            f"expected an array of shape (N, {', '.join(map(str, shape_tail))}), got {arr.shape}"
+        )
     arr.flags.writeable = False
     return arr
 
@@ -311,11 +312,17 @@ class LaserScan:
         return laser_to_robot(self.laser_points(laser, max_range=max_range), laser.pose)
 
     def global_points(
-        self, laser: LaserConfig, *, pose: Sequence[float] | None = None, max_range: float | None = None
+        self,
+        laser: LaserConfig,
+        *,
+        pose: Sequence[float] | None = None,
+        max_range: float | None = None,
     ) -> FloatArray:
-        """The valid hit points in the world frame, through ``pose`` (default: the odometry pose)."""
-        return robot_to_world(self.robot_points(laser, max_range=max_range),
-                              self.robot if pose is None else pose)
+        """The valid hit points in the world frame, through ``pose`` (default: the odometry
+        pose)."""
+        return robot_to_world(
+            self.robot_points(laser, max_range=max_range), self.robot if pose is None else pose
+        )
 
     def equals(self, other: LaserScan) -> bool:
         """Value equality (arrays compared element by element, NaN equal to NaN)."""
@@ -328,10 +335,14 @@ class LaserScan:
             if a is not None and not np.array_equal(a, b):
                 return False
         return (
-            self.scan_id == other.scan_id and self.laser == other.laser
-            and self.robot == other.robot and self.robot_global == other.robot_global
-            and self.robot_raw == other.robot_raw and self.other_poses == other.other_poses
-            and _same(self.time, other.time) and _same_tuple(self.velocities, other.velocities)
+            self.scan_id == other.scan_id
+            and self.laser == other.laser
+            and self.robot == other.robot
+            and self.robot_global == other.robot_global
+            and self.robot_raw == other.robot_raw
+            and self.other_poses == other.other_poses
+            and _same(self.time, other.time)
+            and _same_tuple(self.velocities, other.velocities)
             and self.extra == other.extra
         )
 
@@ -350,7 +361,7 @@ def _same(a: float | None, b: float | None) -> bool:
 def _same_tuple(a: tuple[float, ...] | None, b: tuple[float, ...] | None) -> bool:
     if a is None or b is None:
         return a is b
-    return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b))
+    return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b, strict=True))
 
 
 @dataclass(frozen=True, slots=True)
@@ -387,14 +398,22 @@ class LogEvent:
             return NotImplemented
         return all(
             getattr(self, f) == getattr(other, f)
-            for f in ("kind", "text", "robot", "robot_global", "robot_raw", "other_poses",
-                      "name", "action")
+            for f in (
+                "kind",
+                "text",
+                "robot",
+                "robot_global",
+                "robot_raw",
+                "other_poses",
+                "name",
+                "action",
+            )
         ) and _same(self.time, other.time)
 
     __hash__ = None  # type: ignore[assignment]
 
 
-LogRecord = Union[LaserScan, LogEvent]
+LogRecord = LaserScan | LogEvent
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -441,16 +460,22 @@ class LaserLog:
         """
         rows = []
         for s in self.scans:
-            p = s.robot_global if which == "robot_global" and s.robot_global is not None else s.robot
+            p = (
+                s.robot_global
+                if which == "robot_global" and s.robot_global is not None
+                else s.robot
+            )
             rows.append(p)
         return np.array(rows, dtype=np.float64).reshape(-1, 3)
 
     def equals(self, other: LaserLog) -> bool:
         """Value equality of header, records and the end mark (the source is ignored)."""
         return (
-            isinstance(other, LaserLog) and self.header == other.header
-            and self.complete == other.complete and len(self.records) == len(other.records)
-            and all(a == b for a, b in zip(self.records, other.records))
+            isinstance(other, LaserLog)
+            and self.header == other.header
+            and self.complete == other.complete
+            and len(self.records) == len(other.records)
+            and all(a == b for a, b in zip(self.records, other.records, strict=True))
         )
 
     def __eq__(self, other: object) -> bool:

@@ -38,8 +38,10 @@ STATIC = Path(__file__).resolve().parent / "static"
 _TILE_CACHE = 4096
 _LOCAL_HOSTS = ("127.0.0.1", "localhost")
 # The page loads nothing from elsewhere (no CDN) and runs no inline script.
-_CSP = ("default-src 'self'; script-src 'self'; style-src 'self' 'unsafe-inline'; "
-        "img-src 'self' data:; connect-src 'self'; frame-ancestors 'none'")
+_CSP = (
+    "default-src 'self'; script-src 'self'; style-src 'self' 'unsafe-inline'; "
+    "img-src 'self' data:; connect-src 'self'; frame-ancestors 'none'"
+)
 
 
 @dataclass(frozen=True)
@@ -94,7 +96,9 @@ class App:
         self._tiles: OrderedDict[tuple[int, int, int, int], bytes] = OrderedDict()
         m = session.map  # index the scan now, not on the first tile the page asks for
         self._source: tuple[int, TileSource] | None = (
-            session.data_version, TileSource(m.points, m.lines, m.scan.resolution))
+            session.data_version,
+            TileSource(m.points, m.lines, m.scan.resolution),
+        )
 
     # -- checks --------------------------------------------------------------------------------
 
@@ -127,14 +131,16 @@ class App:
         """Answer one request (never raises for bad input)."""
         if not self._host_ok(req.header("Host")):
             return Response.error(
-                403, "forbidden: the editor answers to 127.0.0.1 or localhost only")
+                403, "forbidden: the editor answers to 127.0.0.1 or localhost only"
+            )
         if not self._origin_ok(req.header("Origin")):
             return Response.error(403, "forbidden: request from another origin")
         url = urlsplit(req.target)
         query = parse_qs(url.query)
         if not self._token_ok(req, query):
-            return Response.error(403, "forbidden: open the address with ?token= that "
-                                       "`mapkit open` printed")
+            return Response.error(
+                403, "forbidden: open the address with ?token= that `mapkit open` printed"
+            )
         path = url.path
         try:
             if req.method == "GET":
@@ -153,7 +159,7 @@ class App:
         if path in ("/", "/index.html"):
             return self._index()
         if path.startswith("/static/"):
-            return self._static(path[len("/static/"):])
+            return self._static(path[len("/static/") :])
         if path.startswith("/tiles/"):
             return self._tile(path)
         with self._lock:
@@ -197,10 +203,16 @@ class App:
     def _index(self) -> Response:
         html = (STATIC / "index.html").read_text(encoding="utf-8")
         cookie = f"{self._cookie_name()}={self.token}; Path=/; HttpOnly; SameSite=Strict"
-        return Response(200, html.replace("{{TOKEN}}", self.token).encode("utf-8"),
-                        "text/html; charset=utf-8",
-                        (("Set-Cookie", cookie), ("Cache-Control", "no-store"),
-                         ("Content-Security-Policy", _CSP)))
+        return Response(
+            200,
+            html.replace("{{TOKEN}}", self.token).encode("utf-8"),
+            "text/html; charset=utf-8",
+            (
+                ("Set-Cookie", cookie),
+                ("Cache-Control", "no-store"),
+                ("Content-Security-Policy", _CSP),
+            ),
+        )
 
     def _static(self, rel: str) -> Response:
         f = (STATIC / rel).resolve()
@@ -212,7 +224,7 @@ class App:
         return Response(200, f.read_bytes(), ctype, (("Cache-Control", "no-cache"),))
 
     def _tile(self, path: str) -> Response:
-        parts = path[len("/tiles/"):].removesuffix(".png").split("/")
+        parts = path[len("/tiles/") :].removesuffix(".png").split("/")
         try:
             _v, z, x, y = (int(p) for p in parts)
         except ValueError:

@@ -78,16 +78,24 @@ class Editor:
         try:
             self.httpd = http.server.ThreadingHTTPServer((HOST, port), handler)
         except OSError as err:
-            raise OpenError(f"cannot serve on {HOST}:{port}: {err.strerror or err}; "
-                            "pick another --port (0 picks a free one)") from err
+            raise OpenError(
+                f"cannot serve on {HOST}:{port}: {err.strerror or err}; "
+                "pick another --port (0 picks a free one)"
+            ) from err
         self.httpd.daemon_threads = True
         self.port = int(self.httpd.server_address[1])
         self.app = App(session, self.token, self.port)
         self._thread: threading.Thread | None = None
 
     @classmethod
-    def open(cls, path: PathLike, *, port: int = 0, keepout: PathLike | None = None,
-             token: str | None = None) -> Editor:
+    def open(
+        cls,
+        path: PathLike,
+        *,
+        port: int = 0,
+        keepout: PathLike | None = None,
+        token: str | None = None,
+    ) -> Editor:
         """Open a file and bind the server (not yet serving)."""
         return cls(MapSession.open(path, keepout=keepout), port=port, token=token)
 

@@ -85,8 +85,15 @@ class MapSession:
     Build with :meth:`open`. Thread safety is the caller's (the HTTP driver holds a lock).
     """
 
-    def __init__(self, path: Path, m: MapData, *, kind: str = "aria",
-                 grid: Any = None, keepout: Path | None = None) -> None:
+    def __init__(
+        self,
+        path: Path,
+        m: MapData,
+        *,
+        kind: str = "aria",
+        grid: Any = None,
+        keepout: Path | None = None,
+    ) -> None:
         self.path = path
         self.kind = kind
         self.grid = grid
@@ -174,22 +181,26 @@ class MapSession:
             if e.op in REFUSED:
                 raise EditError(f"{e.where}: {REFUSED[e.op]}")
             if self.kind == "ros" and e.op not in ROS_OPERATIONS:
-                raise EditError(f"{e.where}: a ROS map's image is read only here; its keepout "
-                                f"zones take {', '.join(ROS_OPERATIONS)}")
+                raise EditError(
+                    f"{e.where}: a ROS map's image is read only here; its keepout "
+                    f"zones take {', '.join(ROS_OPERATIONS)}"
+                )
         before = self.map
         after = apply_script(before, parsed, base_dir=self.path.parent)
         if self.kind == "ros":
-            bad = [o.type for o in after.objects
-                   if o.type not in ("ForbiddenArea", "ForbiddenLine")]
+            bad = [
+                o.type for o in after.objects if o.type not in ("ForbiddenArea", "ForbiddenLine")
+            ]
             if bad:
                 raise EditError(
-                    f"edit: a keepout mask holds forbidden areas and lines, not {bad[0]}")
+                    f"edit: a keepout mask holds forbidden areas and lines, not {bad[0]}"
+                )
         version = self.data_version
         if after.scans is not before.scans:
             self._versions += 1
             version = self._versions
         state = _State(after, (*self._history[self._at].edits, *edits), version)
-        del self._history[self._at + 1:]
+        del self._history[self._at + 1 :]
         self._history.append(state)
         self._at += 1
         return {"summary": diff(before, after).summary()}
@@ -221,8 +232,10 @@ class MapSession:
             ConflictError: The file changed on disk since it was opened or last saved.
         """
         if self.changed_on_disk():
-            raise ConflictError(f"{self.path} changed on disk since it was opened; reload it "
-                                "(your edits are lost) or save elsewhere with the CLI")
+            raise ConflictError(
+                f"{self.path} changed on disk since it was opened; reload it "
+                "(your edits are lost) or save elsewhere with the CLI"
+            )
         if not self.dirty:
             return {"written": [], "message": f"nothing changed; {self.path} left as it was"}
         if self.kind == "ros":
@@ -233,8 +246,12 @@ class MapSession:
             written = [str(self.path)]
         self._saved_at = self._at
         self._disk = _digest(self._watched())
-        return {"written": written, "md5": md5, "backup": backup,
-                "message": f"wrote {', '.join(written)}"}
+        return {
+            "written": written,
+            "md5": md5,
+            "backup": backup,
+            "message": f"wrote {', '.join(written)}",
+        }
 
     def _save_keepout(self, backup: bool) -> list[str]:
         from mapkit._atomic import atomic_write
@@ -249,8 +266,10 @@ class MapSession:
 
             image = read_ros_yaml(self.keepout).image_path
             if Path(image).resolve().parent != self.keepout.parent:
-                raise OpenError(f"{self.keepout}: its image {image} is not beside it; "
-                                "the editor writes only the map's own files")
+                raise OpenError(
+                    f"{self.keepout}: its image {image} is not beside it; "
+                    "the editor writes only the map's own files"
+                )
         targets = [self.keepout, Path(image) if image else self.keepout.with_suffix(".pgm"), params]
         if backup:
             for t in targets:
@@ -296,8 +315,10 @@ class MapSession:
         """The map's declared types: name, class, shape and parameters (for the add menu)."""
         out = []
         for name, cls in self.map.declared_types().items():
-            args = [{"name": a.name, "kind": a.kind, "default": a.default, "min": a.min,
-                     "max": a.max} for a in type_args(self.map, name)]
+            args = [
+                {"name": a.name, "kind": a.kind, "default": a.default, "min": a.min, "max": a.max}
+                for a in type_args(self.map, name)
+            ]
             out.append({"name": name, "class": cls, "shape": shape_of_class(cls), "params": args})
         return out
 
@@ -308,8 +329,7 @@ class MapSession:
             "file": str(self.path),
             "kind": self.kind,
             "category": m.category,
-            "counts": {"points": len(m.points), "lines": len(m.lines),
-                       "objects": len(m.objects)},
+            "counts": {"points": len(m.points), "lines": len(m.lines), "objects": len(m.objects)},
             "bounds": self.bounds(),
             "resolution": int(m.scan.resolution),
             "objects": list_objects(m),
@@ -328,8 +348,11 @@ class MapSession:
         from mapkit.validate import DEFAULT_ROBOT_RADIUS, validate
 
         m = self.map
-        report = validate(m, robot_radius=DEFAULT_ROBOT_RADIUS if robot_radius is None
-                          else robot_radius, source=self.path.name)
+        report = validate(
+            m,
+            robot_radius=DEFAULT_ROBOT_RADIUS if robot_radius is None else robot_radius,
+            source=self.path.name,
+        )
         centres = {r["name"]: r["centre"] for r in list_objects(m) if r["name"]}
         out = []
         for issue in report.issues:

@@ -44,12 +44,20 @@ def png_rgba(rgba: NDArray[np.uint8]) -> bytes:
     raw[:, 1:] = rgba.reshape(h, w * 4)
 
     def chunk(kind: bytes, data: bytes) -> bytes:
-        return struct.pack(">I", len(data)) + kind + data + struct.pack(
-            ">I", zlib.crc32(kind + data) & 0xFFFFFFFF)
+        return (
+            struct.pack(">I", len(data))
+            + kind
+            + data
+            + struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF)
+        )
 
     head = struct.pack(">IIBBBBB", w, h, 8, 6, 0, 0, 0)
-    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", head)
-            + chunk(b"IDAT", zlib.compress(raw.tobytes(), 1)) + chunk(b"IEND", b""))
+    return (
+        b"\x89PNG\r\n\x1a\n"
+        + chunk(b"IHDR", head)
+        + chunk(b"IDAT", zlib.compress(raw.tobytes(), 1))
+        + chunk(b"IEND", b"")
+    )
 
 
 class TileSource:
@@ -88,14 +96,18 @@ class TileSource:
         out = np.zeros((TILE, TILE), dtype=np.bool_)
         for dy in range(dot):  # a dot `dot` px wide: OR of shifted copies
             for dx in range(dot):
-                out |= grid[dot - dy: dot - dy + TILE, dot - dx: dot - dx + TILE]
+                out |= grid[dot - dy : dot - dy + TILE, dot - dx : dot - dx + TILE]
         return out
 
     def _line_mask(self, z: int, tx: int, ty: int) -> NDArray[np.bool_]:
         x0, y0, x1, y1 = tile_bounds(z, tx, ty)
         s = 2.0**z
-        sel = ((self._hi[:, 0] >= x0) & (self._lo[:, 0] <= x1)
-               & (self._hi[:, 1] >= y0) & (self._lo[:, 1] <= y1))
+        sel = (
+            (self._hi[:, 0] >= x0)
+            & (self._lo[:, 0] <= x1)
+            & (self._hi[:, 1] >= y0)
+            & (self._lo[:, 1] <= y1)
+        )
         out = np.zeros((TILE, TILE), dtype=np.bool_)
         segs = self._lines[sel]
         if not len(segs):

@@ -47,22 +47,19 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from mapkit.model import MapData
+from mapkit.raster.cells import _unknown_cells, grid_for
 from mapkit.raster.grid import FREE, OCCUPIED, UNKNOWN, OccupancyGrid
-from mapkit.raster.rasterize import (
+from mapkit.raster.primitives import (
     _convex_fill,
-    _forbidden,
     _hull_polygon,
     _row_extremes,
-    _unknown_cells,
     burn_points,
     burn_polygons,
     burn_segments,
-    check_options,
     free_from_rays,
-    grid_for,
     inflate,
-    seed_points,
 )
+from mapkit.raster.rasterize import _forbidden, check_options, seed_points
 
 __all__ = ["DEFAULT_BAND_CELLS", "BandRaster", "GridInfo", "band_spans", "halo_rows"]
 
@@ -118,9 +115,14 @@ class GridInfo:
     def to_dict(self) -> dict[str, Any]:
         """Geometry and counts as JSON-ready data (as :meth:`OccupancyGrid.to_dict`)."""
         (x0, y0), (x1, y1) = self.bounds_mm()
-        return {"width": self.width, "height": self.height, "resolution": self.resolution,
-                "origin": [self.origin[0], self.origin[1], 0.0],
-                "bounds_mm": [[x0, y0], [x1, y1]], **self.counts()}
+        return {
+            "width": self.width,
+            "height": self.height,
+            "resolution": self.resolution,
+            "origin": [self.origin[0], self.origin[1], 0.0],
+            "bounds_mm": [[x0, y0], [x1, y1]],
+            **self.counts(),
+        }
 
 
 def band_spans(height: int, band_rows: int) -> list[tuple[int, int]]:
@@ -151,8 +153,12 @@ def count_cells(data: NDArray[np.int8], into: dict[str, int]) -> None:
     occ = int(np.count_nonzero(data > 50))
     free = int(np.count_nonzero(data == 0))
     unk = int(np.count_nonzero(data < 0))
-    for key, n in (("occupied", occ), ("free", free), ("unknown", unk),
-                   ("other", int(data.size) - occ - free - unk)):
+    for key, n in (
+        ("occupied", occ),
+        ("free", free),
+        ("unknown", unk),
+        ("other", int(data.size) - occ - free - unk),
+    ):
         into[key] = into.get(key, 0) + n
 
 
@@ -312,8 +318,9 @@ class BandRaster:
             self._reach = _reached(offset, pairs, seeded)
         else:
             if flood:
-                log_.warning("no goal, dock or home in free space to flood from: using the walls' "
-                             "hull")
+                log_.warning(
+                    "no goal, dock or home in free space to flood from: using the walls' hull"
+                )
             self._hull = _hull_polygon(extremes)
 
     # -- pass 2: the cells -------------------------------------------------------------------
@@ -330,7 +337,7 @@ class BandRaster:
 
                 labels, n = ndimage.label(open_)
                 off = self._offsets[k]
-                lut = self._reach[off:off + n + 1].copy()
+                lut = self._reach[off : off + n + 1].copy()
                 lut[0] = False
                 reach: NDArray[np.bool_] = lut[labels]
                 return reach & hull
@@ -354,10 +361,10 @@ class BandRaster:
         for k, (r0, r1) in enumerate(self.spans):
             a, b = max(0, r0 - halo), min(h, r1 + halo)
             window = self._walls.band(a, b)
-            walls = window[r0 - a:r1 - a]
+            walls = window[r0 - a : r1 - a]
             space = self._space(k, r0, walls)
             if self.inflate_mm:
-                occupied = inflate(window, self.inflate_mm, self.grid.resolution)[r0 - a:r1 - a]
+                occupied = inflate(window, self.inflate_mm, self.grid.resolution)[r0 - a : r1 - a]
             else:
                 occupied = walls
             data = np.full(walls.shape, UNKNOWN, dtype=np.int8)
@@ -382,21 +389,23 @@ class BandRaster:
         g = self.grid
         data = np.empty((g.height, g.width), dtype=np.int8)
         for r0, band in self.bands(progress):
-            data[r0:r0 + len(band)] = band
+            data[r0 : r0 + len(band)] = band
         data.flags.writeable = False  # OccupancyGrid keeps a read-only array without a copy
         return OccupancyGrid(data, g.resolution, g.origin)
 
 
-def _reached(n_labels: int, pairs: list[NDArray[np.int64]], seeded: NDArray[np.int64]
-             ) -> NDArray[np.bool_]:
+def _reached(
+    n_labels: int, pairs: list[NDArray[np.int64]], seeded: NDArray[np.int64]
+) -> NDArray[np.bool_]:
     """Per global label (0..n_labels): whether its joined region holds a seed."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
     edges = np.concatenate(pairs) if pairs else np.zeros((0, 2), dtype=np.int64)
     size = n_labels + 1
-    graph = coo_matrix((np.ones(len(edges), dtype=np.int8), (edges[:, 0], edges[:, 1])),
-                       shape=(size, size))
+    graph = coo_matrix(
+        (np.ones(len(edges), dtype=np.int8), (edges[:, 0], edges[:, 1])), shape=(size, size)
+    )
     _, comp = connected_components(graph, directed=False)
     hit = np.zeros(int(comp.max()) + 1, dtype=bool)
     hit[comp[seeded]] = True

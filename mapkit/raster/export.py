@@ -56,11 +56,13 @@ def consumer_warnings(width: int, height: int) -> list[str]:
     cells = int(width) * int(height)
     if cells <= ROS1_MAX_CELLS:
         return []
-    return [f"a {width} x {height} map ({cells:,} cells) is too large for ROS 1: map_server "
-            f"publishes it as one nav_msgs/OccupancyGrid of about {cells / 1e9:.2f} GB, and every "
-            f"roscpp node (rviz, move_base, amcl) drops messages over "
-            f"{ROS1_MAX_MESSAGE_BYTES:,} bytes (at most {ROS1_MAX_CELLS:,} cells); the files are "
-            f"written all the same"]
+    return [
+        f"a {width} x {height} map ({cells:,} cells) is too large for ROS 1: map_server "
+        f"publishes it as one nav_msgs/OccupancyGrid of about {cells / 1e9:.2f} GB, and every "
+        f"roscpp node (rviz, move_base, amcl) drops messages over "
+        f"{ROS1_MAX_MESSAGE_BYTES:,} bytes (at most {ROS1_MAX_CELLS:,} cells); the files are "
+        f"written all the same"
+    ]
 
 
 #: The stages of :func:`export_ros`, in order.
@@ -89,14 +91,21 @@ class RosExport:
         out = [self.map_files.image, self.map_files.yaml]
         f = self.filters
         if f is not None:
-            out += [p for p in (f.keepout_image, f.keepout_yaml, f.speed_image, f.speed_yaml,
-                                f.params) if p is not None]
+            out += [
+                p
+                for p in (f.keepout_image, f.keepout_yaml, f.speed_image, f.speed_yaml, f.params)
+                if p is not None
+            ]
         return out
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready summary."""
-        out: dict[str, Any] = {"yaml": str(self.map_files.yaml), "image": str(self.map_files.image),
-                               "mode": self.mode, "grid": self.grid.to_dict()}
+        out: dict[str, Any] = {
+            "yaml": str(self.map_files.yaml),
+            "image": str(self.map_files.image),
+            "mode": self.mode,
+            "grid": self.grid.to_dict(),
+        }
         f = self.filters
         if f is not None:
             out["filters"] = {
@@ -182,8 +191,16 @@ def export_ros(
     Raises:
         RasterError: For bad options (before anything is written).
     """
-    raster = BandRaster(m, resolution, margin_m=margin_m, free=free, inflate_mm=inflate_mm,
-                        log=log, forbidden_as_walls=forbidden_as_walls, band_cells=band_cells)
+    raster = BandRaster(
+        m,
+        resolution,
+        margin_m=margin_m,
+        free=free,
+        inflate_mm=inflate_mm,
+        log=log,
+        forbidden_as_walls=forbidden_as_walls,
+        band_cells=band_cells,
+    )
     geometry = raster.grid
     if warn is not None:
         for message in consumer_warnings(geometry.width, geometry.height):
@@ -197,22 +214,33 @@ def export_ros(
         if progress is not None:
             progress(done, total)
 
-    files = write_ros_map_bands(geometry, raster.bands(step), yaml_path, mode=mode,
-                                image_format=image_format)
+    files = write_ros_map_bands(
+        geometry, raster.bands(step), yaml_path, mode=mode, image_format=image_format
+    )
     filters = None
     if keepout or speed:
         fmt = files.image.suffix.lstrip(".").lower()
-        filters = write_filters(m, geometry, files.yaml, keepout=keepout, speed=speed,
-                                image_format=fmt, speed_param=speed_param, band_cells=band_cells,
-                                progress=step)
+        filters = write_filters(
+            m,
+            geometry,
+            files.yaml,
+            keepout=keepout,
+            speed=speed,
+            image_format=fmt,
+            speed_param=speed_param,
+            band_cells=band_cells,
+            progress=step,
+        )
     return RosExport(raster.info(), files, filters, mode)
 
 
 def _write_yaml(m: MapData, path: PathLike) -> str:
     res = export_ros(m, path)
     g = res.grid
-    return (f"wrote {res.map_files.yaml} and {res.map_files.image} ({g.width}x{g.height} cells at "
-            f"{g.resolution:g} m)")
+    return (
+        f"wrote {res.map_files.yaml} and {res.map_files.image} ({g.width}x{g.height} cells at "
+        f"{g.resolution:g} m)"
+    )
 
 
 def _write_pgm(m: MapData, path: PathLike) -> str:
@@ -221,8 +249,10 @@ def _write_pgm(m: MapData, path: PathLike) -> str:
     raster = BandRaster(m)
     grid = raster.grid
     files = write_ros_map_bands(grid, raster.bands(), y, image_path=p)
-    return (f"wrote {files.image} and {files.yaml} ({grid.width}x{grid.height} cells at "
-            f"{grid.resolution:g} m)")
+    return (
+        f"wrote {files.image} and {files.yaml} ({grid.width}x{grid.height} cells at "
+        f"{grid.resolution:g} m)"
+    )
 
 
 register_writer(".yaml", _write_yaml)

@@ -77,7 +77,9 @@ class OccupancyGrid:
         arr.flags.writeable = False
         res = float(self.resolution)
         if not (math.isfinite(res) and res > 0):
-            raise ValueError(f"resolution must be a positive number of metres, got {self.resolution!r}")
+            raise ValueError(
+                f"resolution must be a positive number of metres, got {self.resolution!r}"
+            )
         ox, oy = (float(v) for v in self.origin)
         if not (math.isfinite(ox) and math.isfinite(oy)):
             raise ValueError(f"origin must be finite, got {self.origin!r}")
@@ -149,7 +151,10 @@ class OccupancyGrid:
         """Which ``(row, col)`` indices lie on the grid."""
         rc = np.asarray(ij)
         return (
-            (rc[..., 0] >= 0) & (rc[..., 0] < self.height) & (rc[..., 1] >= 0) & (rc[..., 1] < self.width)
+            (rc[..., 0] >= 0)
+            & (rc[..., 0] < self.height)
+            & (rc[..., 1] >= 0)
+            & (rc[..., 1] < self.width)
         )
 
     def values_at(self, xy_mm: ArrayLike, outside: int = UNKNOWN) -> NDArray[np.int8]:
@@ -225,12 +230,21 @@ class OccupancyGrid:
         occ = int(np.count_nonzero(self.data > 50))
         free = int(np.count_nonzero(self.data == 0))
         unk = int(np.count_nonzero(self.data < 0))
-        return {"occupied": occ, "free": free, "unknown": unk,
-                "other": int(self.data.size) - occ - free - unk}
+        return {
+            "occupied": occ,
+            "free": free,
+            "unknown": unk,
+            "other": int(self.data.size) - occ - free - unk,
+        }
 
     def to_dict(self) -> dict[str, Any]:
         """Geometry and counts as JSON-ready data."""
         (x0, y0), (x1, y1) = self.bounds_mm()
-        return {"width": self.width, "height": self.height, "resolution": self.resolution,
-                "origin": [self.origin[0], self.origin[1], 0.0],
-                "bounds_mm": [[x0, y0], [x1, y1]], **self.counts()}
+        return {
+            "width": self.width,
+            "height": self.height,
+            "resolution": self.resolution,
+            "origin": [self.origin[0], self.origin[1], 0.0],
+            "bounds_mm": [[x0, y0], [x1, y1]],
+            **self.counts(),
+        }

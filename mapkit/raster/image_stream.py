@@ -36,27 +36,33 @@ from numpy.typing import NDArray
 
 from mapkit._atomic import atomic_open
 from mapkit._typing import PathLike
-from mapkit.raster.errors import RasterError, RosMapError
+from mapkit.raster.errors import RasterError
 from mapkit.raster.grid import OccupancyGrid
-from mapkit.raster.ros_image import ImageSource
 from mapkit.raster.ros import (
     DEFAULT_FREE_THRESH,
-    check_scale,
     DEFAULT_OCCUPIED_THRESH,
     Flavor,
     Mode,
     RosMapFiles,
     RosMapInfo,
+    check_scale,
     image_target,
     open_map_image,
-    pixel_values,
     pgm_comment,
     pixel_table,
+    pixel_values,
     write_map_yaml,
 )
+from mapkit.raster.ros_image import ImageSource
 
-__all__ = ["IDAT_BYTES", "ImageSink", "PgmBands", "pgm_bands", "write_image_bands",
-           "write_ros_map_bands"]
+__all__ = [
+    "IDAT_BYTES",
+    "ImageSink",
+    "PgmBands",
+    "pgm_bands",
+    "write_image_bands",
+    "write_ros_map_bands",
+]
 
 #: About how many compressed bytes go in one PNG ``IDAT`` chunk.
 IDAT_BYTES = 1 << 20
@@ -82,8 +88,17 @@ class ImageSink:
         level: zlib level for PNG (6, as the whole-image writer).
     """
 
-    def __init__(self, fh: BinaryIO, width: int, height: int, *, image_format: str,
-                 alpha: bool = False, comment: str = "CREATOR: mapkit", level: int = 6) -> None:
+    def __init__(
+        self,
+        fh: BinaryIO,
+        width: int,
+        height: int,
+        *,
+        image_format: str,
+        alpha: bool = False,
+        comment: str = "CREATOR: mapkit",
+        level: int = 6,
+    ) -> None:
         if image_format not in ("pgm", "png"):
             raise RasterError(f"image format must be pgm or png, got {image_format!r}")
         if alpha and image_format == "pgm":
@@ -104,8 +119,10 @@ class ImageSink:
         """Append rows, top first: ``grey`` ``(k, width)``, and ``alpha`` when the image has it."""
         k = grey.shape[0]
         if grey.shape != (k, self.width) or self.rows_written + k > self.height:
-            raise RasterError(f"rows of shape {grey.shape} do not fit a {self.width} x "
-                              f"{self.height} image with {self.rows_written} rows written")
+            raise RasterError(
+                f"rows of shape {grey.shape} do not fit a {self.width} x "
+                f"{self.height} image with {self.rows_written} rows written"
+            )
         if (alpha is not None) != self.alpha:
             raise RasterError("give alpha exactly when the image has an alpha channel")
         self.rows_written += k
@@ -171,16 +188,19 @@ def write_image_bands(
         expect = h
         for r0, band in bands:
             if r0 + len(band) != expect or band.shape[1:] != (w,):
-                raise RasterError(f"band of rows {r0}..{r0 + len(band)} out of order (next "
-                                  f"expected to end at row {expect})")
+                raise RasterError(
+                    f"band of rows {r0}..{r0 + len(band)} out of order (next "
+                    f"expected to end at row {expect})"
+                )
             expect = r0
             idx = band[::-1].view(np.uint8)
             alpha = None
             if transparent and opaque is not None:
                 clear = ~opaque[idx]
                 if not use_alpha and clear.any():
-                    raise RasterError("scale mode with unknown cells needs transparency: write "
-                                      "PNG, not PGM")
+                    raise RasterError(
+                        "scale mode with unknown cells needs transparency: write PNG, not PGM"
+                    )
                 if use_alpha:
                     alpha = np.where(clear, 0, 255).astype(np.uint8)
             sink.write_rows(lut[idx], alpha)
@@ -224,15 +244,24 @@ def write_ros_map_bands(
     img_p, fmt = image_target(yaml_p, mode, image_format, image_path)
     if mode == "scale":
         bands = _scale_checked(bands, lut, negate, occupied_thresh, free_thresh)
-    write_image_bands(img_p, geometry, bands, lut, opaque, image_format=fmt,
-                      comment=pgm_comment(geometry))
-    write_map_yaml(yaml_p, img_p, geometry, mode=mode, negate=negate,
-                   occupied_thresh=occupied_thresh, free_thresh=free_thresh)
+    write_image_bands(
+        img_p, geometry, bands, lut, opaque, image_format=fmt, comment=pgm_comment(geometry)
+    )
+    write_map_yaml(
+        yaml_p,
+        img_p,
+        geometry,
+        mode=mode,
+        negate=negate,
+        occupied_thresh=occupied_thresh,
+        free_thresh=free_thresh,
+    )
     return RosMapFiles(yaml_p, img_p)
 
 
-def _scale_checked(bands: Bands, lut: NDArray[np.uint8], negate: bool, occupied_thresh: float,
-                   free_thresh: float) -> Bands:
+def _scale_checked(
+    bands: Bands, lut: NDArray[np.uint8], negate: bool, occupied_thresh: float, free_thresh: float
+) -> Bands:
     """The bands unchanged, counted; after the last, :func:`check_scale` on the whole count.
 
     It runs inside the image's atomic write, so a refusal leaves nothing written.
@@ -283,7 +312,7 @@ class PgmBands:
         """The whole grid (one byte a cell), read a band at a time."""
         data = np.empty((self.height, self.width), dtype=np.int8)
         for r0, band in self.bands(band_cells):
-            data[r0:r0 + len(band)] = band
+            data[r0 : r0 + len(band)] = band
         data.flags.writeable = False
         return OccupancyGrid(data, self.info.resolution, self.info.origin[:2])
 

@@ -60,8 +60,9 @@ def _to_world(grid: OccupancyGrid, uv: NDArray[np.float64], yaw: float) -> NDArr
     return _world(grid.resolution_mm, grid.origin_mm, uv, yaw)
 
 
-def _world(r: float, origin_mm: tuple[float, float], uv: NDArray[np.float64],
-           yaw: float) -> NDArray[np.float64]:
+def _world(
+    r: float, origin_mm: tuple[float, float], uv: NDArray[np.float64], yaw: float
+) -> NDArray[np.float64]:
     (ox, oy) = origin_mm
     x, y = uv[..., 0] * r, uv[..., 1] * r
     if yaw:
@@ -102,7 +103,9 @@ def _pair_order(major: NDArray[np.int64], pos: NDArray[np.int64]) -> NDArray[np.
     return np.argsort(key, kind="stable")
 
 
-def _runs(major: NDArray[np.int64], pos: NDArray[np.int64]) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+def _runs(
+    major: NDArray[np.int64], pos: NDArray[np.int64]
+) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
     """Maximal runs of consecutive ``pos`` values sharing a ``major`` value (vectorised).
 
     Returns:
@@ -147,8 +150,9 @@ def _cell_runs_rc(rc: NDArray[np.int64], min_cells: int) -> NDArray[np.int64]:
     out = [np.zeros((0, 4), dtype=np.int64)]
     if len(rc):
         for direction in range(4):  # rows, columns, both diagonals (one key array at a time)
-            major = r if direction == 0 else c if direction == 1 else \
-                c - r if direction == 2 else c + r
+            major = (
+                r if direction == 0 else c if direction == 1 else c - r if direction == 2 else c + r
+            )
             pos = c if direction == 0 else r
             a, b = _runs(major, pos)
             keep = pos[b] - pos[a] + 1 >= min_cells
@@ -157,7 +161,9 @@ def _cell_runs_rc(rc: NDArray[np.int64], min_cells: int) -> NDArray[np.int64]:
     return np.concatenate(out)
 
 
-def _run_cells(runs: NDArray[np.int64]) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64]]:
+def _run_cells(
+    runs: NDArray[np.int64],
+) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64]]:
     """Every cell of straight or diagonal runs: (run index, row, col)."""
     cnt = np.maximum(np.abs(runs[:, 2] - runs[:, 0]), np.abs(runs[:, 3] - runs[:, 1])) + 1
     rid = np.repeat(np.arange(len(runs)), cnt)
@@ -180,8 +186,7 @@ def wall_lines(
     if not occ.any():
         return np.zeros((0, 4), dtype=np.int64)
     faces = _faces(np.pad(occ, 1), 1, occ.shape[0] + 1)
-    keep = _face_lines(np.argwhere(faces).astype(np.int64),
-                       _min_cells(min_line_m, grid.resolution))
+    keep = _face_lines(np.argwhere(faces).astype(np.int64), _min_cells(min_line_m, grid.resolution))
     return _line_world(keep, grid.resolution_mm, grid.origin_mm, yaw)
 
 
@@ -190,7 +195,7 @@ def _faces(p: NDArray[np.bool_], a: int, b: int) -> NDArray[np.bool_]:
 
     A face is an occupied cell with a non-occupied 4-neighbour.
     """
-    inner = p[a - 1:b - 1, 1:-1] & p[a + 1:b + 1, 1:-1] & p[a:b, :-2] & p[a:b, 2:]
+    inner = p[a - 1 : b - 1, 1:-1] & p[a + 1 : b + 1, 1:-1] & p[a:b, :-2] & p[a:b, 2:]
     return p[a:b, 1:-1] & ~inner
 
 
@@ -220,8 +225,9 @@ def _face_lines(rc: NDArray[np.int64], n: int) -> NDArray[np.int64]:
     return np.concatenate([straight, diag])
 
 
-def _on_runs(rr: NDArray[np.int64], cc: NDArray[np.int64], straight: NDArray[np.int64],
-             rc: NDArray[np.int64]) -> NDArray[np.bool_]:
+def _on_runs(
+    rr: NDArray[np.int64], cc: NDArray[np.int64], straight: NDArray[np.int64], rc: NDArray[np.int64]
+) -> NDArray[np.bool_]:
     """Which cells ``(rr, cc)`` lie on one of the row or column runs ``straight``.
 
     Runs of one row (or column) are disjoint, so each cell is looked up by binary search among
@@ -244,8 +250,9 @@ def _on_runs(rr: NDArray[np.int64], cc: NDArray[np.int64], straight: NDArray[np.
     return hit
 
 
-def _line_world(keep: NDArray[np.int64], r: float, origin_mm: tuple[float, float],
-                yaw: float) -> NDArray[np.int64]:
+def _line_world(
+    keep: NDArray[np.int64], r: float, origin_mm: tuple[float, float], yaw: float
+) -> NDArray[np.int64]:
     uv = np.stack([keep[:, [1, 0]], keep[:, [3, 2]]], axis=1).astype(np.float64) + 0.5
     xy = _world(r, origin_mm, uv, yaw)
     return np.rint(xy.reshape(-1, 4)).astype(np.int64)
@@ -258,7 +265,12 @@ def _rect_object(corners_xy: NDArray[np.float64], theta_deg: float) -> MapObject
     # Undo the rotation about the map origin: frame coordinates of the corners.
     fx = c * corners_xy[:, 0] + s * corners_xy[:, 1]
     fy = -s * corners_xy[:, 0] + c * corners_xy[:, 1]
-    ft = (round(float(fx.min())), round(float(fy.min())), round(float(fx.max())), round(float(fy.max())))
+    ft = (
+        round(float(fx.min())),
+        round(float(fy.min())),
+        round(float(fx.max())),
+        round(float(fy.max())),
+    )
     return MapObject("ForbiddenArea", 0, 0, theta_deg, from_to=ft)
 
 
@@ -306,8 +318,13 @@ def keepout_objects(
         rows = int(sl[0].stop - sl[0].start)
         cols = int(sl[1].stop - sl[1].start)
         if count == rows * cols and (min(rows, cols) > 1 or count == 1):
-            uv = np.array([[cells[:, 1].min(), cells[:, 0].min()],
-                           [cells[:, 1].max() + 1, cells[:, 0].max() + 1]], dtype=np.float64)
+            uv = np.array(
+                [
+                    [cells[:, 1].min(), cells[:, 0].min()],
+                    [cells[:, 1].max() + 1, cells[:, 0].max() + 1],
+                ],
+                dtype=np.float64,
+            )
             out.append(_rect_object(_box_corners(mask, uv, yaw), yaw_deg))
             continue
         centres = cells[:, ::-1].astype(np.float64) + 0.5
@@ -338,8 +355,9 @@ def keepout_objects(
         if count >= fill * area:
             lo_u, hi_u = pu.min() - 0.5, pu.max() + 0.5
             lo_v, hi_v = pv.min() - 0.5, pv.max() + 0.5
-            quad = np.array([lo_u * u + lo_v * v, hi_u * u + lo_v * v,
-                             hi_u * u + hi_v * v, lo_u * u + hi_v * v])
+            quad = np.array(
+                [lo_u * u + lo_v * v, hi_u * u + lo_v * v, hi_u * u + hi_v * v, lo_u * u + hi_v * v]
+            )
             theta = _norm_deg(math.degrees(angle) + yaw_deg)
             out.append(_rect_object(_to_world(mask, quad, yaw), theta))
             continue
@@ -388,8 +406,11 @@ def grid_to_map(
         raise RasterError(f"min_line_m must be zero or more metres, got {min_line_m!r}")
     _check_extent(grid.resolution, (*grid.origin, yaw), grid.width, grid.height, "<grid>")
     pts = occupied_points(grid, occupied_value=occupied_value, yaw=yaw)
-    segs = (wall_lines(grid, occupied_value=occupied_value, min_line_m=min_line_m, yaw=yaw)
-            if lines else np.zeros((0, 4), dtype=np.int64))
+    segs = (
+        wall_lines(grid, occupied_value=occupied_value, min_line_m=min_line_m, yaw=yaw)
+        if lines
+        else np.zeros((0, 4), dtype=np.int64)
+    )
     objects: list[MapObject] = []
     if keepout is not None:
         objects = keepout_objects(keepout, yaw=keepout_yaw)
@@ -405,8 +426,9 @@ MAX_KEEPOUT_CELLS = MAX_DECODED_PIXELS
 _ARIA_LIMIT_MM = 2**31 - 1
 
 
-def _check_extent(resolution: float, origin: tuple[float, float, float], width: int,
-                  height: int, source: str) -> tuple[float, tuple[float, float]]:
+def _check_extent(
+    resolution: float, origin: tuple[float, float, float], width: int, height: int, source: str
+) -> tuple[float, tuple[float, float]]:
     """Resolution and origin in mm, when the whole map fits ARIA's 32-bit millimetre range.
 
     Raises:
@@ -421,13 +443,21 @@ def _check_extent(resolution: float, origin: tuple[float, float, float], width: 
         raise RosMapError(
             f"the map ({width} x {height} cells of {resolution!r} m from origin "
             f"{origin[0]!r}, {origin[1]!r}) reaches beyond the +-{_ARIA_LIMIT_MM // 1000:,}"
-            " m an ARIA map can hold (32-bit millimetres)", source=source)
+            " m an ARIA map can hold (32-bit millimetres)",
+            source=source,
+        )
     return r, origin_mm
 
 
 def _stream_cells(
-    src: ImageSource, info: RosMapInfo, *, flavor: Flavor, occupied_value: int, lines: bool,
-    band_rows: int | None, progress: Callable[[int, int], None] | None,
+    src: ImageSource,
+    info: RosMapInfo,
+    *,
+    flavor: Flavor,
+    occupied_value: int,
+    lines: bool,
+    band_rows: int | None,
+    progress: Callable[[int, int], None] | None,
     to_world: Callable[[NDArray[np.int64]], NDArray[np.int64]],
 ) -> tuple[list[NDArray[np.int64]], list[NDArray[np.int64]]]:
     """Occupied points (``to_world`` of their cells) and face cells (row, col), band by band
@@ -442,7 +472,7 @@ def _stream_cells(
         band = pixel_values(src.read_rows(h - hi, h - lo), info, flavor=flavor)[::-1]
         occ = band >= occupied_value
         a = g0 - lo
-        cells = np.argwhere(occ[a:a + g1 - g0]).astype(np.int64)
+        cells = np.argwhere(occ[a : a + g1 - g0]).astype(np.int64)
         cells[:, 0] += g0
         occupied.append(to_world(cells))
         if lines and len(cells):
@@ -494,29 +524,40 @@ def import_ros(
         raise RasterError(f"min_line_m must be zero or more metres, got {min_line_m!r}")
     info = read_ros_yaml(yaml_path, flavor=flavor)
     src = open_map_image(info, flavor=flavor)
-    r, origin = _check_extent(info.resolution, info.origin, src.width, src.height,
-                              str(info.source))
+    r, origin = _check_extent(info.resolution, info.origin, src.width, src.height, str(info.source))
     minfo, msrc = None, None
     if keepout is not None:  # checked before the long work
         minfo = read_ros_yaml(keepout, flavor=flavor)
         msrc = open_map_image(minfo, flavor=flavor)
-        _check_extent(minfo.resolution, minfo.origin, msrc.width, msrc.height,
-                      str(minfo.source))
+        _check_extent(minfo.resolution, minfo.origin, msrc.width, msrc.height, str(minfo.source))
         if msrc.width * msrc.height > MAX_KEEPOUT_CELLS:
-            raise RosMapError(f"keepout mask of {msrc.width} x {msrc.height} cells: mapkit reads "
-                              f"masks up to {MAX_KEEPOUT_CELLS:,} cells", source=str(msrc.path))
+            raise RosMapError(
+                f"keepout mask of {msrc.width} x {msrc.height} cells: mapkit reads "
+                f"masks up to {MAX_KEEPOUT_CELLS:,} cells",
+                source=str(msrc.path),
+            )
     yaw = info.origin[2]
     if yaw:
-        log_.warning("%s: origin yaw %.6g rad: rotating the map by it (most ROS tools ignore "
-                     "yaw)", os.fspath(yaml_path), yaw)
+        log_.warning(
+            "%s: origin yaw %.6g rad: rotating the map by it (most ROS tools ignore yaw)",
+            os.fspath(yaml_path),
+            yaw,
+        )
 
     def to_world(cells: NDArray[np.int64]) -> NDArray[np.int64]:  # as occupied_points does
         uv = cells[:, ::-1].astype(np.float64) + 0.5
         return np.rint(_world(r, origin, uv, yaw)).astype(np.int64)
 
-    occupied, faces = _stream_cells(src, info, flavor=flavor, occupied_value=occupied_value,
-                                    lines=lines, band_rows=band_rows, progress=progress,
-                                    to_world=to_world)
+    occupied, faces = _stream_cells(
+        src,
+        info,
+        flavor=flavor,
+        occupied_value=occupied_value,
+        lines=lines,
+        band_rows=band_rows,
+        progress=progress,
+        to_world=to_world,
+    )
     pts = np.concatenate(occupied)
     del occupied
     segs = np.zeros((0, 4), dtype=np.int64)

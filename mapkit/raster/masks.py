@@ -87,8 +87,11 @@ def _keepout_shapes(
     m: MapData, lines: bool
 ) -> tuple[list[NDArray[np.float64]], NDArray[np.float64]]:
     areas = [o for o in m.objects if o.type == "ForbiddenArea" and o.from_to is not None]
-    segs = [o.from_to for o in m.objects if o.type == "ForbiddenLine" and o.from_to is not None] \
-        if lines else []
+    segs = (
+        [o.from_to for o in m.objects if o.type == "ForbiddenLine" and o.from_to is not None]
+        if lines
+        else []
+    )
     return object_polygons(areas), np.array(segs, dtype=np.float64).reshape(-1, 4)
 
 
@@ -97,8 +100,13 @@ def _band_rows(like: OccupancyGrid, band_cells: int) -> int:
 
 
 def keepout_bands(
-    m: MapData, like: OccupancyGrid, *, lines: bool = True, inflate_mm: float = 0.0,
-    band_cells: int = DEFAULT_BAND_CELLS, progress: Progress | None = None,
+    m: MapData,
+    like: OccupancyGrid,
+    *,
+    lines: bool = True,
+    inflate_mm: float = 0.0,
+    band_cells: int = DEFAULT_BAND_CELLS,
+    progress: Progress | None = None,
 ) -> Bands:
     """:func:`keepout_mask` band by band, north first: ``(row0, data)`` (the same cells).
 
@@ -116,7 +124,7 @@ def keepout_bands(
             mask = inflate(mask, inflate_mm, like.resolution)
         if progress is not None:
             progress(r1 - r0)
-        yield r0, np.where(mask[r0 - a:r1 - a], 100, -1).astype(np.int8)
+        yield r0, np.where(mask[r0 - a : r1 - a], 100, -1).astype(np.int8)
 
 
 @dataclass(frozen=True, slots=True)
@@ -273,8 +281,9 @@ def speed_bands(
         for r0, r1 in band_spans(like.height, _band_rows(like, band_cells)):
             units = np.full((r1 - r0, like.width), 127, dtype=np.int16)
             for z, v in zip(zs, values, strict=True):
-                cells = burn_polygons(like, [z.polygon], out=np.zeros(units.shape, dtype=bool),
-                                      row0=r0)
+                cells = burn_polygons(
+                    like, [z.polygon], out=np.zeros(units.shape, dtype=bool), row0=r0
+                )
                 units[cells] = np.minimum(units[cells], v)
             if progress is not None:
                 progress(r1 - r0)
@@ -319,11 +328,15 @@ def filter_params_text(
         "# Run with nav2_bringup (node names match its launch files), e.g.:",
     ]
     if keepout_yaml is not None:
-        out.append(f"#   ros2 launch nav2_bringup keepout_zone_launch.py params_file:=THIS_FILE "
-                   f"keepout_mask:={Path(os.fspath(keepout_yaml)).resolve()}")
+        out.append(
+            f"#   ros2 launch nav2_bringup keepout_zone_launch.py params_file:=THIS_FILE "
+            f"keepout_mask:={Path(os.fspath(keepout_yaml)).resolve()}"
+        )
     if speed_yaml is not None:
-        out.append(f"#   ros2 launch nav2_bringup speed_zone_launch.py params_file:=THIS_FILE "
-                   f"speed_mask:={Path(os.fspath(speed_yaml)).resolve()}")
+        out.append(
+            f"#   ros2 launch nav2_bringup speed_zone_launch.py params_file:=THIS_FILE "
+            f"speed_mask:={Path(os.fspath(speed_yaml)).resolve()}"
+        )
     out += [
         "# or start each node with --ros-args -r __node:=NAME --params-file THIS_FILE:",
         "#   nav2_map_server map_server (the *_filter_mask_server nodes),",
@@ -331,8 +344,10 @@ def filter_params_text(
         "#   nav2_lifecycle_manager lifecycle_manager (lifecycle_manager_costmap_filters).",
         "# Add this file to Nav2's params files so the costmaps load the filters.",
     ]
-    for kind, mask_yaml, ftype, mult in (("keepout", keepout_yaml, 0, 1.0),
-                                         ("speed", speed_yaml, 2, float(speed_multiplier))):
+    for kind, mask_yaml, ftype, mult in (
+        ("keepout", keepout_yaml, 0, 1.0),
+        ("speed", speed_yaml, 2, float(speed_multiplier)),
+    ):
         if mask_yaml is None:
             continue
         nodes += [f"{kind}_filter_mask_server", f"{kind}_costmap_filter_info_server"]
@@ -450,27 +465,38 @@ def write_filters(
     fields: dict[str, object] = {}
     k_yaml = s_yaml = None
     if keepout:
-        kbands = keepout_bands(m, grid, inflate_mm=inflate_mm, band_cells=band_cells,
-                               progress=progress)
-        k = write_ros_map_bands(grid, kbands, Path(f"{stem}_keepout.yaml"),
-                                image_format=image_format)
+        kbands = keepout_bands(
+            m, grid, inflate_mm=inflate_mm, band_cells=band_cells, progress=progress
+        )
+        k = write_ros_map_bands(
+            grid, kbands, Path(f"{stem}_keepout.yaml"), image_format=image_format
+        )
         k_yaml = k.yaml
-        zones = sum(1 for o in m.objects if o.type in ("ForbiddenArea", "ForbiddenLine")
-                    and o.from_to is not None)
+        zones = sum(
+            1
+            for o in m.objects
+            if o.type in ("ForbiddenArea", "ForbiddenLine") and o.from_to is not None
+        )
         fields.update(keepout_yaml=k.yaml, keepout_image=k.image, keepout_zones=zones)
     mult = 0.01
     if speed:
         zs = speed_zones(m, param=speed_param)
-        sbands, mult = speed_bands(m, grid, multiplier=speed_multiplier, zones=zs,
-                                   band_cells=band_cells, progress=progress)
-        s = write_ros_map_bands(grid, sbands, Path(f"{stem}_speed.yaml"), mode="raw",
-                                image_format=image_format)
+        sbands, mult = speed_bands(
+            m, grid, multiplier=speed_multiplier, zones=zs, band_cells=band_cells, progress=progress
+        )
+        s = write_ros_map_bands(
+            grid, sbands, Path(f"{stem}_speed.yaml"), mode="raw", image_format=image_format
+        )
         s_yaml = s.yaml
-        fields.update(speed_yaml=s.yaml, speed_image=s.image, speed_zones=len(zs),
-                      speed_multiplier=mult)
+        fields.update(
+            speed_yaml=s.yaml, speed_image=s.image, speed_zones=len(zs), speed_multiplier=mult
+        )
     params = Path(f"{stem}_filters.yaml")
     source = m.provenance.source if m.provenance else ""
-    atomic_write(params, filter_params_text(k_yaml, s_yaml, speed_multiplier=mult,
-                                            source=os.path.basename(source)).encode("utf-8"))
+    atomic_write(
+        params,
+        filter_params_text(
+            k_yaml, s_yaml, speed_multiplier=mult, source=os.path.basename(source)
+        ).encode("utf-8"),
+    )
     return FilterFiles(params=params, **fields)  # type: ignore[arg-type]
-

@@ -139,8 +139,11 @@ def _pnm_header(head: bytes, src: str) -> _PnmHeader:
             raise RosMapError("truncated or overlong PNM header", source=src)
         tok = m.group(1)
         if not tok.isdigit() or len(tok.lstrip(b"0")) > 9:
-            raise RosMapError(f"bad PNM header field {tok[:20]!r} (a size or maxval is a "
-                              "number below 1,000,000,000)", source=src)
+            raise RosMapError(
+                f"bad PNM header field {tok[:20]!r} (a size or maxval is a "
+                "number below 1,000,000,000)",
+                source=src,
+            )
         fields.append(tok)
         pos = m.end()
     w, h = int(fields[0]), int(fields[1])
@@ -150,7 +153,7 @@ def _pnm_header(head: bytes, src: str) -> _PnmHeader:
     if w > MAX_WIDTH:
         raise RosMapError(f"image is {w} pixels wide; mapkit reads up to {MAX_WIDTH}", source=src)
     if magic in (b"P4", b"P5", b"P6"):
-        if pos >= len(head) or not head[pos:pos + 1].isspace():
+        if pos >= len(head) or not head[pos : pos + 1].isspace():
             raise RosMapError("truncated PNM header (no whitespace before the data)", source=src)
         pos += 1  # the single whitespace after the last field
     return _PnmHeader(magic, w, h, maxval, pos)
@@ -178,7 +181,7 @@ def _ascii_samples(fh: IO[bytes], count: int, maxval: int, src: str) -> NDArray[
                 raise RosMapError("bad ASCII PNM data (a token or comment over 1 MiB)", source=src)
         else:
             carry = b""
-        toks = re.sub(rb"#[^\n\r]*", b" ", data).split()[:count - got]
+        toks = re.sub(rb"#[^\n\r]*", b" ", data).split()[: count - got]
         if toks:
             arr = np.array(toks)
             if not np.char.isdigit(arr).all():
@@ -190,9 +193,10 @@ def _ascii_samples(fh: IO[bytes], count: int, maxval: int, src: str) -> NDArray[
                     raise RosMapError(f"ASCII PNM sample above maxval {maxval}", source=src)
             vals = arr.astype(np.int64)
             if (vals > maxval).any():
-                raise RosMapError(f"ASCII PNM sample {int(vals.max())} above maxval {maxval}",
-                                  source=src)
-            out[got:got + len(vals)] = vals
+                raise RosMapError(
+                    f"ASCII PNM sample {int(vals.max())} above maxval {maxval}", source=src
+                )
+            out[got : got + len(vals)] = vals
             got += len(vals)
         if not chunk:
             break
@@ -213,7 +217,7 @@ def _decode_ascii_pnm(fh: IO[bytes], hd: _PnmHeader, src: str) -> _Image:
                 break
             body = re.sub(rb"#[^\n\r]*", b" ", chunk)  # comments cut at a chunk end: see below
             bits = np.frombuffer(re.sub(rb"[^01]", b"", body), np.uint8) - ord("0")
-            digits.append(bits[:count - got])
+            digits.append(bits[: count - got])
             got += len(digits[-1])
         if got < count:
             raise RosMapError("image data truncated", source=src)
@@ -221,8 +225,13 @@ def _decode_ascii_pnm(fh: IO[bytes], hd: _PnmHeader, src: str) -> _Image:
     else:
         arr = _ascii_samples(fh, count, hd.maxval, src)
     bilevel = "pbm" if hd.magic == b"P1" else None
-    return _Image(arr.reshape(hd.height, hd.width, hd.channels), False,
-                  255 if bilevel else hd.maxval, bilevel=bilevel, pnm=True)
+    return _Image(
+        arr.reshape(hd.height, hd.width, hd.channels),
+        False,
+        255 if bilevel else hd.maxval,
+        bilevel=bilevel,
+        pnm=True,
+    )
 
 
 def _binary_rows(fh: IO[bytes], hd: _PnmHeader, top: int, bottom: int, src: str) -> _Image:
@@ -230,11 +239,12 @@ def _binary_rows(fh: IO[bytes], hd: _PnmHeader, top: int, bottom: int, src: str)
     fh.seek(hd.offset + top * hd.stride)
     buf = fh.read(n * hd.stride)
     if len(buf) < n * hd.stride:
-        raise RosMapError(f"image data truncated (rows {top}..{bottom - 1} of {hd.height})",
-                          source=src)
+        raise RosMapError(
+            f"image data truncated (rows {top}..{bottom - 1} of {hd.height})", source=src
+        )
     if hd.magic == b"P4":
         packed = np.frombuffer(buf, np.uint8).reshape(n, hd.stride)
-        arr: NDArray[Any] = np.unpackbits(packed, axis=1)[:, :hd.width].astype(np.uint8)
+        arr: NDArray[Any] = np.unpackbits(packed, axis=1)[:, : hd.width].astype(np.uint8)
         return _Image(arr[..., None], False, 255, bilevel="pbm", pnm=True)
     if hd.maxval > 255:
         arr = np.frombuffer(buf, dtype=">u2").astype(np.uint16)
@@ -302,8 +312,9 @@ def _check_png_chunks(fh: IO[bytes], src: str) -> None:
             left -= len(block)
         tail = fh.read(4)
         if len(tail) < 4 or struct.unpack(">I", tail)[0] != crc:
-            raise RosMapError(f"PNG chunk {kind.decode('latin-1')!r} has a bad CRC (corrupt file)",
-                              source=src)
+            raise RosMapError(
+                f"PNG chunk {kind.decode('latin-1')!r} has a bad CRC (corrupt file)", source=src
+            )
         if kind == b"IHDR" and len(first) == 13:
             color_type = first[9]
         elif kind == b"PLTE":
@@ -318,8 +329,9 @@ def _decode_pillow(fh: IO[bytes], src: str) -> _Image:
     try:
         from PIL import Image
     except ImportError as err:  # pragma: no cover - Pillow comes with matplotlib
-        raise RosMapError("reading this image format needs Pillow (pip install pillow)",
-                          source=src) from err
+        raise RosMapError(
+            "reading this image format needs Pillow (pip install pillow)", source=src
+        ) from err
     if fh.read(len(_PNG_SIGNATURE)) == _PNG_SIGNATURE:
         _check_png_chunks(fh, src)
     fh.seek(0)
@@ -330,7 +342,8 @@ def _decode_pillow(fh: IO[bytes], src: str) -> _Image:
                 raise RosMapError(
                     f"image is {w} x {h} pixels; mapkit decodes up to {MAX_DECODED_PIXELS:,} "
                     "pixels of this format (binary PGM, P5, of any size is read in bands)",
-                    source=src)
+                    source=src,
+                )
             im.load()
             return _from_pillow(im)
     except RosMapError:
@@ -357,8 +370,17 @@ class ImageSource:
         streamed: Rows are read from the file on demand (binary PNM) rather than decoded whole.
     """
 
-    def __init__(self, path: Path, width: int, height: int, maxval: int, *, pnm: bool,
-                 header: _PnmHeader | None = None, image: _Image | None = None) -> None:
+    def __init__(
+        self,
+        path: Path,
+        width: int,
+        height: int,
+        maxval: int,
+        *,
+        pnm: bool,
+        header: _PnmHeader | None = None,
+        image: _Image | None = None,
+    ) -> None:
         self.path, self.width, self.height, self.maxval = path, width, height, maxval
         self.pnm = pnm
         self._header, self._image = header, image
@@ -395,15 +417,20 @@ def open_image(path: Path | str) -> ImageSource:
                     size = os.fstat(fh.fileno()).st_size
                     need = hd.offset + hd.height * hd.stride
                     if size < need:
-                        raise RosMapError(f"image data truncated: {hd.width}x{hd.height} needs "
-                                          f"{need:,} bytes, the file has {size:,}", source=src)
+                        raise RosMapError(
+                            f"image data truncated: {hd.width}x{hd.height} needs "
+                            f"{need:,} bytes, the file has {size:,}",
+                            source=src,
+                        )
                     maxval = 255 if hd.magic == b"P4" else hd.maxval
                     return ImageSource(p, hd.width, hd.height, maxval, pnm=True, header=hd)
                 if hd.width * hd.height > MAX_DECODED_PIXELS:
                     raise RosMapError(
                         f"ASCII PNM image is {hd.width} x {hd.height} pixels; mapkit decodes up "
                         f"to {MAX_DECODED_PIXELS:,} (convert to binary PGM, P5, which is read in "
-                        "bands)", source=src)
+                        "bands)",
+                        source=src,
+                    )
                 img = _decode_ascii_pnm(fh, hd, src)
             else:
                 fh.seek(0)

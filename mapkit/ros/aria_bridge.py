@@ -14,7 +14,7 @@ import logging
 import os
 import shutil
 import tempfile
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from typing import Any
 
 from mapkit._atomic import atomic_write
@@ -22,15 +22,39 @@ from mapkit.arnet import MapChange, Robot
 from mapkit.ros.map_server import MapServer
 from mapkit.ros.node import rospy, start_node, stop_on_signals
 
-__all__ = ["run_aria_bridge"]
+__all__ = ["robot_maps", "run_aria_bridge"]
 
 log = logging.getLogger(__name__)
 
 
-def run_aria_bridge(robot: Robot, *, resolution: float = 0.05, frame_id: str = "map",
-                    node_name: str = "mapkit_aria_bridge",
-                    on_change: Callable[[MapServer, MapChange], None] | None = None,
-                    **raster: Any) -> int:
+def robot_maps(
+    robot: Robot, stop: Callable[[], bool], tick: float = 0.5
+) -> Iterator[tuple[str, MapChange]]:
+    """The robot's active map now and after each change, each saved as a file to serve.
+
+    Yields ``(path, change)``: ``path`` is ``change.data`` written atomically into a private
+    folder under the map's own name (removed when the generator ends). Shared by the ROS 1
+    and ROS 2 bridges.
+    """
+    workdir = tempfile.mkdtemp(prefix="mapkit-aria-bridge-")
+    try:
+        for change in robot.watch(stop=stop, tick=tick):
+            path = os.path.join(workdir, os.path.basename(change.name) or "robot.map")
+            atomic_write(path, change.data)
+            yield path, change
+    finally:
+        shutil.rmtree(workdir, ignore_errors=True)
+
+
+def run_aria_bridge(
+    robot: Robot,
+    *,
+    resolution: float = 0.05,
+    frame_id: str = "map",
+    node_name: str = "mapkit_aria_bridge",
+    on_change: Callable[[MapServer, MapChange], None] | None = None,
+    **raster: Any,
+) -> int:
     """Serve ``robot``'s active map on ROS until Ctrl-C/SIGTERM; the number of maps served.
 
     Args:
@@ -50,13 +74,10 @@ def run_aria_bridge(robot: Robot, *, resolution: float = 0.05, frame_id: str = "
     start_node(node_name, anonymous=False)
     stop_on_signals()
     rp = rospy()
-    workdir = tempfile.mkdtemp(prefix="mapkit-aria-bridge-")
     server: MapServer | None = None
     served = 0
     try:
-        for change in robot.watch(stop=rp.is_shutdown, tick=0.5):
-            path = os.path.join(workdir, os.path.basename(change.name) or "robot.map")
-            atomic_write(path, change.data)
+        for path, change in robot_maps(robot, rp.is_shutdown):
             if server is None:
                 server = MapServer(path, resolution=resolution, frame_id=frame_id, **raster)
                 server.start(change_map=False)  # the robot decides which map is active
@@ -71,5 +92,4 @@ def run_aria_bridge(robot: Robot, *, resolution: float = 0.05, frame_id: str = "
     finally:
         if server is not None:
             server.stop()
-        shutil.rmtree(workdir, ignore_errors=True)
     return served

@@ -74,7 +74,6 @@ LOAD_INVALID_METADATA = 3
 LOAD_UNDEFINED = 255
 
 
-
 class MapLoadError(MapkitError):
     """A map could not be loaded for serving; ``code`` is the ``nav_msgs/LoadMap`` result."""
 
@@ -177,7 +176,9 @@ def check_ros1_size(width: int, height: int, source: str = "") -> None:
             f"nav_msgs/OccupancyGrid carries one byte a cell, and every roscpp node (rviz, "
             f"move_base, amcl) drops messages over {ROS1_MAX_MESSAGE_BYTES:,} bytes, so at most "
             f"{ROS1_MAX_CELLS:,} cells; use a coarser --resolution (the files `mapkit rasterize` "
-            f"writes have no such limit)", LOAD_INVALID_DATA)
+            f"writes have no such limit)",
+            LOAD_INVALID_DATA,
+        )
 
 
 def _keepout(m: MapData, grid: OccupancyGrid) -> OccupancyGrid:
@@ -186,7 +187,7 @@ def _keepout(m: MapData, grid: OccupancyGrid) -> OccupancyGrid:
 
     data = np.empty((grid.height, grid.width), dtype=np.int8)
     for r0, band in keepout_bands(m, grid):
-        data[r0:r0 + len(band)] = band
+        data[r0 : r0 + len(band)] = band
     data.flags.writeable = False
     return OccupancyGrid(data, grid.resolution, grid.origin)
 
@@ -207,8 +208,9 @@ def _image_size(path: Path) -> tuple[int, int] | None:
     return (int(found.group(1)), int(found.group(2))) if found else None
 
 
-def served_map(path: str | os.PathLike[str], resolution: float = 0.05, *, progress: Any = None,
-               **raster: Any) -> ServedMap:
+def served_map(
+    path: str | os.PathLike[str], resolution: float = 0.05, *, progress: Any = None, **raster: Any
+) -> ServedMap:
     """Load a file for serving: an ARIA ``.map`` (rasterised) or a map_server YAML.
 
     Args:
@@ -233,7 +235,7 @@ def served_map(path: str | os.PathLike[str], resolution: float = 0.05, *, progre
 
     text = os.fspath(path)
     if text.startswith("file://"):
-        text = text[len("file://"):]
+        text = text[len("file://") :]
     p = Path(text)
     try:
         if not stat.S_ISREG(os.stat(p).st_mode) and not p.is_dir():  # a pipe would block
@@ -253,8 +255,10 @@ def served_map(path: str | os.PathLike[str], resolution: float = 0.05, *, progre
         grid, yaw = _read_yaml_grid(p, progress)
         return ServedMap(str(p), grid, None, (), (), (), sha256, md5, yaw)
     if not (math.isfinite(resolution) and resolution > 0):
-        raise MapLoadError(f"resolution must be a positive number of metres, got {resolution!r}",
-                           LOAD_INVALID_METADATA)
+        raise MapLoadError(
+            f"resolution must be a positive number of metres, got {resolution!r}",
+            LOAD_INVALID_METADATA,
+        )
     try:
         m = loads(data, source=str(p))
     except FormatError as err:
@@ -264,8 +268,11 @@ def served_map(path: str | os.PathLike[str], resolution: float = 0.05, *, progre
     except (MapkitError, ValueError) as err:
         raise MapLoadError(f"{p}: {err}", LOAD_INVALID_METADATA) from err
     check_ros1_size(bands.grid.width, bands.grid.height, str(p))
-    grid = bands.to_grid(None if progress is None else
-                         lambda rows: progress(rows, bands.work_rows + bands.grid.height))
+    grid = bands.to_grid(
+        None
+        if progress is None
+        else lambda rows: progress(rows, bands.work_rows + bands.grid.height)
+    )
     goals, homes, docks = map_poses(m)
     keepout = _keepout(m, grid)
     if progress is not None:
@@ -289,8 +296,11 @@ def _read_yaml_grid(p: Path, progress: Any = None) -> tuple[OccupancyGrid, float
         return grid, info.origin[2]
     except FormatError as err:
         # A YAML that map_server would not accept is bad metadata; a bad image is bad data.
-        code = LOAD_INVALID_METADATA if str(err.source).lower().endswith((".yaml", ".yml")) \
+        code = (
+            LOAD_INVALID_METADATA
+            if str(err.source).lower().endswith((".yaml", ".yml"))
             else LOAD_INVALID_DATA
+        )
         raise MapLoadError(str(err), code) from err
 
 
@@ -343,7 +353,7 @@ def _serialize_packed(msg: Any, grid_msg: Any, tail: int, parent: Any, buff: Any
     buff.write(raw[:cut])
     buff.write(struct.pack("<I", cells.nbytes))
     buff.write(cells.data)
-    buff.write(raw[cut + 4:])
+    buff.write(raw[cut + 4 :])
 
 
 _PACKED: dict[str, Any] = {}
@@ -388,8 +398,13 @@ def packed_response(kind: str, grid_msg: Any, **fields: Any) -> Any:
     return cls(map=grid_msg, **fields)
 
 
-def grid_message(grid: OccupancyGrid, frame_id: str = "map", stamp: Any = None,
-                 load_time: Any = None, yaw: float = 0.0) -> Any:
+def grid_message(
+    grid: OccupancyGrid,
+    frame_id: str = "map",
+    stamp: Any = None,
+    load_time: Any = None,
+    yaw: float = 0.0,
+) -> Any:
     """A ``nav_msgs/OccupancyGrid`` for a grid: row-major from the southern row, int8 cells.
 
     The cells stay in the grid's numpy array (``msg.mapkit_cells``; ``msg.data`` is empty) and

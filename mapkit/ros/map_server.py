@@ -79,8 +79,15 @@ class MapServer:
         MapLoadError: When the first map cannot be loaded (nothing is advertised then).
     """
 
-    def __init__(self, path: str, *, resolution: float = 0.05, frame_id: str = "map",
-                 progress: Any = None, **raster: Any) -> None:
+    def __init__(
+        self,
+        path: str,
+        *,
+        resolution: float = 0.05,
+        frame_id: str = "map",
+        progress: Any = None,
+        **raster: Any,
+    ) -> None:
         self.resolution = resolution
         self.frame_id = frame_id
         self.raster = raster
@@ -102,9 +109,15 @@ class MapServer:
         rp = rospy()
         nav, gm = ros_import("nav_msgs.msg"), ros_import("geometry_msgs.msg")
         std, srv = ros_import("std_msgs.msg"), ros_import("nav_msgs.srv")
-        latched = {"map": nav.OccupancyGrid, "map_metadata": nav.MapMetaData,
-                   "keepout_mask": nav.OccupancyGrid, "map_goals": gm.PoseArray,
-                   "map_homes": gm.PoseArray, "map_docks": gm.PoseArray, "map_info": std.String}
+        latched = {
+            "map": nav.OccupancyGrid,
+            "map_metadata": nav.MapMetaData,
+            "keepout_mask": nav.OccupancyGrid,
+            "map_goals": gm.PoseArray,
+            "map_homes": gm.PoseArray,
+            "map_docks": gm.PoseArray,
+            "map_info": std.String,
+        }
         for name, cls in latched.items():
             self._pubs[name] = rp.Publisher(name, cls, latch=True, queue_size=1)
         self._services = [rp.Service("static_map", srv.GetMap, self._on_static_map)]
@@ -172,9 +185,16 @@ class MapServer:
             return packed_response("LoadMap", self._grid_msg, result=LOAD_SUCCESS)
 
 
-def run_map_server(path: str, *, resolution: float = 0.05, frame_id: str = "map",
-                   node_name: str = "mapkit_map_server", on_ready: Any = None,
-                   progress: Any = None, **raster: Any) -> MapServer:
+def run_map_server(
+    path: str,
+    *,
+    resolution: float = 0.05,
+    frame_id: str = "map",
+    node_name: str = "mapkit_map_server",
+    on_ready: Any = None,
+    progress: Any = None,
+    **raster: Any,
+) -> MapServer:
     """Start a node, serve ``path`` until Ctrl-C or SIGTERM, and return the server.
 
     Args:
@@ -192,8 +212,7 @@ def run_map_server(path: str, *, resolution: float = 0.05, frame_id: str = "map"
     """
     from mapkit.ros.node import spin, start_node
 
-    server = MapServer(path, resolution=resolution, frame_id=frame_id, progress=progress,
-                       **raster)
+    server = MapServer(path, resolution=resolution, frame_id=frame_id, progress=progress, **raster)
     start_node(node_name, anonymous=False)
     server.start()
     if on_ready is not None:

@@ -17,8 +17,16 @@ from typing import Any
 
 from mapkit.ros.errors import ROS_APT_PACKAGES, RosError, RosUnavailableError
 
-__all__ = ["master_uri", "ros_import", "rospy", "shutdown", "spin", "start_node", "stop_on_signals",
-           "wait_until"]
+__all__ = [
+    "master_uri",
+    "ros_import",
+    "rospy",
+    "shutdown",
+    "spin",
+    "start_node",
+    "stop_on_signals",
+    "wait_until",
+]
 
 
 def ros_import(name: str) -> ModuleType:

@@ -45,8 +45,15 @@ from typing import Any
 from mapkit.ros.errors import RosError
 from mapkit.ros.node import ros_import, rospy, wait_until
 
-__all__ = ["DEFAULT_CHANNEL", "DEFAULT_WINDOW", "FAULTS_ENV", "Faults", "RosLink", "channel_topics",
-           "check_channel"]
+__all__ = [
+    "DEFAULT_CHANNEL",
+    "DEFAULT_WINDOW",
+    "FAULTS_ENV",
+    "Faults",
+    "RosLink",
+    "channel_topics",
+    "check_channel",
+]
 
 DEFAULT_CHANNEL = "maps"
 #: Frames in flight per session (32 x 256 KiB: 8 MiB), and what queues and buffers are sized for.
@@ -70,8 +77,10 @@ def check_channel(channel: str) -> str:
         mapkit.ros.errors.RosError: bad channel '2maps': use letters, digits and _ ...
     """
     if not _CHANNEL.match(channel):
-        raise RosError(f"bad channel {channel!r}: use letters, digits and _ (starting with a "
-                       "letter), parts separated by /")
+        raise RosError(
+            f"bad channel {channel!r}: use letters, digits and _ (starting with a "
+            "letter), parts separated by /"
+        )
     return channel
 
 
@@ -106,7 +115,8 @@ class Faults:
     only_data: bool = False
     stall_after: int = 0
     counts: dict[str, int] = field(
-        default_factory=lambda: {"dropped": 0, "duplicated": 0, "corrupted": 0})
+        default_factory=lambda: {"dropped": 0, "duplicated": 0, "corrupted": 0}
+    )
 
     def __post_init__(self) -> None:
         self._rng = random.Random(self.seed)
@@ -136,8 +146,10 @@ class Faults:
                 else:
                     raise ValueError(key)
             except ValueError as err:
-                raise RosError(f"{FAULTS_ENV}: bad entry {part!r} (keys: drop, dup, corrupt, seed, "
-                               "only_data, stall_after)") from err
+                raise RosError(
+                    f"{FAULTS_ENV}: bad entry {part!r} (keys: drop, dup, corrupt, seed, "
+                    "only_data, stall_after)"
+                ) from err
         kw["only_data"] = bool(kw.get("only_data", 0))
         return cls(**kw)
 
@@ -159,7 +171,7 @@ class Faults:
             if self.corrupt and rng.random() < self.corrupt and data:
                 self.counts["corrupted"] += 1
                 pos = rng.randrange(len(data))
-                data = data[:pos] + bytes([data[pos] ^ (1 << rng.randrange(8))]) + data[pos + 1:]
+                data = data[:pos] + bytes([data[pos] ^ (1 << rng.randrange(8))]) + data[pos + 1 :]
             if rng.random() < self.dup:
                 self.counts["duplicated"] += 1
                 return [data, data]
@@ -186,9 +198,16 @@ class RosLink:
     The node must be started (:func:`mapkit.ros.node.start_node`).
     """
 
-    def __init__(self, channel: str = DEFAULT_CHANNEL, *, robot: bool, window: int = DEFAULT_WINDOW,
-                 chunk_size: int = 256 * 1024, faults: Faults | None = None,
-                 on_announce: Callable[[dict[str, Any]], None] | None = None) -> None:
+    def __init__(
+        self,
+        channel: str = DEFAULT_CHANNEL,
+        *,
+        robot: bool,
+        window: int = DEFAULT_WINDOW,
+        chunk_size: int = 256 * 1024,
+        faults: Faults | None = None,
+        on_announce: Callable[[dict[str, Any]], None] | None = None,
+    ) -> None:
         rp = rospy()
         std = ros_import("std_msgs.msg")
         self._std = std
@@ -201,15 +220,26 @@ class RosLink:
         self.stats = {"sent": 0, "bytes_out": 0, "received": 0, "bytes_in": 0, "not_for_us": 0}
         buff = max(65536, 2 * window * (chunk_size + 256))
         out_topic, in_topic = ("r2c", "c2r") if robot else ("c2r", "r2c")
-        self._pub = rp.Publisher(self.topics[out_topic], std.UInt8MultiArray,
-                                 queue_size=4 * window + 16, tcp_nodelay=True)
-        self._sub = rp.Subscriber(self.topics[in_topic], std.UInt8MultiArray, self._on_message,
-                                  queue_size=None, buff_size=buff, tcp_nodelay=True)
+        self._pub = rp.Publisher(
+            self.topics[out_topic],
+            std.UInt8MultiArray,
+            queue_size=4 * window + 16,
+            tcp_nodelay=True,
+        )
+        self._sub = rp.Subscriber(
+            self.topics[in_topic],
+            std.UInt8MultiArray,
+            self._on_message,
+            queue_size=None,
+            buff_size=buff,
+            tcp_nodelay=True,
+        )
         self._announce_pub = None
         self._announce_sub = None
         if robot:
-            self._announce_pub = rp.Publisher(self.topics["announce"], std.String, latch=True,
-                                              queue_size=2)
+            self._announce_pub = rp.Publisher(
+                self.topics["announce"], std.String, latch=True, queue_size=2
+            )
         elif on_announce is not None:
             from mapkit.transfer.wirejson import WireJSONError, decode_object
 
@@ -220,8 +250,9 @@ class RosLink:
                     return
                 on_announce(doc)
 
-            self._announce_sub = rp.Subscriber(self.topics["announce"], std.String, _on_announce,
-                                               queue_size=None, tcp_nodelay=True)
+            self._announce_sub = rp.Subscriber(
+                self.topics["announce"], std.String, _on_announce, queue_size=None, tcp_nodelay=True
+            )
 
     # -- sending -------------------------------------------------------------------------------
 
@@ -252,7 +283,7 @@ class RosLink:
             self.stats["not_for_us"] += 1
             return
         data = msg.data if isinstance(msg.data, bytes) else bytes(msg.data)
-        for item in (self.faults.apply(data) if self.faults is not None else [data]):
+        for item in self.faults.apply(data) if self.faults is not None else [data]:
             self.stats["received"] += 1
             self.stats["bytes_in"] += len(item)
             self.inbox.put((src, item))
@@ -281,4 +312,3 @@ class RosLink:
         for t in (self._pub, self._sub, self._announce_pub, self._announce_sub):
             if t is not None:
                 t.unregister()
-

@@ -57,8 +57,14 @@ class Admission:
         ['y']
     """
 
-    def __init__(self, *, max_sessions: int = 64, max_pending: int = 32, per_address: int = 8,
-                 handshake_timeout: float = 5.0) -> None:
+    def __init__(
+        self,
+        *,
+        max_sessions: int = 64,
+        max_pending: int = 32,
+        per_address: int = 8,
+        handshake_timeout: float = 5.0,
+    ) -> None:
         if min(max_sessions, max_pending, per_address) < 1:
             raise ValueError("connection limits must be at least 1")
         self.max_sessions = max_sessions
@@ -74,8 +80,11 @@ class Admission:
     def pending(self, address: str | None = None) -> int:
         """Connections in their handshake (from ``address``, or in all)."""
         with self._lock:
-            return sum(1 for e in self._entries.values() if not e.authenticated
-                       and (address is None or e.address == address))
+            return sum(
+                1
+                for e in self._entries.values()
+                if not e.authenticated and (address is None or e.address == address)
+            )
 
     def sessions(self) -> int:
         """Authenticated sessions."""
@@ -83,8 +92,13 @@ class Admission:
             return sum(1 for e in self._entries.values() if e.authenticated)
 
     # transitions ----------------------------------------------------------------------------
-    def admit(self, key: Hashable, address: str, now: float,
-              waiting: Callable[[Hashable], bool] | None = None) -> list[Hashable]:
+    def admit(
+        self,
+        key: Hashable,
+        address: str,
+        now: float,
+        waiting: Callable[[Hashable], bool] | None = None,
+    ) -> list[Hashable]:
         """A new connection ``key`` from ``address``; returns the pending connections to close
         to make room for it (it is always admitted).
 
@@ -98,29 +112,34 @@ class Admission:
         """
         with self._lock:
             evict: list[Hashable] = []
-            mine = [k for k, e in self._entries.items()
-                    if not e.authenticated and e.address == address]
+            mine = [
+                k for k, e in self._entries.items() if not e.authenticated and e.address == address
+            ]
             if len(mine) >= self.per_address:
                 evict.append(self._victim(mine, waiting))
-            pending = [k for k, e in self._entries.items()
-                       if not e.authenticated and k not in evict]
+            pending = [
+                k for k, e in self._entries.items() if not e.authenticated and k not in evict
+            ]
             if len(pending) >= self.max_pending:
                 counts: dict[str, int] = {}
                 for k in pending:
                     counts[self._entries[k].address] = counts.get(self._entries[k].address, 0) + 1
                 top = max(counts.values())
-                evict.append(self._victim([k for k in pending
-                                           if counts[self._entries[k].address] == top], waiting))
+                evict.append(
+                    self._victim(
+                        [k for k in pending if counts[self._entries[k].address] == top], waiting
+                    )
+                )
             for k in evict:
                 del self._entries[k]
             self.evicted += len(evict)
             self._entries[key] = _Entry(address, now, now + self.handshake_timeout)
             return evict
 
-    def _victim(self, keys: list[Hashable],
-                waiting: Callable[[Hashable], bool] | None) -> Hashable:
+    def _victim(self, keys: list[Hashable], waiting: Callable[[Hashable], bool] | None) -> Hashable:
         """The least useful of ``keys``: silent, then with bytes waiting, then with a complete
         frame; the oldest first."""
+
         def rank(k: Hashable) -> tuple[int, float]:
             e = self._entries[k]
             level = 2 if e.progressed else 1 if waiting is not None and waiting(k) else 0
@@ -156,8 +175,9 @@ class Admission:
     def expired(self, now: float) -> list[Hashable]:
         """Pending connections past their handshake deadline (forgotten here; close them)."""
         with self._lock:
-            late = [k for k, e in self._entries.items()
-                    if not e.authenticated and now >= e.deadline]
+            late = [
+                k for k, e in self._entries.items() if not e.authenticated and now >= e.deadline
+            ]
             for k in late:
                 del self._entries[k]
             self.timed_out += len(late)
@@ -166,5 +186,6 @@ class Admission:
     def next_deadline(self) -> float | None:
         """The earliest handshake deadline of a pending connection."""
         with self._lock:
-            return min((e.deadline for e in self._entries.values() if not e.authenticated),
-                       default=None)
+            return min(
+                (e.deadline for e in self._entries.values() if not e.authenticated), default=None
+            )

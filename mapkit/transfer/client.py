@@ -18,6 +18,7 @@ Examples:
 
 from __future__ import annotations
 
+import contextlib
 import os
 import secrets
 import socket
@@ -53,8 +54,16 @@ from mapkit.transfer.store import (
 )
 from mapkit.transfer.tcp import FrameLink, connect, run
 
-__all__ = ["Client", "Progress", "fetch_file", "list_maps", "load_map", "offer_for_file",
-           "receive_files", "send_file"]
+__all__ = [
+    "Client",
+    "Progress",
+    "fetch_file",
+    "list_maps",
+    "load_map",
+    "offer_for_file",
+    "receive_files",
+    "send_file",
+]
 
 #: ``progress(done_bytes, total_bytes)``, called a few times a second during a transfer.
 Progress = Callable[[int, int], None]
@@ -71,10 +80,14 @@ _DIGESTS_MAX = 64
 _DIGESTS_LOCK = threading.Lock()
 
 
-def offer_for_file(path: str | os.PathLike[str], *, name: str | None = None,
-                   chunk_size: int = DEFAULT_CHUNK_SIZE, cached: bool = True,
-                   on_open: Callable[[int, os.stat_result], None] | None = None,
-                   ) -> tuple[int, Offer]:
+def offer_for_file(
+    path: str | os.PathLike[str],
+    *,
+    name: str | None = None,
+    chunk_size: int = DEFAULT_CHUNK_SIZE,
+    cached: bool = True,
+    on_open: Callable[[int, os.stat_result], None] | None = None,
+) -> tuple[int, Offer]:
     """Open a local file and describe it: ``(fd, offer)`` (SHA-256 always, MD5 for maps).
 
     Args:
@@ -123,8 +136,9 @@ def _attr(obj: Any, name: str) -> Callable[[], int]:
 
 
 class _Ticker:
-    def __init__(self, progress: Progress | None, total: int, get: Callable[[], int],
-                 interval: float) -> None:
+    def __init__(
+        self, progress: Progress | None, total: int, get: Callable[[], int], interval: float
+    ) -> None:
         self.progress, self.total, self.get, self.interval = progress, total, get, interval
         self._last = 0.0
 
@@ -163,14 +177,26 @@ class Client:
         Rejected: The robot refused the session (e.g. wrong secret).
     """
 
-    def __init__(self, host: str, port: int = DEFAULT_PORT, *, secret: bytes | None = None,
-                 insecure: bool = False, tls: ssl.SSLContext | None = None, timeout: float = 10.0,
-                 rto: float = 2.0, chunk_size: int = TCP_CHUNK_SIZE, window: int = 16,
-                 progress_interval: float = 0.1,
-                 auth_methods: Sequence[str] = AUTH_METHODS) -> None:
+    def __init__(
+        self,
+        host: str,
+        port: int = DEFAULT_PORT,
+        *,
+        secret: bytes | None = None,
+        insecure: bool = False,
+        tls: ssl.SSLContext | None = None,
+        timeout: float = 10.0,
+        rto: float = 2.0,
+        chunk_size: int = TCP_CHUNK_SIZE,
+        window: int = 16,
+        progress_interval: float = 0.1,
+        auth_methods: Sequence[str] = AUTH_METHODS,
+    ) -> None:
         if secret is None and not insecure:
-            raise LocalTransferError("no shared secret: give --secret-file or MAPKIT_SECRET, or "
-                                     "--insecure if the robot runs without one")
+            raise LocalTransferError(
+                "no shared secret: give --secret-file or MAPKIT_SECRET, or "
+                "--insecure if the robot runs without one"
+            )
         self.host, self.port = host, port
         self.timeout, self.rto, self.window = timeout, rto, window
         self.chunk_size = chunk_size
@@ -179,8 +205,14 @@ class Client:
         sock = connect(host, port, timeout=timeout, tls=tls)
         session = int.from_bytes(secrets.token_bytes(8), "big")
         self.link = FrameLink(sock, Channel(initiator=True, session=session), peer=f"{host}:{port}")
-        hs = ClientHandshake(self.link.channel, secret, peer=socket.gethostname(), rto=rto,
-                             idle_timeout=timeout, auth_methods=auth_methods)
+        hs = ClientHandshake(
+            self.link.channel,
+            secret,
+            peer=socket.gethostname(),
+            rto=rto,
+            idle_timeout=timeout,
+            auth_methods=auth_methods,
+        )
         try:
             run(self.link, hs)
         except BaseException:
@@ -196,16 +228,29 @@ class Client:
         self._ref += 1
         return self._ref
 
-    def _request(self, type: FrameType, payload: dict[str, Any], answers: tuple[FrameType, ...]) -> Any:
-        req = Request(type, payload, ref=self._next_ref(), answers=answers, rto=self.rto,
-                      idle_timeout=max(self.timeout, 60.0))
+    def _request(
+        self, type: FrameType, payload: dict[str, Any], answers: tuple[FrameType, ...]
+    ) -> Any:
+        req = Request(
+            type,
+            payload,
+            ref=self._next_ref(),
+            answers=answers,
+            rto=self.rto,
+            idle_timeout=max(self.timeout, 60.0),
+        )
         run(self.link, req)
         assert req.response is not None
         return req.response
 
     # requests ------------------------------------------------------------------------------------
-    def send(self, path: str | os.PathLike[str], *, name: str | None = None,
-             progress: Progress | None = None) -> dict[str, Any]:
+    def send(
+        self,
+        path: str | os.PathLike[str],
+        *,
+        name: str | None = None,
+        progress: Progress | None = None,
+    ) -> dict[str, Any]:
         """Push a file. Resumes a partial upload the robot kept; resends once if the file changed.
 
         Returns:
@@ -220,28 +265,43 @@ class Client:
             t0 = time.monotonic()
             readers: list[PreparedReader] = []
 
-            def prepare_ahead(fd: int, st: os.stat_result,
-                              readers: list[PreparedReader] = readers) -> None:
+            def prepare_ahead(
+                fd: int, st: os.stat_result, readers: list[PreparedReader] = readers
+            ) -> None:
                 # CRC and tag work of every chunk in a second thread, meanwhile (see PreparedReader)
-                reader = PreparedReader.for_file(fd, st.st_size, self.chunk_size,
-                                                 self.link.channel.preparer())
+                reader = PreparedReader.for_file(
+                    fd, st.st_size, self.chunk_size, self.link.channel.preparer()
+                )
                 if reader is not None:
                     readers.append(reader.start())
 
             try:
-                fd, offer = offer_for_file(path, name=name, chunk_size=self.chunk_size,
-                                           cached=attempt == 1, on_open=prepare_ahead)
+                fd, offer = offer_for_file(
+                    path,
+                    name=name,
+                    chunk_size=self.chunk_size,
+                    cached=attempt == 1,
+                    on_open=prepare_ahead,
+                )
             except BaseException:
                 for r in readers:
                     r.close()
                 raise
             try:
                 read = readers[0] if readers else chunk_reader(fd, offer)
-                tx = Sender(offer, read, ref=self._next_ref(), window=self.window, rto=self.rto,
-                            idle_timeout=max(self.timeout, 60.0))
+                tx = Sender(
+                    offer,
+                    read,
+                    ref=self._next_ref(),
+                    window=self.window,
+                    rto=self.rto,
+                    idle_timeout=max(self.timeout, 60.0),
+                )
                 if readers:
                     readers[0].skip = lambda i, tx=tx: tx.acked[i]  # a resume needs only the rest
-                tick = _Ticker(progress, offer.size, _attr(tx, "bytes_acked"), self.progress_interval)
+                tick = _Ticker(
+                    progress, offer.size, _attr(tx, "bytes_acked"), self.progress_interval
+                )
                 try:
                     run(self.link, tx, tick=tick)
                 except Rejected as err:
@@ -254,16 +314,28 @@ class Client:
                     r.close()
                 os.close(fd)
             dt = time.monotonic() - t0
-            return {**offer.json(), "host": self.host, "auth": self.auth,
-                    "chunks_sent": tx.chunks_sent,
-                    "chunks_resent": tx.chunks_resent, "chunks_skipped": tx.chunks_skipped,
-                    "chunks_distinct": len(tx.sent_indices),
-                    "seconds": round(dt, 4), "mb_per_s": round(offer.size / dt / 1e6, 2) if dt else None,
-                    "verified": tx.result}
+            return {
+                **offer.json(),
+                "host": self.host,
+                "auth": self.auth,
+                "chunks_sent": tx.chunks_sent,
+                "chunks_resent": tx.chunks_resent,
+                "chunks_skipped": tx.chunks_skipped,
+                "chunks_distinct": len(tx.sent_indices),
+                "seconds": round(dt, 4),
+                "mb_per_s": round(offer.size / dt / 1e6, 2) if dt else None,
+                "verified": tx.result,
+            }
         raise LocalTransferError("unreachable")  # pragma: no cover
 
-    def fetch(self, name: str, dest: str | os.PathLike[str], *, if_changed: bool = False,
-              progress: Progress | None = None) -> dict[str, Any]:
+    def fetch(
+        self,
+        name: str,
+        dest: str | os.PathLike[str],
+        *,
+        if_changed: bool = False,
+        progress: Progress | None = None,
+    ) -> dict[str, Any]:
         """Pull ``name`` into the file ``dest`` (atomic; resumes an interrupted pull).
 
         Args:
@@ -302,13 +374,25 @@ class Client:
             raise LocalTransferError(f"asked for {name!r}, the robot offered {offer.name!r}")
         base = {**offer.json(), "host": self.host, "path": dest}
         if resp.type == FrameType.NOT_MODIFIED:
-            return {**base, "modified": False, "chunks_received": 0, "chunks_resumed": 0,
-                    "seconds": round(time.monotonic() - t0, 4), "mb_per_s": None}
+            return {
+                **base,
+                "modified": False,
+                "chunks_received": 0,
+                "chunks_resumed": 0,
+                "seconds": round(time.monotonic() - t0, 4),
+                "mb_per_s": None,
+            }
         validate = validate_map_file if kind_of(local) == "map" and kind_of(name) == "map" else None
         store = PartialFile.open(folder, local, offer, validate=validate)
         w = d.get("window")
-        rx = Receiver(offer, ref=resp.ref, have=store.have, window=max(self.window * 4, 64),
-                      idle_timeout=max(self.timeout, 60.0), sender_window=w if isinstance(w, int) else None)
+        rx = Receiver(
+            offer,
+            ref=resp.ref,
+            have=store.have,
+            window=max(self.window * 4, 64),
+            idle_timeout=max(self.timeout, 60.0),
+            sender_window=w if isinstance(w, int) else None,
+        )
         tick = _Ticker(progress, offer.size, _attr(rx, "bytes_received"), self.progress_interval)
         ok = False
 
@@ -326,12 +410,18 @@ class Client:
             if not ok:
                 store.close(keep=True)
         dt = time.monotonic() - t0
-        return {**base, "modified": True, "chunks_received": offer.chunks - store.resumed,
-                "chunks_resumed": store.resumed, "seconds": round(dt, 4),
-                "mb_per_s": round(offer.size / dt / 1e6, 2) if dt else None}
+        return {
+            **base,
+            "modified": True,
+            "chunks_received": offer.chunks - store.resumed,
+            "chunks_resumed": store.resumed,
+            "seconds": round(dt, 4),
+            "mb_per_s": round(offer.size / dt / 1e6, 2) if dt else None,
+        }
 
     def list(self) -> dict[str, Any]:
-        """The robot's maps: ``{"maps": [{name, size, md5, sha256, mtime, kind, active}], "active", ...}``.
+        """The robot's maps:
+        ``{"maps": [{name, size, md5, sha256, mtime, kind, active}], "active", ...}``.
 
         Raises:
             Rejected: The robot does not serve listings (a ``mapkit receive`` terminal).
@@ -342,8 +432,9 @@ class Client:
             check_name(m.get("name") if isinstance(m, dict) else None, suffixes=None)
         return dict(d)
 
-    def load(self, name: str | None = None, *, md5: str | None = None,
-             rollback: bool = False) -> dict[str, Any]:
+    def load(
+        self, name: str | None = None, *, md5: str | None = None, rollback: bool = False
+    ) -> dict[str, Any]:
         """Make ``name`` the robot's active map (it checks MD5 and parses it first), or roll back.
 
         Args:
@@ -358,7 +449,9 @@ class Client:
             Rejected: Not found, MD5 mismatch, not a valid map.
         """
         if rollback:
-            return dict(self._request(FrameType.LOAD, {"rollback": True}, (FrameType.LOADED,)).json())
+            return dict(
+                self._request(FrameType.LOAD, {"rollback": True}, (FrameType.LOADED,)).json()
+            )
         if name is None:
             raise LocalTransferError("load needs a map name")
         if md5 is None:
@@ -366,17 +459,21 @@ class Client:
                 if m.get("name") == name:
                     md5 = m.get("md5")
             if md5 is None:
-                raise Rejected(int(Status.NOT_FOUND), "not_found", f"{name}: no such map on this robot",
-                               peer="robot")
-        return dict(self._request(FrameType.LOAD, {"name": name, "md5": md5}, (FrameType.LOADED,)).json())
+                raise Rejected(
+                    int(Status.NOT_FOUND),
+                    "not_found",
+                    f"{name}: no such map on this robot",
+                    peer="robot",
+                )
+        return dict(
+            self._request(FrameType.LOAD, {"name": name, "md5": md5}, (FrameType.LOADED,)).json()
+        )
 
     def close(self) -> None:
         """Say BYE and close the connection."""
         if not self.link.closed:
-            try:
+            with contextlib.suppress(TransferError):
                 self._request(FrameType.BYE, {}, (FrameType.BYE,))
-            except TransferError:
-                pass
             self.link.close()
 
     def __enter__(self) -> Client:
@@ -386,9 +483,16 @@ class Client:
         self.close()
 
 
-def send_file(path: str | os.PathLike[str], host: str, port: int = DEFAULT_PORT, *,
-              name: str | None = None, load: bool = False, progress: Progress | None = None,
-              **options: Any) -> dict[str, Any]:
+def send_file(
+    path: str | os.PathLike[str],
+    host: str,
+    port: int = DEFAULT_PORT,
+    *,
+    name: str | None = None,
+    load: bool = False,
+    progress: Progress | None = None,
+    **options: Any,
+) -> dict[str, Any]:
     """Push a file to a robot (one session); with ``load`` also make it the active map.
 
     ``options`` are :class:`Client` arguments (``secret``, ``insecure``, ``tls``, ``timeout``...).
@@ -400,9 +504,16 @@ def send_file(path: str | os.PathLike[str], host: str, port: int = DEFAULT_PORT,
         return result
 
 
-def fetch_file(host: str, name: str, dest: str | os.PathLike[str] | None = None,
-               port: int = DEFAULT_PORT, *, if_changed: bool = False,
-               progress: Progress | None = None, **options: Any) -> dict[str, Any]:
+def fetch_file(
+    host: str,
+    name: str,
+    dest: str | os.PathLike[str] | None = None,
+    port: int = DEFAULT_PORT,
+    *,
+    if_changed: bool = False,
+    progress: Progress | None = None,
+    **options: Any,
+) -> dict[str, Any]:
     """Pull a map from a robot into ``dest`` (default: ``name`` in the current folder)."""
     with Client(host, port, **options) as c:
         return c.fetch(name, dest or name, if_changed=if_changed, progress=progress)
@@ -414,17 +525,30 @@ def list_maps(host: str, port: int = DEFAULT_PORT, **options: Any) -> dict[str, 
         return c.list()
 
 
-def load_map(host: str, name: str | None, port: int = DEFAULT_PORT, *, md5: str | None = None,
-             rollback: bool = False, **options: Any) -> dict[str, Any]:
+def load_map(
+    host: str,
+    name: str | None,
+    port: int = DEFAULT_PORT,
+    *,
+    md5: str | None = None,
+    rollback: bool = False,
+    **options: Any,
+) -> dict[str, Any]:
     """Make a map active on a robot (or roll back)."""
     with Client(host, port, **options) as c:
         return c.load(name, md5=md5, rollback=rollback)
 
 
-def receive_files(folder: str | os.PathLike[str], host: str = "0.0.0.0", port: int = DEFAULT_PORT, *,
-                  count: int = 1, timeout: float | None = None,
-                  on_listening: Callable[[tuple[str, int]], None] | None = None,
-                  **options: Any) -> list[dict[str, Any]]:
+def receive_files(
+    folder: str | os.PathLike[str],
+    host: str = "0.0.0.0",
+    port: int = DEFAULT_PORT,
+    *,
+    count: int = 1,
+    timeout: float | None = None,
+    on_listening: Callable[[tuple[str, int]], None] | None = None,
+    **options: Any,
+) -> list[dict[str, Any]]:
     """Wait for peers to push files into ``folder`` (the terminal side of ``mapkit receive``).
 
     Runs a push-only :class:`~mapkit.transfer.server.MapServer` until ``count`` files arrived or
@@ -432,15 +556,18 @@ def receive_files(folder: str | os.PathLike[str], host: str = "0.0.0.0", port: i
     ``insecure``, ``tls``...).
 
     Returns:
-        One record per received file: ``{"name", "size", "sha256", "md5", "peer", "resumed", "path"}``.
+        One record per received file:
+        ``{"name", "size", "sha256", "md5", "peer", "resumed", "path"}``.
 
     Examples:
         >>> import tempfile, threading, pathlib
         >>> inbox, src = pathlib.Path(tempfile.mkdtemp()), pathlib.Path(tempfile.mkdtemp()) / "s.2d"
         >>> _ = src.write_bytes(b"laser")
         >>> def robot(addr):
-        ...     threading.Thread(target=send_file, args=(src, *addr), kwargs={"insecure": True}).start()
-        >>> [r["name"] for r in receive_files(inbox, "127.0.0.1", 0, insecure=True, on_listening=robot)]
+        ...     kw = {"insecure": True}
+        ...     threading.Thread(target=send_file, args=(src, *addr), kwargs=kw).start()
+        >>> got = receive_files(inbox, "127.0.0.1", 0, insecure=True, on_listening=robot)
+        >>> [r["name"] for r in got]
         ['s.2d']
     """
     import threading
@@ -455,7 +582,9 @@ def receive_files(folder: str | os.PathLike[str], host: str = "0.0.0.0", port: i
         if len(got) >= count:
             done.set()
 
-    with MapServer(folder, host=host, port=port, push_only=True, on_received=received, **options) as srv:
+    with MapServer(
+        folder, host=host, port=port, push_only=True, on_received=received, **options
+    ) as srv:
         if on_listening is not None:
             on_listening(srv.address)
         done.wait(timeout)

@@ -35,27 +35,39 @@ from typing import Any
 from mapkit._atomic import atomic_write, fsync_dir
 from mapkit.errors import ChecksumError, LocalTransferError, TransferError
 from mapkit.transfer.protocol import (
-    BufferPool,
     ChunkReceived,
     Offer,
     Out,
-    Prepared,
     Receiver,
     Status,
     TransferComplete,
     decode_bitmap,
     encode_bitmap,
 )
+from mapkit.transfer.reading import (
+    PREPARE_FROM as PREPARE_FROM,
+    READ_BLOCK as READ_BLOCK,
+    PreparedReader,
+    chunk_reader,
+    file_digests,
+)
 
-__all__ = ["PartialFile", "PreparedReader", "StoreChecksumError", "StoreError", "check_name",
-           "chunk_reader", "expire_partials", "file_digests", "partial_paths"]
+__all__ = [
+    "PartialFile",
+    "PreparedReader",
+    "StoreChecksumError",
+    "StoreError",
+    "check_name",
+    "chunk_reader",
+    "expire_partials",
+    "file_digests",
+    "partial_paths",
+]
 
 log = logging.getLogger(__name__)
 
 JOURNAL_VERSION = 1
-READ_BLOCK = 1 << 20
 THREADS_FROM = 8 << 20  # files from this size are written and hashed in background threads
-PREPARE_FROM = 4 << 20  # files from this size are sent with a PreparedReader
 
 # Indirections so tests can inject faults (a full disk) or watch the order of writes and
 # fsyncs without touching the real os module.
@@ -98,149 +110,6 @@ def partial_paths(folder: str, name: str) -> tuple[str, str]:
     return temp, temp + ".json"
 
 
-def file_digests(fd: int, size: int, *, md5: bool = True) -> tuple[str, str | None]:
-    """SHA-256 (and MD5) of the first ``size`` bytes of an open file, read in 1 MiB blocks."""
-    sha = hashlib.sha256()
-    m = hashlib.md5() if md5 else None
-    buf = bytearray(min(READ_BLOCK, size))
-    view = memoryview(buf)
-    off = 0
-    while off < size:
-        n = _preadv(fd, view[:min(READ_BLOCK, size - off)], off)
-        if not n:
-            raise LocalTransferError(f"file shrank while reading it (at byte {off} of {size})")
-        sha.update(view[:n])
-        if m is not None:
-            m.update(view[:n])
-        off += n
-    return sha.hexdigest(), m.hexdigest() if m is not None else None
-
-
-def _preadv(fd: int, buf: memoryview | bytearray, offset: int) -> int:
-    """Read into ``buf`` at ``offset`` (one ``preadv``); returns the byte count."""
-    if hasattr(os, "preadv"):
-        return os.preadv(fd, [buf], offset)
-    data = os.pread(fd, len(buf), offset)  # pragma: no cover - platforms without preadv
-    buf[:len(data)] = data
-    return len(data)
-
-
-def chunk_reader(fd: int, offer: Offer) -> Callable[[int], bytes | bytearray]:
-    """The ``read_chunk`` of a :class:`~mapkit.transfer.protocol.Sender` for an open file:
-    chunk ``i`` read into a pooled buffer (see :class:`~mapkit.transfer.protocol.BufferPool`).
-
-    A short read (the file shrank) returns fewer bytes, which the sender reports.
-    """
-    pool = BufferPool()
-
-    def read(i: int) -> bytes | bytearray:
-        n = offer.chunk_len(i)
-        buf = pool.get(n)
-        got = _preadv(fd, buf, i * offer.chunk_size)
-        return buf if got == n else bytes(buf[:got])
-
-    return read
-
-
-class PreparedReader:
-    """The ``read_chunk`` of a :class:`~mapkit.transfer.protocol.Sender` that does the per-byte
-    work of each chunk's frame ahead, in a background thread: the CRC-32 and, for ``blake2b``
-    tags, the keyed BLAKE2b of the payload (see :class:`~mapkit.transfer.protocol.Prepared`).
-
-    Started while the sender hashes the file for its offer, the thread uses the second core;
-    started with the transfer, it keeps ahead of the sending loop. A chunk is read again when
-    it is sent; if its CRC-32 changed meanwhile (the file is being modified), the frame's tag is
-    computed from the bytes actually sent, and the receiver's SHA-256 check reports the change.
-
-    Args:
-        fd: The open file (the reader works on a duplicate of it, closed by :meth:`close`).
-        size: Its size in bytes.
-        chunk_size: Bytes per chunk.
-        prepare: :meth:`~mapkit.transfer.protocol.Channel.preparer` of the session's channel.
-
-    Attributes:
-        skip: Chunks the background pass may leave out (those the receiver already holds, for
-            a resume): a function of the chunk index, or None.
-    """
-
-    def __init__(self, fd: int, size: int, chunk_size: int,
-                 prepare: Callable[[bytes | bytearray | memoryview], Prepared]) -> None:
-        self.fd, self.size, self.chunk_size, self.prepare = os.dup(fd), size, chunk_size, prepare
-        self.skip: Callable[[int], Any] | None = None
-        self.chunks = -(-size // chunk_size)
-        self._done: list[Prepared | None] = []
-        self._cond = threading.Condition()
-        self._stop = False
-        self._running = False
-        self._pool = BufferPool()
-        self._thread = threading.Thread(target=self._run, daemon=True, name="mapkit-prepare")
-
-    @classmethod
-    def for_file(cls, fd: int, size: int, chunk_size: int,
-                 prepare: Callable[[bytes | bytearray | memoryview], Prepared],
-                 ) -> PreparedReader | None:
-        """A reader for a file worth it: from ``PREPARE_FROM`` bytes (4 MiB) and at most 4096
-        chunks (the pass keeps a small state per chunk); else None."""
-        if size < PREPARE_FROM or -(-size // chunk_size) > 4096:
-            return None
-        return cls(fd, size, chunk_size, prepare)
-
-    def start(self) -> PreparedReader:
-        """Start the background pass (once)."""
-        if not self._running and not self._stop:
-            self._running = True
-            self._thread.start()
-        return self
-
-    def _run(self) -> None:
-        buf = bytearray(min(self.chunk_size, self.size))
-        view = memoryview(buf)
-        try:
-            for i in range(self.chunks):
-                if self._stop:
-                    return
-                skip = self.skip
-                p = None
-                if skip is None or not skip(i):
-                    n = min(self.chunk_size, self.size - i * self.chunk_size)
-                    if _preadv(self.fd, view[:n], i * self.chunk_size) != n:
-                        return  # the file shrank: the sender reports it
-                    p = self.prepare(view[:n])
-                    p.data = b""  # keep the CRC and the state, not the bytes
-                with self._cond:
-                    self._done.append(p)
-                    self._cond.notify_all()
-        except OSError:
-            return  # the sender reads again and reports errors itself
-        finally:
-            with self._cond:
-                self._running = False
-                self._cond.notify_all()
-
-    def __call__(self, i: int) -> bytes | bytearray | Prepared:
-        n = min(self.chunk_size, self.size - i * self.chunk_size)
-        buf = self._pool.get(n)
-        got = _preadv(self.fd, buf, i * self.chunk_size)
-        if got != n:
-            return bytes(buf[:got])
-        with self._cond:
-            while len(self._done) <= i and self._running:
-                self._cond.wait()
-            ahead = self._done[i] if i < len(self._done) else None
-        crc = zlib.crc32(buf)
-        prepared = ahead.with_data(buf, crc) if ahead is not None else None
-        return prepared if prepared is not None else Prepared(buf, crc)
-
-    def close(self) -> None:
-        """Stop the background pass and close the file (idempotent)."""
-        self._stop = True
-        if self._thread.is_alive() and self._thread is not threading.current_thread():
-            self._thread.join()
-        if self.fd >= 0:
-            os.close(self.fd)
-            self.fd = -1
-
-
 def _os_error(err: OSError, what: str) -> StoreError:
     if err.errno in (errno.ENOSPC, errno.EDQUOT):
         return StoreError(f"{what}: no space left on the device", Status.NO_SPACE)
@@ -260,9 +129,18 @@ class PartialFile:
         resumed: Chunks found on disk at open (journal of an earlier, interrupted transfer).
     """
 
-    def __init__(self, folder: str, name: str, offer: Offer, fd: int, have: bytearray,
-                 crcs: array.array[int], *, checkpoint_interval: float,
-                 validate: Callable[[str], dict[str, Any]] | None) -> None:
+    def __init__(
+        self,
+        folder: str,
+        name: str,
+        offer: Offer,
+        fd: int,
+        have: bytearray,
+        crcs: array.array[int],
+        *,
+        checkpoint_interval: float,
+        validate: Callable[[str], dict[str, Any]] | None,
+    ) -> None:
         self.folder = folder
         self.name = name
         self.target = os.path.join(folder, name)
@@ -286,9 +164,16 @@ class PartialFile:
 
     # opening ---------------------------------------------------------------------------------
     @classmethod
-    def open(cls, folder: str, name: str, offer: Offer, *, checkpoint_interval: float = 0.5,
-             validate: Callable[[str], dict[str, Any]] | None = None,
-             reserve: int = 1 << 20) -> PartialFile:
+    def open(
+        cls,
+        folder: str,
+        name: str,
+        offer: Offer,
+        *,
+        checkpoint_interval: float = 0.5,
+        validate: Callable[[str], dict[str, Any]] | None = None,
+        reserve: int = 1 << 20,
+    ) -> PartialFile:
         """Open (or resume) the destination for ``offer`` as ``folder/name``.
 
         Args:
@@ -309,18 +194,32 @@ class PartialFile:
         """
         temp, journal = partial_paths(folder, name)
         try:
-            fd = os.open(temp, os.O_RDWR | os.O_CREAT | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_CLOEXEC", 0), 0o600)
+            fd = os.open(
+                temp,
+                os.O_RDWR | os.O_CREAT | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_CLOEXEC", 0),
+                0o600,
+            )
         except OSError as err:
             raise _os_error(err, f"{name}: cannot create the temp file") from err
         try:
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except OSError as err:
-                raise StoreError(f"{name} is being written by another client; try again when it "
-                                 "is done", Status.BUSY) from err
+                raise StoreError(
+                    f"{name} is being written by another client; try again when it is done",
+                    Status.BUSY,
+                ) from err
             have, crcs = cls._load_journal(fd, journal, offer)
-            self = cls(folder, name, offer, fd, have, crcs, checkpoint_interval=checkpoint_interval,
-                       validate=validate)
+            self = cls(
+                folder,
+                name,
+                offer,
+                fd,
+                have,
+                crcs,
+                checkpoint_interval=checkpoint_interval,
+                validate=validate,
+            )
         except BaseException:
             os.close(fd)
             raise
@@ -343,8 +242,13 @@ class PartialFile:
                 j = json.load(fh)
         except (OSError, ValueError):
             return empty
-        same = (isinstance(j, dict) and j.get("version") == JOURNAL_VERSION and j.get("sha256") == offer.sha256
-                and j.get("size") == offer.size and j.get("chunk_size") == offer.chunk_size)
+        same = (
+            isinstance(j, dict)
+            and j.get("version") == JOURNAL_VERSION
+            and j.get("sha256") == offer.sha256
+            and j.get("size") == offer.size
+            and j.get("chunk_size") == offer.chunk_size
+        )
         if not same or os.fstat(fd).st_size != offer.size:
             return empty
         try:
@@ -369,8 +273,9 @@ class PartialFile:
             st = os.statvfs(self.folder)
             free = st.f_bavail * st.f_frsize
             if size + reserve > free:
-                raise StoreError(f"{self.name}: no space: {size} bytes needed, {free} free",
-                                 Status.NO_SPACE)
+                raise StoreError(
+                    f"{self.name}: no space: {size} bytes needed, {free} free", Status.NO_SPACE
+                )
             # sparse: blocks are allocated as chunks arrive, so an offer cut after 1 MiB holds
             # 1 MiB of disk, not its whole size (the check above, with the caller's ledger of
             # other transfers in `reserve`, keeps concurrent offers from overcommitting)
@@ -398,8 +303,11 @@ class PartialFile:
             i = self.have.find(1, i + 1)
         self.resumed = sum(self.have)
         if dropped:
-            log.warning("%s: %d chunks of the partial file failed their CRC and will be fetched again",
-                        self.name, dropped)
+            log.warning(
+                "%s: %d chunks of the partial file failed their CRC and will be fetched again",
+                self.name,
+                dropped,
+            )
 
     @property
     def outstanding(self) -> int:
@@ -437,10 +345,12 @@ class PartialFile:
             jobs: list[tuple[Callable[..., None], tuple[Any, ...], str]] = [
                 (self._work, (self._queues[0], self._write_now), "write"),
                 (self._work, (self._queues[1], self._hash_now), "hash"),
-                (self._sync_loop, (), "sync")]
+                (self._sync_loop, (), "sync"),
+            ]
             for target, args, what in jobs:
-                t = threading.Thread(target=target, args=args, daemon=True,
-                                     name=f"mapkit-{what}-{self.name}")
+                t = threading.Thread(
+                    target=target, args=args, daemon=True, name=f"mapkit-{what}-{self.name}"
+                )
                 t.start()
                 self._threads.append(t)
 
@@ -486,7 +396,9 @@ class PartialFile:
                 t.join()
         self._queues, self._threads = [], []
 
-    def write(self, index: int, data: bytes | bytearray | memoryview, crc: int | None = None) -> None:
+    def write(
+        self, index: int, data: bytes | bytearray | memoryview, crc: int | None = None
+    ) -> None:
         """Store chunk ``index`` (``crc``: its CRC-32 if already known).
 
         Raises:
@@ -533,7 +445,9 @@ class PartialFile:
         n = self.offer.chunks
         while self._hashed < n and self.have[self._hashed]:
             i = self._hashed
-            self._hasher.update(os.pread(self._fd, self.offer.chunk_len(i), i * self.offer.chunk_size))
+            self._hasher.update(
+                os.pread(self._fd, self.offer.chunk_len(i), i * self.offer.chunk_size)
+            )
             self._hashed += 1
 
     def checkpoint(self) -> None:
@@ -553,16 +467,22 @@ class PartialFile:
             crcs = self.crcs.tobytes()
             try:
                 _fsync(self._fd)
-                j = {"version": JOURNAL_VERSION, "name": self.name, "size": self.offer.size,
-                     "sha256": self.offer.sha256, "chunk_size": self.offer.chunk_size,
-                     "have": encode_bitmap(have), "crc": base64.b64encode(crcs).decode("ascii")}
+                j = {
+                    "version": JOURNAL_VERSION,
+                    "name": self.name,
+                    "size": self.offer.size,
+                    "sha256": self.offer.sha256,
+                    "chunk_size": self.offer.chunk_size,
+                    "have": encode_bitmap(have),
+                    "crc": base64.b64encode(crcs).decode("ascii"),
+                }
                 atomic_write(self.journal, json.dumps(j).encode("utf-8"))
             except OSError as err:
                 self._dirty = True
                 raise _os_error(err, f"saving the resume journal of {self.name}") from err
             self._last_checkpoint = time.monotonic()
 
-    # ending -----------------------------------------------------------------------------------------
+    # ending ---------------------------------------------------------------------------------------
     def finalize(self) -> dict[str, Any]:
         """Check the complete file and rename it into place.
 
@@ -585,8 +505,10 @@ class PartialFile:
             _fsync(self._fd)
             sha = self._hasher.hexdigest()
             if sha != self.offer.sha256:
-                raise StoreChecksumError(f"{self.name}: SHA-256 of the received file is {sha}, the "
-                                         f"sender announced {self.offer.sha256}")
+                raise StoreChecksumError(
+                    f"{self.name}: SHA-256 of the received file is {sha}, the "
+                    f"sender announced {self.offer.sha256}"
+                )
             info: dict[str, Any] = {"name": self.name, "size": self.offer.size, "sha256": sha}
             if self.validate is not None:
                 try:
@@ -598,8 +520,11 @@ class PartialFile:
                 except Exception as err:
                     raise StoreError(f"{self.name} refused: {err}", Status.PARSE_ERROR) from err
             if self.offer.md5 and info.get("md5") and info["md5"] != self.offer.md5:
-                raise StoreChecksumError(f"{self.name}: MD5 of the received map is {info['md5']}, "
-                                         f"the sender announced {self.offer.md5}", Status.MD5_MISMATCH)
+                raise StoreChecksumError(
+                    f"{self.name}: MD5 of the received map is {info['md5']}, "
+                    f"the sender announced {self.offer.md5}",
+                    Status.MD5_MISMATCH,
+                )
             try:
                 mode = os.stat(self.target).st_mode & 0o7777
             except FileNotFoundError:
@@ -641,7 +566,8 @@ class PartialFile:
         return out
 
     def close(self, *, keep: bool = True) -> None:
-        """End without publishing: keep the partial data and journal for a resume, or delete them."""
+        """End without publishing: keep the partial data and journal for a resume, or delete
+        them."""
         if self._fd is None:
             return
         try:
@@ -693,21 +619,23 @@ def expire_partials(folder: str, max_age: float, *, now: float | None = None) ->
     now = time.time() if now is None else now
     gone = []
     with os.scandir(folder) as it:
-        entries = [e for e in it if e.name.startswith(".") and e.name.endswith((".mkpart",
-                                                                                 ".mkpart.json"))]
+        entries = [
+            e for e in it if e.name.startswith(".") and e.name.endswith((".mkpart", ".mkpart.json"))
+        ]
     names = {e.name for e in entries}
     for e in [e for e in entries if e.name.endswith(".json")]:  # a journal without its file
         entries.remove(e)
-        if e.name[:-len(".json")] not in names and e.is_file(follow_symlinks=False):
+        if e.name[: -len(".json")] not in names and e.is_file(follow_symlinks=False):
             with contextlib.suppress(OSError):
                 if now - e.stat(follow_symlinks=False).st_mtime >= max_age:
                     os.unlink(e.path)
     for e in entries:
-        name = e.name[1:-len(".mkpart")]
+        name = e.name[1 : -len(".mkpart")]
         temp, journal = partial_paths(folder, name)
         try:
-            fd = os.open(temp, os.O_RDWR | getattr(os, "O_NOFOLLOW", 0)
-                         | getattr(os, "O_CLOEXEC", 0))
+            fd = os.open(
+                temp, os.O_RDWR | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_CLOEXEC", 0)
+            )
         except OSError:
             continue
         try:
@@ -731,13 +659,23 @@ def expire_partials(folder: str, max_age: float, *, now: float | None = None) ->
 
 # -- names ----------------------------------------------------------------------------------------
 
-_WINDOWS_RESERVED = {"con", "prn", "aux", "nul", *(f"com{i}" for i in range(1, 10)),
-                     *(f"lpt{i}" for i in range(1, 10))}
+_WINDOWS_RESERVED = {
+    "con",
+    "prn",
+    "aux",
+    "nul",
+    *(f"com{i}" for i in range(1, 10)),
+    *(f"lpt{i}" for i in range(1, 10)),
+}
 MAX_NAME = 200
 
 
-def check_name(name: object, *, suffixes: tuple[str, ...] | None = (".map", ".2d"),
-               reserved: tuple[str, ...] = ()) -> str:
+def check_name(
+    name: object,
+    *,
+    suffixes: tuple[str, ...] | None = (".map", ".2d"),
+    reserved: tuple[str, ...] = (),
+) -> str:
     """Check that a received name is a plain file name, safe to join to a folder.
 
     Refused: empty or longer than 200 bytes in UTF-8; ``/`` or ``\\``; ``..`` anywhere; a leading
@@ -759,10 +697,11 @@ def check_name(name: object, *, suffixes: tuple[str, ...] | None = (".map", ".2d
     Examples:
         >>> check_name("office.map")
         'office.map'
-        >>> check_name("../etc/passwd.map")
-        Traceback (most recent call last):
-        ...
-        mapkit.transfer.store.StoreError: bad name '../etc/passwd.map': no folders allowed, only a plain file name
+        >>> try:
+        ...     check_name("../etc/passwd.map")
+        ... except StoreError as err:
+        ...     print(err)
+        bad name '../etc/passwd.map': no folders allowed, only a plain file name
     """
     import unicodedata
 

@@ -35,7 +35,9 @@ RECV_BUFFER = 64 * 1024  # largest read outside a large payload
 IOV_MAX = 512
 
 
-def parse_address(text: str, default_port: int = DEFAULT_PORT, *, default_host: str = "") -> tuple[str, int]:
+def parse_address(
+    text: str, default_port: int = DEFAULT_PORT, *, default_host: str = ""
+) -> tuple[str, int]:
     """Split ``HOST[:PORT]`` (``[v6]:PORT`` for IPv6) into host and port.
 
     Raises:
@@ -56,7 +58,7 @@ def parse_address(text: str, default_port: int = DEFAULT_PORT, *, default_host: 
         end = text.find("]")
         if end < 0:
             raise LocalTransferError(f"bad address {text!r}: missing ']'")
-        host, rest = text[1:end], text[end + 1:]
+        host, rest = text[1:end], text[end + 1 :]
         if rest.startswith(":"):
             port_text = rest[1:]
     elif text.count(":") == 1:
@@ -74,7 +76,8 @@ def parse_address(text: str, default_port: int = DEFAULT_PORT, *, default_host: 
 
 
 def client_tls_context(cafile: str | None = None, *, verify: bool = True) -> ssl.SSLContext:
-    """A TLS client context: trusts ``cafile`` (a CA or the server's own certificate) or the system CAs.
+    """A TLS client context: trusts ``cafile`` (a CA or the server's own certificate) or the
+    system CAs.
 
     Args:
         cafile: PEM file to trust.
@@ -122,8 +125,12 @@ def tune_socket(sock: socket.socket, *, keepalive: bool = True) -> None:
     if not keepalive:
         return
     sock.setsockopt(socket.SOL_SOCKET, socket.SO_KEEPALIVE, 1)
-    for name, value in (("TCP_KEEPIDLE", KEEPALIVE_IDLE), ("TCP_KEEPINTVL", KEEPALIVE_INTERVAL),
-                        ("TCP_KEEPCNT", KEEPALIVE_COUNT), ("TCP_USER_TIMEOUT", USER_TIMEOUT_MS)):
+    for name, value in (
+        ("TCP_KEEPIDLE", KEEPALIVE_IDLE),
+        ("TCP_KEEPINTVL", KEEPALIVE_INTERVAL),
+        ("TCP_KEEPCNT", KEEPALIVE_COUNT),
+        ("TCP_USER_TIMEOUT", USER_TIMEOUT_MS),
+    ):
         opt = getattr(socket, name, None)
         if opt is not None:
             with contextlib.suppress(OSError):
@@ -133,8 +140,9 @@ def tune_socket(sock: socket.socket, *, keepalive: bool = True) -> None:
 _tune = tune_socket
 
 
-def connect(host: str, port: int = DEFAULT_PORT, *, timeout: float = 10.0,
-            tls: ssl.SSLContext | None = None) -> socket.socket:
+def connect(
+    host: str, port: int = DEFAULT_PORT, *, timeout: float = 10.0, tls: ssl.SSLContext | None = None
+) -> socket.socket:
     """Open a TCP connection (and the TLS handshake when ``tls`` is given).
 
     Raises:
@@ -161,14 +169,18 @@ def listen(host: str, port: int, *, backlog: int = 64) -> socket.socket:
         LocalTransferError: When the address cannot be bound.
     """
     try:
-        infos = socket.getaddrinfo(host or None, port, type=socket.SOCK_STREAM, flags=socket.AI_PASSIVE)
+        infos = socket.getaddrinfo(
+            host or None, port, type=socket.SOCK_STREAM, flags=socket.AI_PASSIVE
+        )
         family, _, _, _, addr = infos[0]
         sock = socket.socket(family, socket.SOCK_STREAM)
         sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
         sock.bind(addr)
         sock.listen(backlog)
     except OSError as err:
-        raise LocalTransferError(f"cannot listen on {host or '*'}:{port}: {err.strerror or err}") from err
+        raise LocalTransferError(
+            f"cannot listen on {host or '*'}:{port}: {err.strerror or err}"
+        ) from err
     return sock
 
 
@@ -225,8 +237,10 @@ class FrameLink:
                     parts[0] = memoryview(parts[0])[n:]
         except (OSError, ssl.SSLError) as err:
             self.closed = True
-            raise LocalTransferError(f"connection to {self.peer} broken while sending: "
-                                     f"{getattr(err, 'strerror', None) or err}") from err
+            raise LocalTransferError(
+                f"connection to {self.peer} broken while sending: "
+                f"{getattr(err, 'strerror', None) or err}"
+            ) from err
 
     def receive(self, timeout: float | None) -> Event | None:
         """The next frame (or damaged-frame notice), or None when ``timeout`` seconds pass first.
@@ -252,8 +266,9 @@ class FrameLink:
                 return None
             except (OSError, ssl.SSLError) as err:
                 self.closed = True
-                raise LocalTransferError(f"connection to {self.peer} broken: "
-                                         f"{getattr(err, 'strerror', None) or err}") from err
+                raise LocalTransferError(
+                    f"connection to {self.peer} broken: {getattr(err, 'strerror', None) or err}"
+                ) from err
             if n == 0:
                 self.closed = True
                 raise LocalTransferError(f"connection closed by {self.peer}")
@@ -262,16 +277,20 @@ class FrameLink:
     def close(self) -> None:
         """Close the socket (idempotent)."""
         self.closed = True
-        try:
+        with contextlib.suppress(OSError):
             self.sock.shutdown(socket.SHUT_RDWR)
-        except OSError:
-            pass
         self.sock.close()
 
 
-def run(link: FrameLink, machine: Any, *, start: bool = True,
-        on_events: Callable[[], list[Out]] | None = None,
-        tick: Callable[[], None] | None = None, clock: Callable[[], float] = time.monotonic) -> None:
+def run(
+    link: FrameLink,
+    machine: Any,
+    *,
+    start: bool = True,
+    on_events: Callable[[], list[Out]] | None = None,
+    tick: Callable[[], None] | None = None,
+    clock: Callable[[], float] = time.monotonic,
+) -> None:
     """Drive ``machine`` (handshake, request, sender, receiver) over ``link`` until it finishes.
 
     Args:

@@ -31,8 +31,18 @@ import re
 from collections.abc import Mapping
 from typing import Any
 
-__all__ = ["MAX_DEPTH", "MAX_INT_DIGITS", "MAX_SIZE", "SCHEMAS", "ListOf", "WireJSONError",
-           "check_fields", "decode_object", "deeper_than", "json_depth"]
+__all__ = [
+    "MAX_DEPTH",
+    "MAX_INT_DIGITS",
+    "MAX_SIZE",
+    "SCHEMAS",
+    "ListOf",
+    "WireJSONError",
+    "check_fields",
+    "decode_object",
+    "deeper_than",
+    "json_depth",
+]
 
 MAX_SIZE = 1024 * 1024
 MAX_DEPTH = 16
@@ -105,8 +115,9 @@ def deeper_than(data: bytes, limit: int) -> bool:
 
 def _parse_int(text: str) -> int:
     if len(text.lstrip("-")) > MAX_INT_DIGITS:
-        raise WireJSONError(f"an integer of {len(text.lstrip('-'))} digits (at most "
-                            f"{MAX_INT_DIGITS})")
+        raise WireJSONError(
+            f"an integer of {len(text.lstrip('-'))} digits (at most {MAX_INT_DIGITS})"
+        )
     return int(text)
 
 
@@ -139,8 +150,12 @@ def _check_strings(obj: Any) -> None:
             _check_strings(v)
 
 
-def decode_object(payload: bytes | bytearray | memoryview | str, *, max_size: int = MAX_SIZE,
-                  max_depth: int = MAX_DEPTH) -> dict[str, Any]:
+def decode_object(
+    payload: bytes | bytearray | memoryview | str,
+    *,
+    max_size: int = MAX_SIZE,
+    max_depth: int = MAX_DEPTH,
+) -> dict[str, Any]:
     """Decode a UTF-8 JSON object within the limits above (an empty payload is ``{}``).
 
     Raises:
@@ -164,8 +179,9 @@ def decode_object(payload: bytes | bytearray | memoryview | str, *, max_size: in
         raise WireJSONError(f"nested deeper than {max_depth} levels")
     try:
         text = data.decode("utf-8")
-        obj = json.loads(text, parse_int=_parse_int, parse_float=_parse_float,
-                         parse_constant=_no_constant)
+        obj = json.loads(
+            text, parse_int=_parse_int, parse_float=_parse_float, parse_constant=_no_constant
+        )
     except WireJSONError:
         raise
     except (UnicodeDecodeError, ValueError) as err:
@@ -205,28 +221,60 @@ _KINDS: dict[str, Any] = {
     "null": lambda v: v is None,
     "any": lambda v: True,
 }
-_NAMES = {"str": "a string", "int": "an integer", "num": "a number", "bool": "true or false",
-          "null": "null", "any": "anything"}
+_NAMES = {
+    "str": "a string",
+    "int": "an integer",
+    "num": "a number",
+    "bool": "true or false",
+    "null": "null",
+    "any": "anything",
+}
 
 _STR: Spec = ("str",)
 _INT: Spec = ("int",)
 _OPT_STR: Spec = ("str", "null")
 _RANGE: Spec = (ListOf((ListOf(_INT),)),)  # [[a, b), ...]
-_OFFER: dict[str, Spec] = {"name": _STR, "size": _INT, "sha256": _STR, "chunk_size": _INT,
-                           "chunks": _INT, "kind": _STR, "md5": _OPT_STR, "mtime": ("num", "null"),
-                           "window": _INT}
+_OFFER: dict[str, Spec] = {
+    "name": _STR,
+    "size": _INT,
+    "sha256": _STR,
+    "chunk_size": _INT,
+    "chunks": _INT,
+    "kind": _STR,
+    "md5": _OPT_STR,
+    "mtime": ("num", "null"),
+    "window": _INT,
+}
 _REJECT: dict[str, Spec] = {"code": _INT, "reason": _STR, "message": _STR}
-_LOADED: dict[str, Spec] = {"name": _STR, "md5": _STR, "sha256": _STR, "size": _INT,
-                            "loaded_at": ("num",), "map_server": ("int", "null"),
-                            "previous": ({"name": _OPT_STR, "md5": _OPT_STR,
-                                          "sha256": _OPT_STR}, "null")}
+_LOADED: dict[str, Spec] = {
+    "name": _STR,
+    "md5": _STR,
+    "sha256": _STR,
+    "size": _INT,
+    "loaded_at": ("num",),
+    "map_server": ("int", "null"),
+    "previous": ({"name": _OPT_STR, "md5": _OPT_STR, "sha256": _OPT_STR}, "null"),
+}
 
 #: Known fields of each control frame, by frame type number (see the MKT/1 spec, section 3).
 SCHEMAS: dict[int, dict[str, Spec]] = {
-    1: {"versions": (ListOf(("any",)),), "nonce": _STR, "auth": ("str", ListOf(_STR)),
-        "peer": _STR, "software": _STR},  # HELLO
-    2: {"version": ("any",), "nonce": _STR, "auth": _STR, "peer": _STR, "software": _STR,
-        "max_chunk": _INT, "max_size": _INT, "features": (ListOf(_STR),)},  # HELLO_ACK
+    1: {
+        "versions": (ListOf(("any",)),),
+        "nonce": _STR,
+        "auth": ("str", ListOf(_STR)),
+        "peer": _STR,
+        "software": _STR,
+    },  # HELLO
+    2: {
+        "version": ("any",),
+        "nonce": _STR,
+        "auth": _STR,
+        "peer": _STR,
+        "software": _STR,
+        "max_chunk": _INT,
+        "max_size": _INT,
+        "features": (ListOf(_STR),),
+    },  # HELLO_ACK
     3: {"proof": _STR},  # AUTH
     4: {"proof": _STR},  # AUTH_OK
     5: _REJECT,
@@ -237,9 +285,26 @@ SCHEMAS: dict[int, dict[str, Spec]] = {
     21: {"name": _STR, "size": _INT, "sha256": _STR, "md5": _OPT_STR, "kind": _STR},  # VERIFIED
     32: {"name": _STR, "chunk_size": _INT, "if_md5": _OPT_STR, "if_sha256": _OPT_STR},  # GET
     33: _OFFER,  # NOT_MODIFIED
-    35: {"maps": (ListOf(({"name": _STR, "size": _INT, "md5": _STR, "sha256": _STR,
-                                 "mtime": ("num",), "kind": _STR, "active": ("bool",)},)),),
-         "active": _OPT_STR, "active_md5": _OPT_STR, "previous": _OPT_STR},  # LISTING
+    35: {
+        "maps": (
+            ListOf(
+                (
+                    {
+                        "name": _STR,
+                        "size": _INT,
+                        "md5": _STR,
+                        "sha256": _STR,
+                        "mtime": ("num",),
+                        "kind": _STR,
+                        "active": ("bool",),
+                    },
+                )
+            ),
+        ),
+        "active": _OPT_STR,
+        "active_md5": _OPT_STR,
+        "previous": _OPT_STR,
+    },  # LISTING
     36: {"name": _OPT_STR, "md5": _OPT_STR, "rollback": ("bool",)},  # LOAD
     37: _LOADED,
     38: _LOADED,  # ANNOUNCE
@@ -274,8 +339,10 @@ def _fields_fail(obj: Mapping[str, Any], schema: Mapping[str, Spec]) -> str | No
 
 
 def _describe(spec: Spec) -> str:
-    return " or ".join("an object" if isinstance(a, dict) else "a list" if isinstance(a, ListOf)
-                       else _NAMES[a] for a in spec)
+    return " or ".join(
+        "an object" if isinstance(a, dict) else "a list" if isinstance(a, ListOf) else _NAMES[a]
+        for a in spec
+    )
 
 
 def check_fields(obj: Mapping[str, Any], schema: Mapping[str, Spec], what: str = "message") -> None:

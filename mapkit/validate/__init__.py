@@ -44,11 +44,13 @@ from mapkit._typing import PathLike
 from mapkit.diagnostics import Issue, IssueCode, Report, Severity
 from mapkit.formats.map import recover
 from mapkit.model import MapData
-from mapkit.validate import geometry as _geometry  # noqa: F401  (importing registers the rules)
-from mapkit.validate import header as _header  # noqa: F401
-from mapkit.validate import info as _info  # noqa: F401
-from mapkit.validate import navigation as _navigation  # noqa: F401
-from mapkit.validate import objects as _objects  # noqa: F401
+from mapkit.validate import (
+    geometry as _geometry,  # noqa: F401  (importing registers the rules)
+    header as _header,  # noqa: F401
+    info as _info,  # noqa: F401
+    navigation as _navigation,  # noqa: F401
+    objects as _objects,  # noqa: F401
+)
 from mapkit.validate._context import RULES, Context
 
 __all__ = [

@@ -152,7 +152,8 @@ def resolution(ctx: Context) -> None:
         if h.resolution is None:
             ctx.add(
                 C.RESOLUTION_MISSING,
-                f"{plural(n, 'point')} but no {kw} line; ARIA assumes 0 and writes 'Resolution: 0'; "
+                f"{plural(n, 'point')} but no {kw} line; ARIA assumes 0 and writes "
+                "'Resolution: 0'; "
                 f"localisation grids and ROS exports need the grid size{hint}",
                 line=None,
             )

@@ -324,8 +324,7 @@ def clearance(ctx: Context) -> None:
     targets = [
         (i, o)
         for i, o in enumerate(ctx.objects)
-        if (ctx.is_goal(o) or ctx.is_dock(o) or ctx.is_home(o))
-        and o.is_finite
+        if (ctx.is_goal(o) or ctx.is_dock(o) or ctx.is_home(o)) and o.is_finite
     ]
     if not targets:
         return
@@ -337,10 +336,16 @@ def clearance(ctx: Context) -> None:
     dp, ip = nearest_points(pts, q, search)
     dl, il = nearest_segments(ctx.all_lines(), q, search)
     # Objects at infinity (MK416) are nowhere: they neither forbid nor block anything.
-    areas = [o for o in ctx.objects if o.type == "ForbiddenArea" and o.from_to is not None
-             and o.is_finite]
-    flines = [o for o in ctx.objects if o.type == "ForbiddenLine" and o.from_to is not None
-              and o.is_finite]
+    areas = [
+        o
+        for o in ctx.objects
+        if o.type == "ForbiddenArea" and o.from_to is not None and o.is_finite
+    ]
+    flines = [
+        o
+        for o in ctx.objects
+        if o.type == "ForbiddenLine" and o.from_to is not None and o.is_finite
+    ]
     fseg = np.array([o.from_to for o in flines], dtype=np.float64).reshape(-1, 4)
     # All forbidden-area edges in one array; area k owns rows 4k..4k+3.
     aseg = np.concatenate([_edges(a) for a in areas]) if areas else np.zeros((0, 4))

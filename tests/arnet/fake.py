@@ -18,8 +18,15 @@ from mapkit.arnet.packet import Payload, encode
 from mapkit.arnet.reader import PacketReader
 
 #: The commands the fake server announces, with their ids.
-IDS = {"getMapName": 300, "getMapId": 301, "getFile": 302, "getMap": 303, "mapUpdated": 304,
-       "getDirListingMultiplePackets": 305, "putFile": 306}
+IDS = {
+    "getMapName": 300,
+    "getMapId": 301,
+    "getFile": 302,
+    "getMap": 303,
+    "mapUpdated": 304,
+    "getDirListingMultiplePackets": 305,
+    "putFile": 306,
+}
 NAMES = {v: k for k, v in IDS.items()}
 
 Reply = Callable[[str, bytes], Any]
@@ -30,7 +37,9 @@ def frame(command: int | str, data: bytes = b"") -> bytes:
     return encode(IDS[command] if isinstance(command, str) else command, data)
 
 
-def raw_frame(command: int, data: bytes, length: int | None = None, check: int | None = None) -> bytes:
+def raw_frame(
+    command: int, data: bytes, length: int | None = None, check: int | None = None
+) -> bytes:
     """A packet with any length field and checksum (defaults: the correct ones)."""
     good = encode(command, data)
     n = len(good) if length is None else length
@@ -46,18 +55,27 @@ def file_packet(data: bytes, name: str = "x.map", count: int | None = None) -> b
 
 def login_packets() -> bytes:
     """CONNECTED and the three command lists."""
-    lst, argret, groups = Payload().ubyte2(len(IDS)), Payload().ubyte2(len(IDS)), Payload().ubyte2(len(IDS))
+    lst, argret, groups = (
+        Payload().ubyte2(len(IDS)),
+        Payload().ubyte2(len(IDS)),
+        Payload().ubyte2(len(IDS)),
+    )
     for name, cid in IDS.items():
         lst.ubyte2(cid).string(name).string("fake")
         argret.ubyte2(cid).string("").string("")
         groups.ubyte2(cid).string("Map").string("RETURN_SINGLE")
-    return (encode(5) + encode(129, lst.bytes()) + encode(131, argret.bytes())
-            + encode(133, groups.bytes()))
+    return (
+        encode(5)
+        + encode(129, lst.bytes())
+        + encode(131, argret.bytes())
+        + encode(133, groups.bytes())
+    )
 
 
 def intro_packet() -> bytes:
-    return encode(2, Payload().string("alpha").ubyte2(0).ubyte4(1).ubyte4(2).string("key")
-                  .string("").bytes())
+    return encode(
+        2, Payload().string("alpha").ubyte2(0).ubyte4(1).ubyte4(2).string("key").string("").bytes()
+    )
 
 
 class FakeServer:
@@ -71,8 +89,14 @@ class FakeServer:
         login: Bytes sent instead of CONNECTED and the command lists.
     """
 
-    def __init__(self, reply: Reply | None = None, *, after_login: bytes = b"",
-                 intro: bytes | None = None, login: bytes | None = None) -> None:
+    def __init__(
+        self,
+        reply: Reply | None = None,
+        *,
+        after_login: bytes = b"",
+        intro: bytes | None = None,
+        login: bytes | None = None,
+    ) -> None:
         self.login = login_packets() if login is None else login
         self.reply = reply or (lambda name, args: None)
         self.after_login = after_login
@@ -140,10 +164,13 @@ class FakeServer:
 
 
 def drip(data: bytes, every: float, stop: threading.Event) -> Callable[[socket.socket], None]:
-    """Send ``data`` one byte every ``every`` seconds (a server that keeps the line barely alive)."""
+    """Send ``data`` one byte every ``every`` seconds (a server that keeps the line barely
+    alive)."""
+
     def go(conn: socket.socket) -> None:
         for b in data:
             if stop.wait(every):
                 return
             conn.sendall(bytes([b]))
+
     return go

@@ -35,7 +35,9 @@ def require_peer() -> Path:
     """The aria-peer folder; fails in CI, skips elsewhere, when it is missing or does not run."""
     problem = None
     if not (PEER / "run-mapserver").exists() or not (PEER / "run-probe").exists():
-        problem = f"ARIA's ArNetworking peer not found at {PEER} (set MAPKIT_ARIA_PEER or MAPKIT_SHARED)"
+        problem = (
+            f"ARIA's ArNetworking peer not found at {PEER} (set MAPKIT_ARIA_PEER or MAPKIT_SHARED)"
+        )
     if problem:
         if IN_CI:
             pytest.fail(problem)
@@ -72,14 +74,32 @@ class Peer:
     def address(self) -> str:
         return f"127.0.0.1:{self.port}"
 
-    def probe(self, *args: str, login: tuple[str, str] | None = None, cwd: Path | None = None,
-              timeout: float = 60) -> subprocess.CompletedProcess[str]:
+    def probe(
+        self,
+        *args: str,
+        login: tuple[str, str] | None = None,
+        cwd: Path | None = None,
+        timeout: float = 60,
+    ) -> subprocess.CompletedProcess[str]:
         """Run ARIA's client ``run-probe`` against this server."""
         who = login or self.login
         auth = ["-user", who[0], "-password", who[1]] if who else []
-        return subprocess.run([str(PEER / "run-probe"), "-quiet", "-host", "127.0.0.1", "-port",
-                               str(self.port), *auth, *args], capture_output=True, text=True,
-                              timeout=timeout, cwd=cwd or self.root.parent)
+        return subprocess.run(
+            [
+                str(PEER / "run-probe"),
+                "-quiet",
+                "-host",
+                "127.0.0.1",
+                "-port",
+                str(self.port),
+                *auth,
+                *args,
+            ],
+            capture_output=True,
+            text=True,
+            timeout=timeout,
+            cwd=cwd or self.root.parent,
+        )
 
     def mapname(self) -> str:
         """The active map as ARIA's client sees it."""
@@ -115,8 +135,12 @@ def _answers(port: int) -> bool:
         return False
 
 
-def start_peer(tmp: Path, maps: Iterable[Path], active: str | None = None,
-               login: tuple[str, str] | None = ADMIN) -> Peer:
+def start_peer(
+    tmp: Path,
+    maps: Iterable[Path],
+    active: str | None = None,
+    login: tuple[str, str] | None = ADMIN,
+) -> Peer:
     """Start ``run-mapserver`` on a free port, serving a copy of ``maps`` (logins from USERS)."""
     require_peer()
     root = tmp / "root"
@@ -129,15 +153,25 @@ def start_peer(tmp: Path, maps: Iterable[Path], active: str | None = None,
     for _ in range(3):
         port = free_port()
         log = tmp / f"mapserver-{port}.log"
-        cmd = [str(PEER / "run-mapserver"), "-serverPort", str(port), "-fileDir", str(root),
-               "-config", str(tmp / "server.cfg"), "-tempDir", str(tmp / "stage")]
+        cmd = [
+            str(PEER / "run-mapserver"),
+            "-serverPort",
+            str(port),
+            "-fileDir",
+            str(root),
+            "-config",
+            str(tmp / "server.cfg"),
+            "-tempDir",
+            str(tmp / "stage"),
+        ]
         if active:
             cmd += ["-map", active]
         if login:
             cmd += ["-userInfo", str(users)]
         with open(log, "wb") as fh:
-            proc = subprocess.Popen(cmd, stdout=fh, stderr=subprocess.STDOUT, cwd=tmp,
-                                    stdin=subprocess.DEVNULL)
+            proc = subprocess.Popen(
+                cmd, stdout=fh, stderr=subprocess.STDOUT, cwd=tmp, stdin=subprocess.DEVNULL
+            )
         deadline = time.monotonic() + 20
         while proc.poll() is None and time.monotonic() < deadline and not _answers(port):
             time.sleep(0.05)

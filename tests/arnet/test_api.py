@@ -14,15 +14,25 @@ from tests.conftest import ROOT
 
 
 def test_mapkit_aria_is_lazy() -> None:
-    code = ("import sys, mapkit; assert 'mapkit.arnet' not in sys.modules; "
-            "assert mapkit.aria.connect is __import__('mapkit.arnet').arnet.connect")
+    code = (
+        "import sys, mapkit; assert 'mapkit.arnet' not in sys.modules; "
+        "assert mapkit.aria.connect is __import__('mapkit.arnet').arnet.connect"
+    )
     subprocess.run([sys.executable, "-c", code], check=True, cwd=ROOT)
 
 
 def test_errors_are_mapkit_errors() -> None:
-    for cls in (aria.AriaError, aria.AriaLoginError, aria.AriaProtocolError, aria.AriaTimeoutError,
-                aria.AriaConnectionError, aria.AriaPermissionError, aria.AriaRemoteError,
-                aria.AriaMapRefusedError, aria.AriaValueError):
+    for cls in (
+        aria.AriaError,
+        aria.AriaLoginError,
+        aria.AriaProtocolError,
+        aria.AriaTimeoutError,
+        aria.AriaConnectionError,
+        aria.AriaPermissionError,
+        aria.AriaRemoteError,
+        aria.AriaMapRefusedError,
+        aria.AriaValueError,
+    ):
         assert issubclass(cls, MapkitError) and issubclass(cls, TransferError)
 
 
@@ -46,10 +56,16 @@ def test_password_sources(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> No
         aria.password_from_env(str(tmp_path / "big"))
 
 
-@pytest.mark.parametrize("address,expected", [
-    ("robot", ("robot", 7272)), ("robot:7300", ("robot", 7300)), ("10.0.0.2", ("10.0.0.2", 7272)),
-    ("[fe80::1]:8000", ("fe80::1", 8000)), ("::1", ("::1", 7272)),
-])
+@pytest.mark.parametrize(
+    "address,expected",
+    [
+        ("robot", ("robot", 7272)),
+        ("robot:7300", ("robot", 7300)),
+        ("10.0.0.2", ("10.0.0.2", 7272)),
+        ("[fe80::1]:8000", ("fe80::1", 8000)),
+        ("::1", ("::1", 7272)),
+    ],
+)
 def test_addresses(address: str, expected: tuple[str, int]) -> None:
     from mapkit.arnet import parse_host
 

@@ -32,12 +32,14 @@ TEXT = b"2D-Map\nDATA\n1 1\n"
 
 def map_server(on_file: Callable[[], Any]) -> Callable[[str, bytes], Any]:
     """Answer getMapName/getMapId well and getFile with ``on_file()``."""
+
     def reply(name: str, _args: bytes) -> Any:
         if name == "getMapName":
             return NAME
         if name == "getMapId":
             return MAP_ID
         return on_file()
+
     return reply
 
 
@@ -56,47 +58,69 @@ def fake() -> Iterator[Callable[..., FakeServer]]:
 
 
 def run_fetch(server: FakeServer, out: Path, *extra: str) -> tuple[int, str]:
-    res = CliRunner().invoke(cli, ["aria", "fetch", server.address, "-o", str(out / "x.map"),
-                                   "--timeout", "1", *extra])
+    res = CliRunner().invoke(
+        cli, ["aria", "fetch", server.address, "-o", str(out / "x.map"), "--timeout", "1", *extra]
+    )
     return res.exit_code, res.output
 
 
 STOP = threading.Event()
 CASES: dict[str, tuple[Callable[[], Any], str]] = {
-    "bad checksum": (lambda: raw_frame(IDS["getFile"], b"\0\0x\0\0\0\0\0", check=0x1234),
-                     r"checksum 0x1234, expected"),
+    "bad checksum": (
+        lambda: raw_frame(IDS["getFile"], b"\0\0x\0\0\0\0\0", check=0x1234),
+        r"checksum 0x1234, expected",
+    ),
     "announced length longer than sent, then silence": (
-        lambda: raw_frame(IDS["getFile"], b"\0\0x\0", length=2000), r"sent nothing for 1 s"),
-    "oversize packet": (lambda: raw_frame(IDS["getFile"], b"\0" * 10, length=40000),
-                        r"announced a 40000-byte packet; ArNetworking packets are 8 to 32000"),
-    "length under the header": (lambda: raw_frame(IDS["getFile"], b"", length=5),
-                                r"announced a 5-byte packet"),
+        lambda: raw_frame(IDS["getFile"], b"\0\0x\0", length=2000),
+        r"sent nothing for 1 s",
+    ),
+    "oversize packet": (
+        lambda: raw_frame(IDS["getFile"], b"\0" * 10, length=40000),
+        r"announced a 40000-byte packet; ArNetworking packets are 8 to 32000",
+    ),
+    "length under the header": (
+        lambda: raw_frame(IDS["getFile"], b"", length=5),
+        r"announced a 5-byte packet",
+    ),
     "chunk count larger than the chunk": (
-        lambda: file_packet(TEXT, count=30000), r"says it carries 30000 bytes .* holds 16"),
+        lambda: file_packet(TEXT, count=30000),
+        r"says it carries 30000 bytes .* holds 16",
+    ),
     "chunk count smaller than the chunk": (
-        lambda: file_packet(TEXT, count=3), r"says it carries 3 bytes .* holds 16"),
+        lambda: file_packet(TEXT, count=3),
+        r"says it carries 3 bytes .* holds 16",
+    ),
     "string without its NUL": (lambda: frame("getFile", b"\0\0no-nul"), r"has no terminating NUL"),
     "packet cut inside a field": (lambda: frame("getFile", b"\0"), r"ends inside a ubyte2 field"),
-    "garbage instead of a packet": (lambda: b"HTTP/1.1 400 Bad Request\r\n\r\n",
-                                    r"sent 4854 where a packet must start with 0f0c"),
+    "garbage instead of a packet": (
+        lambda: b"HTTP/1.1 400 Bad Request\r\n\r\n",
+        r"sent 4854 where a packet must start with 0f0c",
+    ),
     "an unannounced command id": (lambda: frame(999, b"x"), r"command 999, which is not in"),
     "stall": (lambda: None, r"sent nothing for 1 s while receiving the reply to getFile"),
     "byte by byte, never a whole packet": (
-        lambda: drip(file_packet(TEXT), 0.4, STOP), r"sent nothing for 1 s"),
+        lambda: drip(file_packet(TEXT), 0.4, STOP),
+        r"sent nothing for 1 s",
+    ),
     "closed in the middle of the reply": (lambda: file_packet(TEXT)[:12] + b"", r"."),
     "the file never ends": (lambda: file_packet(TEXT), r"sent nothing for 1 s"),
     "an error code": (lambda: frame("getFile", b"\x02\0x.map\0"), r"'x.map' does not exist"),
-    "a file that is not a map": (lambda: file_packet(b"hello\n") + file_packet(b"") + frame("getFile"),
-                                 r"127.0.0.1:\d+/other.map: not an ARIA map"),
+    "a file that is not a map": (
+        lambda: file_packet(b"hello\n") + file_packet(b"") + frame("getFile"),
+        r"127.0.0.1:\d+/other.map: not an ARIA map",
+    ),
     "bytes that do not match the map id": (
         lambda: file_packet(TEXT) + file_packet(b"") + frame("getFile"),
         r"\(MD5 3015614a8823cf9f80bee3b51908d442\) is not the map the robot has loaded "
-        r"\(MD5 000102030405060708090a0b0c0d0e0f\)"),
+        r"\(MD5 000102030405060708090a0b0c0d0e0f\)",
+    ),
 }
 
 
 @pytest.mark.parametrize("case", list(CASES))
-def test_broken_server_gives_one_line_and_leaves_nothing(case: str, fake: Any, tmp_path: Path) -> None:
+def test_broken_server_gives_one_line_and_leaves_nothing(
+    case: str, fake: Any, tmp_path: Path
+) -> None:
     on_file, expected = CASES[case]
     server = fake(map_server(on_file))
     if case == "closed in the middle of the reply":
@@ -120,16 +144,20 @@ def _then_close(reply: Callable[[str, bytes], Any]) -> Callable[[str, bytes], An
         def send_and_close(conn: Any) -> None:
             conn.sendall(out)
             conn.shutdown(2)
+
         return send_and_close
+
     return go
 
 
 def test_endless_file_hits_the_size_limit_and_writes_nothing(fake: Any, tmp_path: Path) -> None:
     chunk = file_packet(b"x" * 30000)
     server = fake(map_server(lambda: chunk * 40))
-    with aria.connect(server.address, timeout=2) as r:
-        with pytest.raises(aria.AriaProtocolError, match="larger than 500000 bytes"):
-            r.get_file("x.map", tmp_path / "x.map", max_size=500_000)
+    with (
+        aria.connect(server.address, timeout=2) as r,
+        pytest.raises(aria.AriaProtocolError, match="larger than 500000 bytes"),
+    ):
+        r.get_file("x.map", tmp_path / "x.map", max_size=500_000)
     assert leftovers(tmp_path) == []
 
 
@@ -150,8 +178,9 @@ def test_bad_login_exchanges(fake: Any, tmp_path: Path) -> None:
 
 
 def test_list_with_a_lying_count(fake: Any) -> None:
-    lying = encode(5) + encode(129, Payload().ubyte2(3).ubyte2(300).string("getMapName").string("")
-                               .bytes())
+    lying = encode(5) + encode(
+        129, Payload().ubyte2(3).ubyte2(300).string("getMapName").string("").bytes()
+    )
     server = fake(login=lying)
     with pytest.raises(aria.AriaProtocolError, match="LIST: the server's packet ends inside"):
         aria.connect(server.address, timeout=1)
@@ -161,7 +190,9 @@ def test_nothing_listening() -> None:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]
-    with pytest.raises(aria.AriaConnectionError, match=f"cannot connect to the robot at 127.0.0.1:{port}"):
+    with pytest.raises(
+        aria.AriaConnectionError, match=f"cannot connect to the robot at 127.0.0.1:{port}"
+    ):
         aria.connect(f"127.0.0.1:{port}", timeout=1)
 
 
@@ -177,6 +208,7 @@ def test_watch_ends_when_the_robot_goes_away(fake: Any) -> None:
                 conn.sendall(body)
                 STOP.wait(0.3)
                 conn.shutdown(socket.SHUT_RDWR)
+
             return send_then_close
         if name == "getMapId":
             digest = hashlib.md5(TEXT).digest()

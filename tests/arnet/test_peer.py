@@ -38,7 +38,9 @@ def test_login_learns_the_command_list(peer: Peer) -> None:
         assert len(cmds) == listed.count(" group=") == 40
         for name, info in cmds.items():
             assert f"{info.id} {name} group={info.group}" in listed
-        assert cmds["getFile"].group == "FileAccess" and "RETURN_UNTIL_EMPTY" in cmds["getFile"].flags
+        assert (
+            cmds["getFile"].group == "FileAccess" and "RETURN_UNTIL_EMPTY" in cmds["getFile"].flags
+        )
         assert r.map_name == peer.mapname()
 
 
@@ -72,8 +74,9 @@ def test_fetch_a_named_file_that_is_not_active(peer: Peer, real_maps: list[Path]
             r.fetch(ex4.name, via="map")
 
 
-def test_uploads_are_byte_exact_for_arias_client(peer: Peer, tmp_path: Path,
-                                                 real_maps: list[Path]) -> None:
+def test_uploads_are_byte_exact_for_arias_client(
+    peer: Peer, tmp_path: Path, real_maps: list[Path]
+) -> None:
     blob = os.urandom(95_000) + b"\0\r\n\xff" * 10  # several packets, a short last one
     with robot(peer) as r:
         r.put_file(blob, "blob.bin")
@@ -93,16 +96,16 @@ def test_uploads_are_byte_exact_for_arias_client(peer: Peer, tmp_path: Path,
 
 def test_paths_outside_the_shared_folder_are_refused(peer: Peer, tmp_path: Path) -> None:
     with robot(peer) as r:
-        with pytest.raises(aria.AriaRemoteError, match="outside|does not exist"):
+        with pytest.raises(aria.AriaRemoteError, match=r"outside|does not exist"):
             r.read_file("../users.txt")
-        with pytest.raises(aria.AriaRemoteError, match="outside|does not exist"):
+        with pytest.raises(aria.AriaRemoteError, match=r"outside|does not exist"):
             r.read_file("root/../aria-office.map")
         with pytest.raises(aria.AriaRemoteError, match="not a folder"):
             r.files("no-such-dir")
         with pytest.raises(aria.AriaRemoteError, match="does not exist"):
             r.get_file("missing.map", tmp_path / "missing.map")
         assert r.read_file("aria-office.map") == (peer.root / "aria-office.map").read_bytes()
-        with pytest.raises(aria.AriaRemoteError, match="outside|folder that does not exist"):
+        with pytest.raises(aria.AriaRemoteError, match=r"outside|folder that does not exist"):
             r.put_file(b"x", "../escaped.txt")
     assert not (peer.root.parent / "escaped.txt").exists()
     assert leftovers(tmp_path) == []
@@ -120,18 +123,20 @@ def test_send_load_switches_and_ex4_is_rolled_back(peer: Peer, real_maps: list[P
         assert res["robot_md5"] == res["md5"] == hashlib.md5(tri.read_bytes()).hexdigest()
         assert (peer.root / "sent-tri.map").read_bytes() == tri.read_bytes()
         # a map the robot cannot load, sent under a new name: refused, removed, old map active
-        with pytest.raises(aria.AriaRemoteError, match="could not load 'new-ex4.map'.*removed"):
+        with pytest.raises(aria.AriaRemoteError, match=r"could not load 'new-ex4.map'.*removed"):
             r.send_map(ex4, "new-ex4.map", load=True)
         assert peer.mapname() == "sent-tri.map" and r.map_name == "sent-tri.map"
         assert not (peer.root / "new-ex4.map").exists()
         # ... sent over the active map's own file: the old file comes back
-        with pytest.raises(aria.AriaRemoteError, match="restored robot file 'sent-tri.map'"):
+        with pytest.raises(aria.AriaRemoteError, match=r"restored robot file 'sent-tri.map'"):
             r.send_map(ex4, "sent-tri.map", load=True)
         assert (peer.root / "sent-tri.map").read_bytes() == tri.read_bytes()
         assert peer.mapname() == "sent-tri.map"
         # a changed version of the active map, under its own name: reloaded, confirmed by MD5
         changed = mapkit.load(tri)
-        changed = changed.replace(objects=(*changed.objects, mapkit.MapObject("Goal", 10, 20, 0, name="New")))
+        changed = changed.replace(
+            objects=(*changed.objects, mapkit.MapObject("Goal", 10, 20, 0, name="New"))
+        )
         res = r.send_map(changed, "sent-tri.map", load=True)
         assert res["robot_md5"] == res["md5"] == hashlib.md5(mapkit.dumpb(changed)).hexdigest()
         assert res["broadcast"] and res["previous"] == "sent-tri.map"
@@ -141,15 +146,20 @@ def test_send_load_switches_and_ex4_is_rolled_back(peer: Peer, real_maps: list[P
 
 def test_maps_with_errors_are_refused_before_sending(peer: Peer, tmp_path: Path) -> None:
     bad = tmp_path / "bad.map"
-    for text, code in (("2D-Map\nResolution: 20 mm\nDATA\n1 1\n", "bad.map:2: error MK110"),
-                       ("2D-Map\nDATA\n1 99999999999\n", "MK304"),
-                       ("2D-Map\nCairn: Goal nan 0 0 \"\" ICON \"g\"\nDATA\n", "bad.map:2.*MK107")):
+    for text, code in (
+        ("2D-Map\nResolution: 20 mm\nDATA\n1 1\n", "bad.map:2: error MK110"),
+        ("2D-Map\nDATA\n1 99999999999\n", "MK304"),
+        ('2D-Map\nCairn: Goal nan 0 0 "" ICON "g"\nDATA\n', "bad.map:2.*MK107"),
+    ):
         bad.write_text(text)
         with robot(peer) as r, pytest.raises(aria.AriaMapRefusedError, match=f"not sent.*{code}"):
             r.send_map(bad, load=True)
     not_a_map = tmp_path / "notes.map"
     not_a_map.write_text("hello\n")
-    with robot(peer) as r, pytest.raises(mapkit.MapFormatError, match="notes.map: not an ARIA map"):
+    with (
+        robot(peer) as r,
+        pytest.raises(mapkit.MapFormatError, match=r"notes.map: not an ARIA map"),
+    ):
         r.send_map(not_a_map)
     assert not (peer.root / "bad.map").exists() and not (peer.root / "notes.map").exists()
 
@@ -175,7 +185,9 @@ def test_watch_sees_each_change_and_keeps_versions(peer: Peer, tmp_path: Path) -
 
 def test_wrong_password_and_unknown_user(peer: Peer) -> None:
     for login in (("admin", "wrong"), ("nobody", "secret1"), ("", "")):
-        with pytest.raises(aria.AriaLoginError, match="refused the login.*wrong user name or password") as e:
+        with pytest.raises(
+            aria.AriaLoginError, match=r"refused the login.*wrong user name or password"
+        ) as e:
             robot(peer, login)
         assert e.value.code == 1 and "\n" not in str(e.value)
 
@@ -188,10 +200,16 @@ def test_user_without_file_rights(peer: Peer, tmp_path: Path) -> None:
         assert not info["can"]["upload"] and not info["can"]["load_map"]
         got = r.fetch()  # falls back to the map service
         assert got.source == "map service" and got.map == mapkit.load(peer.root / got.name)
-        for call in (lambda: r.get_file("aria-office.map", tmp_path / "x.map"),
-                     lambda: r.put_file(b"x", "x.map"), lambda: r.files(),
-                     lambda: r.delete_file("aria-office.map"), lambda: r.load_map("x.map")):
-            with pytest.raises(aria.AriaPermissionError, match="does not offer '\\w+' to user 'mapper'"):
+        for call in (
+            lambda: r.get_file("aria-office.map", tmp_path / "x.map"),
+            lambda: r.put_file(b"x", "x.map"),
+            lambda: r.files(),
+            lambda: r.delete_file("aria-office.map"),
+            lambda: r.load_map("x.map"),
+        ):
+            with pytest.raises(
+                aria.AriaPermissionError, match=r"does not offer '\w+' to user 'mapper'"
+            ):
                 call()
     assert leftovers(tmp_path) == []
 
@@ -204,12 +222,13 @@ def test_server_killed_mid_transfer_leaves_nothing(tmp_path: Path) -> None:
     out.mkdir()
     try:
         with aria.connect(p.address, timeout=5) as r:
+
             def kill(done: int, _total: int) -> None:
                 if p.proc.poll() is None:
                     os.kill(p.proc.pid, signal.SIGKILL)
                     p.proc.wait()
 
-            with pytest.raises(aria.AriaConnectionError, match="closed the connection|broke") as e:
+            with pytest.raises(aria.AriaConnectionError, match=r"closed the connection|broke") as e:
                 r.get_file("big.bin", out / "big.bin", progress=kill)
             assert "\n" not in str(e.value)
     finally:
@@ -221,6 +240,7 @@ def test_server_killed_mid_upload_leaves_no_half_file(tmp_path: Path) -> None:
     p = start_peer(tmp_path / "srv", [], login=None)
     try:
         with aria.connect(p.address, timeout=5) as r:
+
             def kill(done: int, _total: int) -> None:
                 if done > 200_000 and p.proc.poll() is None:
                     os.kill(p.proc.pid, signal.SIGKILL)

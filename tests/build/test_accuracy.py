@@ -1,4 +1,5 @@
-"""mapkit build against the truth on small simulated logs: never worse than odometry, near the floor.
+"""mapkit build against the truth on small simulated logs: never worse than odometry, near the
+floor.
 
 The logs are short (a room and a corridor, a couple of hundred scans) so these run in seconds; the
 full benchmark over noisier and longer logs is ``benchmarks/bench_build.py``.
@@ -18,22 +19,36 @@ from mapkit.model.scan import LaserLog, LaserScan, Pose2D
 from mapkit.simulate import simulate_log
 
 # An L-shaped flat: a room, a corridor and a second room, with a pillar.
-WALLS = [[0, 0, 9000, 0], [9000, 0, 9000, 4000], [9000, 4000, 4000, 4000],
-         [4000, 4000, 4000, 9000], [4000, 9000, 0, 9000], [0, 9000, 0, 0],
-         [2000, 2000, 2600, 2000], [2600, 2000, 2600, 2600], [2600, 2600, 2000, 2600],
-         [2000, 2600, 2000, 2000]]
+WALLS = [
+    [0, 0, 9000, 0],
+    [9000, 0, 9000, 4000],
+    [9000, 4000, 4000, 4000],
+    [4000, 4000, 4000, 9000],
+    [4000, 9000, 0, 9000],
+    [0, 9000, 0, 0],
+    [2000, 2000, 2600, 2000],
+    [2600, 2000, 2600, 2600],
+    [2600, 2600, 2000, 2600],
+    [2000, 2600, 2000, 2000],
+]
 ROUTE = [(7500, 1200), (7500, 3000), (3000, 3200), (2000, 7500), (1200, 1200)]
 
 
 def flat() -> MapData:
-    return MapData(scans=(Scan.from_arrays(lines=WALLS),),
-                   objects=(MapObject("RobotHome", 1000, 1000, 0, name="Home"),))
+    return MapData(
+        scans=(Scan.from_arrays(lines=WALLS),),
+        objects=(MapObject("RobotHome", 1000, 1000, 0, name="Home"),),
+    )
 
 
 def with_true_odometry(sim) -> LaserLog:
-    at = {int(i): Pose2D(*map(float, p)) for i, p in zip(sim.truth_ids, sim.truth)}
-    recs = [dataclasses.replace(r, robot=at[r.scan_id], robot_global=at[r.scan_id])
-            if isinstance(r, LaserScan) else r for r in sim.log.records]
+    at = {int(i): Pose2D(*map(float, p)) for i, p in zip(sim.truth_ids, sim.truth, strict=True)}
+    recs = [
+        dataclasses.replace(r, robot=at[r.scan_id], robot_global=at[r.scan_id])
+        if isinstance(r, LaserScan)
+        else r
+        for r in sim.log.records
+    ]
     return LaserLog(header=sim.log.header, records=tuple(recs))
 
 
@@ -63,8 +78,16 @@ def test_never_worse_than_odometry_and_near_the_floor(noise: str) -> None:
 
 
 def test_true_poses_as_odometry_stay_true() -> None:
-    sim = simulate_log(flat(), waypoints=ROUTE, loop=True, seed=3, range_noise=15.0,
-                       translation_error=0.0, rotation_error=0.0, drift=0.0)
+    sim = simulate_log(
+        flat(),
+        waypoints=ROUTE,
+        loop=True,
+        seed=3,
+        range_noise=15.0,
+        translation_error=0.0,
+        rotation_error=0.0,
+        drift=0.0,
+    )
     res = build_map(with_true_odometry(sim), lines=False)
     rms, rms_deg = trajectory_rms(res.poses, sim.truth)
     assert rms < 5.0 and rms_deg < 0.1, (rms, rms_deg)
@@ -72,15 +95,24 @@ def test_true_poses_as_odometry_stay_true() -> None:
 
 
 def test_outliers_and_people_stay_out_of_the_map() -> None:
-    sim = simulate_log(flat(), waypoints=ROUTE, loop=True, seed=5, outliers=0.03, people=2,
-                       drift=0.1, turn_slip=0.03)
+    sim = simulate_log(
+        flat(),
+        waypoints=ROUTE,
+        loop=True,
+        seed=5,
+        outliers=0.03,
+        people=2,
+        drift=0.1,
+        turn_slip=0.03,
+    )
     med, p90, rms = figures(build_map(sim.log, lines=False), sim)
     assert med < 15.0 and p90 < 60.0 and rms < 40.0, (med, p90, rms)
 
 
 def test_odometry_noise_scale_has_a_floor() -> None:
-    """Steps that agree with their scans better than the scans' noise explains still leave odometry
-    a noise: the scale stops at its floor, so good-but-not-perfect odometry cannot overrule scans."""
+    """Steps that agree with their scans better than the scans' noise explains still leave
+    odometry a noise: the scale stops at its floor, so good-but-not-perfect odometry cannot
+    overrule the scans."""
     from mapkit.build import _odometry
 
     model = _odometry._OdometryModel()
@@ -88,7 +120,7 @@ def test_odometry_noise_scale_has_a_floor() -> None:
     for _ in range(200):
         model.observe(np.zeros(3), strong, 150.0, 0.0)
     model.settle()
-    assert model.scale == pytest.approx(10 ** _odometry._MIN_LOG_SCALE)
+    assert model.scale == pytest.approx(10**_odometry._MIN_LOG_SCALE)
     assert 0 < model.scale < 0.05
     # Steps that disagree with their scans raise it again.
     rng = np.random.default_rng(1)
@@ -99,7 +131,7 @@ def test_odometry_noise_scale_has_a_floor() -> None:
 
 
 def test_fusion_weighs_scan_and_odometry_and_distrusts_a_wild_match() -> None:
-    from mapkit.build import _fuse
+    from mapkit.build._loops import _fuse
 
     scan = np.diag([1 / 4.0**2, 1 / 4.0**2, 1 / np.radians(0.2) ** 2])
     odo = np.diag([1 / 4.0**2, 1 / 4.0**2, 1 / np.radians(0.2) ** 2])

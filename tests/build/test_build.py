@@ -97,8 +97,12 @@ def test_quality_on_the_building_sample() -> None:
 def test_icp_recovers_a_known_motion() -> None:
     # An L-shaped corner seen from the origin, moved by a known pose.
     t = np.linspace(0, 3000, 151)
-    corner = np.concatenate([np.stack([t, np.full_like(t, 2000.0)], 1),
-                             np.stack([np.full_like(t, 3000.0), t - 1000], 1)])
+    corner = np.concatenate(
+        [
+            np.stack([t, np.full_like(t, 2000.0)], 1),
+            np.stack([np.full_like(t, 3000.0), t - 1000], 1),
+        ]
+    )
     nrm = np.concatenate([np.tile([0.0, 1.0], (151, 1)), np.tile([1.0, 0.0], (151, 1))])
     from scipy.spatial import cKDTree
 
@@ -128,17 +132,28 @@ def test_pose_graph_closes_a_square() -> None:
         step = np.array([0.0, 0.0, math.pi / 2]) if k % 10 == 0 else np.array([500.0, 0.0, 0.0])
         p = true[-1]
         c, s = math.cos(p[2]), math.sin(p[2])
-        true.append(np.array([p[0] + c * step[0] - s * step[1], p[1] + s * step[0] + c * step[1],
-                              wrap(p[2] + step[2])]))
+        true.append(
+            np.array(
+                [
+                    p[0] + c * step[0] - s * step[1],
+                    p[1] + s * step[0] + c * step[1],
+                    wrap(p[2] + step[2]),
+                ]
+            )
+        )
     T = np.array(true)
     g = PoseGraph()
     est = [T[0]]
     for k in range(1, len(T)):
-        z = between(T[k - 1], T[k]) + [rng.normal(0, 10), rng.normal(0, 10), rng.normal(0, 0.02)]
+        z = between(T[k - 1], T[k]) + np.array(
+            [rng.normal(0, 10), rng.normal(0, 10), rng.normal(0, 0.02)]
+        )
         g.add(k - 1, k, z, sigma_info(10, 10, 0.02))
         p = est[-1]
         c, s = math.cos(p[2]), math.sin(p[2])
-        est.append(np.array([p[0] + c * z[0] - s * z[1], p[1] + s * z[0] + c * z[1], wrap(p[2] + z[2])]))
+        est.append(
+            np.array([p[0] + c * z[0] - s * z[1], p[1] + s * z[0] + c * z[1], wrap(p[2] + z[2])])
+        )
     E = np.array(est)
     g.add(0, len(T) - 1, between(T[0], T[-1]), sigma_info(5, 5, 0.005), robust=True)
     before = np.sqrt(np.mean(np.sum((E[:, :2] - T[:, :2]) ** 2, 1)))
@@ -149,13 +164,17 @@ def test_pose_graph_closes_a_square() -> None:
 
 
 def test_extract_lines_of_a_room() -> None:
-    walls = np.array([[0, 0, 4000, 0], [4000, 0, 4000, 3000], [4000, 3000, 0, 3000],
-                      [0, 3000, 0, 0]], dtype=float)
+    walls = np.array(
+        [[0, 0, 4000, 0], [4000, 0, 4000, 3000], [4000, 3000, 0, 3000], [0, 3000, 0, 0]],
+        dtype=float,
+    )
     rng = np.random.default_rng(1)
     pts = []
     for x1, y1, x2, y2 in walls:
         t = np.linspace(0, 1, 200)
-        pts.append(np.stack([x1 + t * (x2 - x1), y1 + t * (y2 - y1)], 1) + rng.normal(0, 4, (200, 2)))
+        pts.append(
+            np.stack([x1 + t * (x2 - x1), y1 + t * (y2 - y1)], 1) + rng.normal(0, 4, (200, 2))
+        )
     p = np.rint(np.concatenate(pts) / 20) * 20
     segs = extract_lines(p)
     assert 4 <= len(segs) <= 8
@@ -197,9 +216,13 @@ def test_goal_pose_follows_the_corrected_scan() -> None:
     xy = np.stack([np.full_like(x, 2000.0), x], 1)
     from mapkit.formats.laser2d import goal_event
 
-    laser_log = LaserLog(header=LogHeader(lasers=(mapkit.model.LaserConfig(count=181, start=-45, end=45),)),
-                         records=[LaserScan(scan_id=0, robot=Pose2D(0, 0, 0), xy=xy),
-                                  goal_event("g", Pose2D(100, 0, 0))])
+    laser_log = LaserLog(
+        header=LogHeader(lasers=(mapkit.model.LaserConfig(count=181, start=-45, end=45),)),
+        records=[
+            LaserScan(scan_id=0, robot=Pose2D(0, 0, 0), xy=xy),
+            goal_event("g", Pose2D(100, 0, 0)),
+        ],
+    )
     res = build_map(laser_log, register=False, lines=False)
-    g = [o for o in res.map.objects if o.name == "g"][0]
+    g = next(o for o in res.map.objects if o.name == "g")
     assert (g.type, g.x, g.y) == ("GoalWithHeading", 100.0, 0.0)

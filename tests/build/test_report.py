@@ -3,8 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
-from hypothesis import given, settings
-from hypothesis import strategies as st
+from hypothesis import given, settings, strategies as st
 from hypothesis.extra.numpy import arrays
 
 from mapkit.build import BuildResult
@@ -18,14 +17,24 @@ angles = st.floats(-180, 180, allow_nan=False, allow_infinity=False)
 @st.composite
 def results(draw) -> BuildResult:
     n = draw(st.integers(1, 30))
-    poses = np.column_stack([draw(arrays(np.float64, n, elements=coords)),
-                             draw(arrays(np.float64, n, elements=coords)),
-                             draw(arrays(np.float64, n, elements=angles))])
+    poses = np.column_stack(
+        [
+            draw(arrays(np.float64, n, elements=coords)),
+            draw(arrays(np.float64, n, elements=coords)),
+            draw(arrays(np.float64, n, elements=angles)),
+        ]
+    )
     odo = poses + draw(arrays(np.float64, (n, 3), elements=st.floats(-1e3, 1e3)))
     ids = np.array(sorted(draw(st.sets(st.integers(0, 10**9), min_size=n, max_size=n))))
     res = draw(arrays(np.float64, n, elements=st.one_of(st.just(np.nan), st.floats(0, 100))))
-    return BuildResult(map=MapData(), poses=poses, odometry=odo, scan_ids=ids, residuals=res,
-                       closures=np.array([[0, n - 1]]))
+    return BuildResult(
+        map=MapData(),
+        poses=poses,
+        odometry=odo,
+        scan_ids=ids,
+        residuals=res,
+        closures=np.array([[0, n - 1]]),
+    )
 
 
 @settings(max_examples=40, deadline=None)

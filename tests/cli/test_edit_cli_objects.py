@@ -176,8 +176,12 @@ def test_add_commands(runner: CliRunner, columbia: Path) -> None:
 
 def test_add_object_with_params(runner: CliRunner, omron: Path) -> None:
     sector = ["add-object", omron, "MovementParametersSector", "--area"]
-    r = run(runner, *sector, *split("0 0 4000 2000 --name Slow --param TransVelMax=300 --angle 30"),
-            "--rotate-about-centre")
+    r = run(
+        runner,
+        *sector,
+        *split("0 0 4000 2000 --name Slow --param TransVelMax=300 --angle 30"),
+        "--rotate-about-centre",
+    )
     assert r.exit_code == 0, r.output
     assert '+ CairnInfo: Params "Slow" "Normal" 300' in r.stdout
     listed = run(runner, "objects", omron, "--type", "MovementParametersSector", "--json")

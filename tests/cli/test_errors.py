@@ -55,8 +55,10 @@ def placeholder(p: click.Parameter, tmp_path: Path) -> str:
     """A harmless value for a parameter that is not the file under test."""
     if isinstance(p.type, click.Choice):
         return str(p.type.choices[0])
-    if isinstance(p.type, (click.types.FloatParamType, click.types.IntParamType,
-                           click.FloatRange, click.IntRange)):
+    if isinstance(
+        p.type,
+        (click.types.FloatParamType, click.types.IntParamType, click.FloatRange, click.IntRange),
+    ):
         return "1"
     if p.name in ("address",):
         return "127.0.0.1:9"
@@ -181,8 +183,11 @@ def test_a_missing_output_folder_is_said_so(
     result = runner.invoke(cli, args)
     assert result.exit_code == 1, result.output
     [line] = lines(result)[-1:]
-    assert re.fullmatch(rf"Error: cannot write {re.escape(str(folder))}/out\.\w+: "
-                        rf"folder {re.escape(str(folder))} does not exist", line), line
+    assert re.fullmatch(
+        rf"Error: cannot write {re.escape(str(folder))}/out\.\w+: "
+        rf"folder {re.escape(str(folder))} does not exist",
+        line,
+    ), line
     assert "tmp" not in line.split(":", 2)[1] or str(tmp_path) in line  # never a temp file name
 
 
@@ -195,8 +200,9 @@ def test_a_read_only_folder_is_said_so(
     args = writing_commands(office, Path("/sys/out.map"))[name]
     result = runner.invoke(cli, args)
     assert result.exit_code == 1, result.output
-    assert re.fullmatch(r"Error: cannot write /sys/out\.\w+: folder /sys is read-only",
-                        lines(result)[-1]), lines(result)
+    assert re.fullmatch(
+        r"Error: cannot write /sys/out\.\w+: folder /sys is read-only", lines(result)[-1]
+    ), lines(result)
 
 
 def test_a_read_only_map_is_kept_unless_force(runner: CliRunner, office: Path) -> None:
@@ -205,7 +211,8 @@ def test_a_read_only_map_is_kept_unless_force(runner: CliRunner, office: Path) -
     result = runner.invoke(cli, ["add-goal", str(office), "G", "1000", "1000"])
     assert result.exit_code == 1
     assert lines(result) == [
-        f"Error: cannot write {office}: the file is read-only; add --force to replace it"]
+        f"Error: cannot write {office}: the file is read-only; add --force to replace it"
+    ]
     assert office.read_bytes() == before
     result = runner.invoke(cli, ["convert", str(OFFICE), str(office), "--force"])
     assert result.exit_code == 0, result.output
@@ -224,8 +231,9 @@ def test_a_rewrite_keeps_permissions(runner: CliRunner, office: Path, mode: int)
     assert stat.S_IMODE(office.stat().st_mode) == mode
 
 
-def test_a_rewrite_through_a_symlink_keeps_the_link(runner: CliRunner, office: Path,
-                                                    tmp_path: Path) -> None:
+def test_a_rewrite_through_a_symlink_keeps_the_link(
+    runner: CliRunner, office: Path, tmp_path: Path
+) -> None:
     link = tmp_path / "current.map"
     link.symlink_to(office)
     assert runner.invoke(cli, ["add-goal", str(link), "G", "1000", "1000"]).exit_code == 0
@@ -247,20 +255,26 @@ def cut(tmp_path: Path) -> Path:
 def test_info_warns_about_a_truncated_map(runner: CliRunner, cut: Path) -> None:
     result = runner.invoke(cli, ["info", str(cut)])
     assert result.exit_code == 0
-    assert re.search(r"warning: .*cut\.map: NumPoints: 7116 but the file has \d+ DATA rows: "
-                     r"\d+ missing", result.stderr)
+    assert re.search(
+        r"warning: .*cut\.map: NumPoints: 7116 but the file has \d+ DATA rows: "
+        r"\d+ missing",
+        result.stderr,
+    )
     data = mapkit.load(cut)
     assert runner.invoke(cli, ["info", str(OFFICE)]).stderr == ""
     assert len(data.points) < 7116
 
 
-@pytest.mark.parametrize("edit", [
-    ["add-goal", "G", "1000", "1000"],
-    ["forbid", "--line", "0", "0", "1000", "0"],
-    ["remove", "Kitchen"],
-    ["erase", "--box", "0", "0", "100", "100"],
-    ["transform", "--translate", "10", "0"],
-])
+@pytest.mark.parametrize(
+    "edit",
+    [
+        ["add-goal", "G", "1000", "1000"],
+        ["forbid", "--line", "0", "0", "1000", "0"],
+        ["remove", "Kitchen"],
+        ["erase", "--box", "0", "0", "100", "100"],
+        ["transform", "--translate", "10", "0"],
+    ],
+)
 def test_edits_refuse_a_truncated_map_unless_force(
     runner: CliRunner, cut: Path, edit: list[str]
 ) -> None:
@@ -277,8 +291,13 @@ def test_edits_refuse_a_truncated_map_unless_force(
 
 
 def _mapkit(*args: str, **kw: object) -> subprocess.Popen[bytes]:
-    return subprocess.Popen([sys.executable, "-m", "mapkit", *args], cwd=kw.pop("cwd", None),
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, **kw)  # type: ignore[call-overload]
+    return subprocess.Popen(
+        [sys.executable, "-m", "mapkit", *args],
+        cwd=kw.pop("cwd", None),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        **kw,
+    )  # type: ignore[call-overload]
 
 
 def _wait_for(proc: subprocess.Popen[bytes], marker: bytes, timeout: float = 60.0) -> bytes:
@@ -302,7 +321,7 @@ def test_ctrl_c_exits_130_with_one_line(tmp_path: Path) -> None:
     seen = _wait_for(proc, b"registering")  # started and working: scans are being matched
     assert proc.poll() is None, (seen, proc.communicate())
     proc.send_signal(signal.SIGINT)
-    out, err = proc.communicate(timeout=60)
+    _out, err = proc.communicate(timeout=60)
     err = seen + err
     assert proc.returncode == 130, err.decode()
     assert err.decode().strip().splitlines()[-1] == "Error: interrupted"
@@ -327,8 +346,9 @@ def many_objects(tmp_path: Path) -> Path:
     return path
 
 
-@pytest.mark.parametrize("args", [["objects", "{map}"], ["objects", "{map}", "--json"],
-                                  ["codes", "--markdown"]])
+@pytest.mark.parametrize(
+    "args", [["objects", "{map}"], ["objects", "{map}", "--json"], ["codes", "--markdown"]]
+)
 def test_a_closed_pipe_ends_quietly(many_objects: Path, args: list[str]) -> None:
     proc = _mapkit(*[a.format(map=many_objects) for a in args])
     assert proc.stdout is not None and proc.stderr is not None
@@ -339,18 +359,22 @@ def test_a_closed_pipe_ends_quietly(many_objects: Path, args: list[str]) -> None
     assert err == b"" and proc.returncode in (0, 141)
 
 
-@pytest.mark.parametrize("args", [
-    ["add-goal", "{map}", "G", "1000", "1000"],
-    ["forbid", "{map}", "--area", "0", "0", "500", "500", "--angle", "10"],
-    ["info", "{map}"],
-    ["objects", "{map}"],
-    ["validate", "{map}", "--no-navigation"],
-    ["convert", "{map}", "{tmp}/c.map"],
-    ["rasterize", "{map}", "-o", "{tmp}/r.yaml", "--keepout"],
-    ["samples", "office.map", "-o", "{tmp}/s"],
-])
-def test_quiet_silences_reports(runner: CliRunner, office: Path, tmp_path: Path,
-                                args: list[str]) -> None:
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["add-goal", "{map}", "G", "1000", "1000"],
+        ["forbid", "{map}", "--area", "0", "0", "500", "500", "--angle", "10"],
+        ["info", "{map}"],
+        ["objects", "{map}"],
+        ["validate", "{map}", "--no-navigation"],
+        ["convert", "{map}", "{tmp}/c.map"],
+        ["rasterize", "{map}", "-o", "{tmp}/r.yaml", "--keepout"],
+        ["samples", "office.map", "-o", "{tmp}/s"],
+    ],
+)
+def test_quiet_silences_reports(
+    runner: CliRunner, office: Path, tmp_path: Path, args: list[str]
+) -> None:
     (tmp_path / "loud").mkdir()
     loud_copy = tmp_path / "loud" / office.name
     shutil.copyfile(office, loud_copy)
@@ -366,7 +390,9 @@ def test_quiet_keeps_errors_and_json(runner: CliRunner, office: Path, tmp_path: 
     assert result.exit_code == 0 and '"category": "2D-Map"' in result.stdout
     missing = tmp_path / "gone.map"
     result = runner.invoke(cli, ["-q", "info", str(missing)])
-    assert result.exit_code == 2 and lines(result) == [f"Error: cannot read {missing}: no such file"]
+    assert result.exit_code == 2 and lines(result) == [
+        f"Error: cannot read {missing}: no such file"
+    ]
     office.chmod(0o444)
     result = runner.invoke(cli, ["-q", "add-goal", str(office), "G", "1", "1"])
     assert result.exit_code == 1 and "read-only" in result.stderr
@@ -397,8 +423,14 @@ def test_one_thing_is_not_plural(runner: CliRunner, one_of_each: Path, tmp_path:
         ["info", str(one_of_each)],
         ["validate", str(one_of_each), "--no-navigation"],
         ["rasterize", str(one_of_each), "-o", str(out), "--keepout", "--speed-mask"],
-        ["import-ros", str(out), "-o", str(tmp_path / "back.map"), "--keepout",
-         str(tmp_path / "r_keepout.yaml")],
+        [
+            "import-ros",
+            str(out),
+            "-o",
+            str(tmp_path / "back.map"),
+            "--keepout",
+            str(tmp_path / "r_keepout.yaml"),
+        ],
         ["add-goal", str(one_of_each), "Other", "3000", "300"],
     ]
     text = ""
@@ -413,9 +445,11 @@ def test_one_thing_is_not_plural(runner: CliRunner, one_of_each: Path, tmp_path:
 @pytest.mark.parametrize("command", ["serve", "receive"])
 def test_ctrl_c_stops_a_server_normally(tmp_path: Path, command: str) -> None:
     folder = tmp_path / "maps"
-    proc = _mapkit(command, str(folder), "--insecure", "--listen", "127.0.0.1:0") \
-        if command == "serve" else _mapkit(command, "--insecure", "--listen", "127.0.0.1:0",
-                                           "-o", str(folder))
+    proc = (
+        _mapkit(command, str(folder), "--insecure", "--listen", "127.0.0.1:0")
+        if command == "serve"
+        else _mapkit(command, "--insecure", "--listen", "127.0.0.1:0", "-o", str(folder))
+    )
     time.sleep(2)
     assert proc.poll() is None, proc.communicate()
     proc.send_signal(signal.SIGINT)
@@ -431,15 +465,19 @@ def test_bad_usage_is_exit_2_for_every_command(runner: CliRunner, path: list[str
     assert "No such option" in result.stderr or "--no-such-option" in result.stderr
 
 
-@pytest.mark.parametrize("args", [
-    ["samples", "office.map", "-o", "/sys/mapkit-samples"],
-    ["samples", "office.map", "-o", "/sys"],
-    ["serve", "/sys/mapkit-maps", "--insecure", "--listen", "127.0.0.1:0"],
-])
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["samples", "office.map", "-o", "/sys/mapkit-samples"],
+        ["samples", "office.map", "-o", "/sys"],
+        ["serve", "/sys/mapkit-maps", "--insecure", "--listen", "127.0.0.1:0"],
+    ],
+)
 def test_a_folder_that_cannot_be_made_is_a_write_error(runner: CliRunner, args: list[str]) -> None:
     if os.access("/sys", os.W_OK) and not os.path.ismount("/sys"):
         pytest.skip("no read-only folder here (/sys is not sysfs)")
     result = runner.invoke(cli, args)
     assert result.exit_code == 1, result.output
-    assert re.fullmatch(r"Error: cannot write /sys(/[\w.-]+)?: folder /sys is read-only",
-                        lines(result)[-1]), lines(result)
+    assert re.fullmatch(
+        r"Error: cannot write /sys(/[\w.-]+)?: folder /sys is read-only", lines(result)[-1]
+    ), lines(result)

@@ -33,10 +33,24 @@ def office(tmp_path: Path) -> Path:
 def test_an_angle_keeps_the_box_where_it_was_drawn(
     runner: CliRunner, office: Path, command: str, angle: str
 ) -> None:
-    head = {"forbid": ["forbid"], "add-home": ["add-home"],
-            "add-object": ["add-object", str(office), "ForbiddenArea"]}[command]
-    args = [*head, *([] if command == "add-object" else [str(office)]),
-            "--area", "6000", "3000", "8000", "4000", "--angle", angle, "--name", "Box"]
+    head = {
+        "forbid": ["forbid"],
+        "add-home": ["add-home"],
+        "add-object": ["add-object", str(office), "ForbiddenArea"],
+    }[command]
+    args = [
+        *head,
+        *([] if command == "add-object" else [str(office)]),
+        "--area",
+        "6000",
+        "3000",
+        "8000",
+        "4000",
+        "--angle",
+        angle,
+        "--name",
+        "Box",
+    ]
     r = run(runner, *args)
     assert r.exit_code == 0, r.output
     obj = load(office).objects[-1]
@@ -51,13 +65,29 @@ def test_an_angle_keeps_the_box_where_it_was_drawn(
 
 
 def test_rotate_about_origin_keeps_arias_rule(runner: CliRunner, office: Path) -> None:
-    r = run(runner, "forbid", office, "--area", "6000", "3000", "8000", "4000", "--angle", "90",
-            "--rotate-about", "origin")
+    r = run(
+        runner,
+        "forbid",
+        office,
+        "--area",
+        "6000",
+        "3000",
+        "8000",
+        "4000",
+        "--angle",
+        "90",
+        "--rotate-about",
+        "origin",
+    )
     assert r.exit_code == 0, r.output
     want = edit.forbid_area(MapData(), 6000, 3000, 8000, 4000, angle=90, rotate_about="origin")
     assert load(office).objects[-1].from_to == want.objects[0].from_to
     assert sorted(corners_of(r.stdout.splitlines()[0])) == [
-        (-4000, 6000), (-4000, 8000), (-3000, 6000), (-3000, 8000)]
+        (-4000, 6000),
+        (-4000, 8000),
+        (-3000, 6000),
+        (-3000, 8000),
+    ]
 
 
 def test_old_flag_still_runs_and_conflicts_are_refused(runner: CliRunner, office: Path) -> None:
@@ -67,12 +97,28 @@ def test_old_flag_still_runs_and_conflicts_are_refused(runner: CliRunner, office
     assert r.exit_code == 2 and "not both" in r.stderr
 
 
-def test_diff_shows_world_corners_of_a_turned_area(runner: CliRunner, office: Path,
-                                                   tmp_path: Path) -> None:
+def test_diff_shows_world_corners_of_a_turned_area(
+    runner: CliRunner, office: Path, tmp_path: Path
+) -> None:
     before = tmp_path / "before.map"
     shutil.copyfile(office, before)
-    assert run(runner, "forbid", office, "--area", "16000", "1500", "18000", "3500",
-               "--angle", "20", "--name", "Printer").exit_code == 0
+    assert (
+        run(
+            runner,
+            "forbid",
+            office,
+            "--area",
+            "16000",
+            "1500",
+            "18000",
+            "3500",
+            "--angle",
+            "20",
+            "--name",
+            "Printer",
+        ).exit_code
+        == 0
+    )
     r = run(runner, "diff", before, office)
     line = next(x for x in r.stdout.splitlines() if "Printer" in x)
     got = corners_of(line)

@@ -47,8 +47,11 @@ def test_top_level_help_lists_every_command() -> None:
 
 
 def test_cli_docs_are_current() -> None:
-    result = subprocess.run([sys.executable, str(ROOT / "scripts" / "make_cli_docs.py"), "--check"],
-                            capture_output=True, text=True)
+    result = subprocess.run(
+        [sys.executable, str(ROOT / "scripts" / "make_cli_docs.py"), "--check"],
+        capture_output=True,
+        text=True,
+    )
     assert result.returncode == 0, result.stdout
 
 
@@ -104,10 +107,10 @@ def test_every_command_defined_is_in_the_table() -> None:
 
 
 def _modules_after(code: str) -> set[str]:
-    probe = (f"import sys\n{code}\n"
-             "print('\\n'.join(sorted(sys.modules)))")
-    result = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True,
-                            cwd=ROOT, timeout=120)
+    probe = f"import sys\n{code}\nprint('\\n'.join(sorted(sys.modules)))"
+    result = subprocess.run(
+        [sys.executable, "-c", probe], capture_output=True, text=True, cwd=ROOT, timeout=120
+    )
     assert result.returncode == 0, result.stderr
     return set(result.stdout.split())
 
@@ -116,17 +119,21 @@ HEAVY = {"numpy", "scipy", "matplotlib", "shapely", "trimesh", "yaml", "PIL", "r
 
 
 def test_help_imports_no_command_and_no_numpy() -> None:
-    mods = _modules_after("from mapkit.cli.main import cli\n"
-                          "try:\n    cli(['--help'], prog_name='mapkit')\n"
-                          "except SystemExit:\n    pass")
+    mods = _modules_after(
+        "from mapkit.cli.main import cli\n"
+        "try:\n    cli(['--help'], prog_name='mapkit')\n"
+        "except SystemExit:\n    pass"
+    )
     assert not {m for m in mods if m.startswith("mapkit.cli.")} - {"mapkit.cli.main"}
     assert not HEAVY & mods
 
 
 def test_info_imports_only_what_it_needs() -> None:
-    mods = _modules_after("from mapkit.cli.main import cli\n"
-                          "try:\n    cli(['info', 'mapkit/sample_maps/office.map'], "
-                          "prog_name='mapkit')\nexcept SystemExit:\n    pass")
+    mods = _modules_after(
+        "from mapkit.cli.main import cli\n"
+        "try:\n    cli(['info', 'mapkit/sample_maps/office.map'], "
+        "prog_name='mapkit')\nexcept SystemExit:\n    pass"
+    )
     assert "numpy" in mods and "mapkit.cli.info" in mods
     assert not (HEAVY - {"numpy"}) & mods
     assert not {"mapkit.edit", "mapkit.validate", "mapkit.raster", "mapkit.cli.edit"} & mods

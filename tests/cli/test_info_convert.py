@@ -17,7 +17,9 @@ def test_version(runner: CliRunner) -> None:
 
 
 def test_info_json_on_real_sample(runner: CliRunner, real_sample: Path, shared_dir: Path) -> None:
-    dump = json.loads((shared_dir / "aria-dump" / (real_sample.stem + ".json")).read_bytes().decode())
+    dump = json.loads(
+        (shared_dir / "aria-dump" / (real_sample.stem + ".json")).read_bytes().decode()
+    )
     result = runner.invoke(cli, ["info", str(real_sample), "--json"])
     assert result.exit_code == 0, result.output
     data = json.loads(result.output)
@@ -49,12 +51,15 @@ def test_info_bad_map_is_one_line(runner: CliRunner, tmp_path: Path) -> None:
     bad.write_bytes(b"2D-Map\nMinPos: 1 2 3\nDATA\n")
     result = runner.invoke(cli, ["info", str(bad)])
     assert result.exit_code == 1
-    assert result.output.strip() == f"Error: {bad}:2: MinPos: expects exactly 2 integers, got 3 " \
-                                    "arguments: '1 2 3'"
+    assert (
+        result.output.strip() == f"Error: {bad}:2: MinPos: expects exactly 2 integers, got 3 "
+        "arguments: '1 2 3'"
+    )
 
 
-def test_convert_canonical_rewrite(runner: CliRunner, real_sample: Path, shared_dir: Path,
-                                   tmp_path: Path) -> None:
+def test_convert_canonical_rewrite(
+    runner: CliRunner, real_sample: Path, shared_dir: Path, tmp_path: Path
+) -> None:
     out = tmp_path / "out.map"
     result = runner.invoke(cli, ["convert", str(real_sample), str(out)])
     assert result.exit_code == 0, result.output
@@ -83,6 +88,7 @@ def test_python_dash_m(tmp_path: Path) -> None:
     import subprocess
     import sys
 
-    out = subprocess.run([sys.executable, "-m", "mapkit", "--version"], capture_output=True, text=True,
-                         check=True)
+    out = subprocess.run(
+        [sys.executable, "-m", "mapkit", "--version"], capture_output=True, text=True, check=True
+    )
     assert mapkit.__version__ in out.stdout

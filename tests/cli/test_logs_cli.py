@@ -12,8 +12,21 @@ from mapkit.cli.main import cli
 
 def test_simulate_build_and_info(runner, tmp_path) -> None:
     log = tmp_path / "office.2d"
-    res = runner.invoke(cli, ["simulate", "--sample", "office", "-o", str(log), "--loop",
-                              "--readings", "181", "--seed", "3"])
+    res = runner.invoke(
+        cli,
+        [
+            "simulate",
+            "--sample",
+            "office",
+            "-o",
+            str(log),
+            "--loop",
+            "--readings",
+            "181",
+            "--seed",
+            "3",
+        ],
+    )
     assert res.exit_code == 0, res.output
     assert "wrote" in res.output and (tmp_path / "office.truth.tsv").exists()
     res = runner.invoke(cli, ["log-info", str(log), "--json"])
@@ -31,8 +44,9 @@ def test_simulate_build_and_info(runner, tmp_path) -> None:
     assert summary["loops"]["tags_matched"] == 1
     res = runner.invoke(cli, ["build", str(log), "-o", str(out)])
     assert res.exit_code == 2 and "--force" in res.output
-    res = runner.invoke(cli, ["build", str(log), "-o", str(out), "--force", "--no-register",
-                              "--resolution", "50"])
+    res = runner.invoke(
+        cli, ["build", str(log), "-o", str(out), "--force", "--no-register", "--resolution", "50"]
+    )
     assert res.exit_code == 0, res.output
     assert "raw odometry" in res.output and mapkit.load(out).scan.resolution == 50
 
@@ -41,13 +55,28 @@ def test_simulate_options_and_versions(runner, tmp_path) -> None:
     room = tmp_path / "room.map"
     room.write_text("2D-Map\nLINES\n0 0 6000 0\n6000 0 6000 4000\n6000 4000 0 4000\n0 4000 0 0\n")
     log = tmp_path / "room.2d"
-    res = runner.invoke(cli, ["simulate", str(room), "-o", str(log), "--version", "2",
-                              "--waypoints", "1000,1000 5000,3000", "--no-truth", "--fov", "240"])
+    res = runner.invoke(
+        cli,
+        [
+            "simulate",
+            str(room),
+            "-o",
+            str(log),
+            "--version",
+            "2",
+            "--waypoints",
+            "1000,1000 5000,3000",
+            "--no-truth",
+            "--fov",
+            "240",
+        ],
+    )
     assert res.exit_code == 0, res.output
     assert not (tmp_path / "room.truth.tsv").exists()
     assert "version: 2" in log.read_text().splitlines()[:4]
-    res = runner.invoke(cli, ["simulate", str(room), "-o", str(log), "--force",
-                              "--waypoints", "1000,1000,5"])
+    res = runner.invoke(
+        cli, ["simulate", str(room), "-o", str(log), "--force", "--waypoints", "1000,1000,5"]
+    )
     assert res.exit_code == 2 and "--waypoints: expected 2 numbers" in res.output
     res = runner.invoke(cli, ["simulate", "-o", str(log)])
     assert res.exit_code == 2 and "MAP_FILE or --sample" in res.output
@@ -55,8 +84,10 @@ def test_simulate_options_and_versions(runner, tmp_path) -> None:
 
 def test_bad_log_is_one_line_error(runner, tmp_path) -> None:
     bad = tmp_path / "bad.2d"
-    bad.write_text("LaserOdometryLog\nversion: 4\nsick1conf: -90 90 2\n"
-                   "scanId: 0\nrobot: 0 0 0\nscan1: 1 2 3 \n")
+    bad.write_text(
+        "LaserOdometryLog\nversion: 4\nsick1conf: -90 90 2\n"
+        "scanId: 0\nrobot: 0 0 0\nscan1: 1 2 3 \n"
+    )
     res = runner.invoke(cli, ["build", str(bad), "-o", str(tmp_path / "x.map")])
     assert res.exit_code == 1
     assert "bad.2d:6: scan1: odd number of values (3)" in res.output
@@ -74,16 +105,44 @@ def _room_log(runner, tmp_path, *extra: str):
     room = tmp_path / "world.map"
     room.write_text(ROOM)
     log = tmp_path / "room.2d"
-    res = runner.invoke(cli, ["simulate", str(room), "-o", str(log), "--waypoints",
-                              "6500,1500 6500,3500", "--start", "1500,2500,0", "--loop", "--laps",
-                              "3", "--seed", "4", "--readings", "181", *extra])
+    res = runner.invoke(
+        cli,
+        [
+            "simulate",
+            str(room),
+            "-o",
+            str(log),
+            "--waypoints",
+            "6500,1500 6500,3500",
+            "--start",
+            "1500,2500,0",
+            "--loop",
+            "--laps",
+            "3",
+            "--seed",
+            "4",
+            "--readings",
+            "181",
+            *extra,
+        ],
+    )
     assert res.exit_code == 0, res.output
     return log
 
 
 def test_repeated_tags_merge_into_one_goal(runner, tmp_path) -> None:
-    log = _room_log(runner, tmp_path, "--scale-error", "0.01", "--turn-slip", "0.03",
-                    "--outliers", "0.02", "--people", "1")
+    log = _room_log(
+        runner,
+        tmp_path,
+        "--scale-error",
+        "0.01",
+        "--turn-slip",
+        "0.03",
+        "--outliers",
+        "0.02",
+        "--people",
+        "1",
+    )
     out = tmp_path / "built.map"
     res = runner.invoke(cli, ["build", str(log), "-o", str(out), "--no-lines"])
     assert res.exit_code == 0, res.output
@@ -92,8 +151,9 @@ def test_repeated_tags_merge_into_one_goal(runner, tmp_path) -> None:
     assert sorted(g.name for g in goals) == ["goal1", "goal2"]
     g1 = next(g for g in goals if g.name == "goal1")
     assert abs(g1.x - 6500) < 100 and abs(g1.y - 1500) < 100
-    res = runner.invoke(cli, ["build", str(log), "-o", str(out), "--force", "--no-lines",
-                              "--keep-all-tags"])
+    res = runner.invoke(
+        cli, ["build", str(log), "-o", str(out), "--force", "--no-lines", "--keep-all-tags"]
+    )
     assert res.exit_code == 0, res.output
     goals = [o for o in mapkit.load(out).objects if o.type == "GoalWithHeading"]
     assert sorted(g.name for g in goals) == ["goal1"] * 3 + ["goal2"] * 3
@@ -105,8 +165,9 @@ def test_poses_and_report(runner, tmp_path) -> None:
 
     log = _room_log(runner, tmp_path)
     out, poses, png = tmp_path / "built.map", tmp_path / "room.tsv", tmp_path / "report.png"
-    res = runner.invoke(cli, ["build", str(log), "-o", str(out), "--poses", str(poses),
-                              "--report", str(png)])
+    res = runner.invoke(
+        cli, ["build", str(log), "-o", str(out), "--poses", str(poses), "--report", str(png)]
+    )
     assert res.exit_code == 0, res.output
     assert f"wrote {poses}:" in res.output and f"wrote {png} (PNG)" in res.output
     assert "loops closed" in res.output and "moved from odometry" in res.output
@@ -116,11 +177,22 @@ def test_poses_and_report(runner, tmp_path) -> None:
     assert np.array_equal(ids, result.scan_ids)
     assert np.allclose(p, result.poses, atol=0.06) and np.allclose(o, result.odometry, atol=0.06)
     # Existing outputs are refused before any work, unless --force.
-    res = runner.invoke(cli, ["build", str(log), "-o", str(tmp_path / "new.map"),
-                              "--poses", str(poses)])
+    res = runner.invoke(
+        cli, ["build", str(log), "-o", str(tmp_path / "new.map"), "--poses", str(poses)]
+    )
     assert res.exit_code == 2 and "--force" in res.output
-    res = runner.invoke(cli, ["build", str(log), "-o", str(tmp_path / "new.map"), "--json",
-                              "--report", str(tmp_path / "r2.png")])
+    res = runner.invoke(
+        cli,
+        [
+            "build",
+            str(log),
+            "-o",
+            str(tmp_path / "new.map"),
+            "--json",
+            "--report",
+            str(tmp_path / "r2.png"),
+        ],
+    )
     assert res.exit_code == 0, res.output
     figs = json.loads(res.output)["report_figures"]
     assert figs["scans"] == len(ids) and figs["residual_mm"]["median"] > 0

@@ -19,12 +19,30 @@ from ..raster.rosloader import cells
 
 def test_rasterize_writes_map_and_masks(runner: CliRunner, tmp_path: Path) -> None:
     out = tmp_path / "office.yaml"
-    result = runner.invoke(cli, ["rasterize", str(sample_path("office")), "-o", str(out),
-                                 "--keepout", "--speed-mask", "--resolution", "0.1"])
+    result = runner.invoke(
+        cli,
+        [
+            "rasterize",
+            str(sample_path("office")),
+            "-o",
+            str(out),
+            "--keepout",
+            "--speed-mask",
+            "--resolution",
+            "0.1",
+        ],
+    )
     assert result.exit_code == 0, result.output
     names = sorted(p.name for p in tmp_path.iterdir())
-    assert names == ["office.pgm", "office.yaml", "office_filters.yaml", "office_keepout.pgm",
-                     "office_keepout.yaml", "office_speed.pgm", "office_speed.yaml"]
+    assert names == [
+        "office.pgm",
+        "office.yaml",
+        "office_filters.yaml",
+        "office_keepout.pgm",
+        "office_keepout.yaml",
+        "office_speed.pgm",
+        "office_speed.yaml",
+    ]
     assert "wrote " + str(out) in result.output and ": 2 keepout zones\n" in result.output
     data, doc = cells(out)
     m = mapkit.load(sample_path("office"))
@@ -32,8 +50,22 @@ def test_rasterize_writes_map_and_masks(runner: CliRunner, tmp_path: Path) -> No
     # Refuses to overwrite without --force, and names the files.
     again = runner.invoke(cli, ["rasterize", str(sample_path("office")), "-o", str(out)])
     assert again.exit_code == 2 and "office.pgm, " in again.output and "--force" in again.output
-    forced = runner.invoke(cli, ["rasterize", str(sample_path("office")), "-o", str(out), "--force",
-                                 "--png", "--mode", "raw", "--free", "all", "--json"])
+    forced = runner.invoke(
+        cli,
+        [
+            "rasterize",
+            str(sample_path("office")),
+            "-o",
+            str(out),
+            "--force",
+            "--png",
+            "--mode",
+            "raw",
+            "--free",
+            "all",
+            "--json",
+        ],
+    )
     assert forced.exit_code == 0, forced.output
     info = json.loads(forced.stdout)
     assert info["image"].endswith("office.png") and info["mode"] == "raw"
@@ -43,12 +75,25 @@ def test_rasterize_writes_map_and_masks(runner: CliRunner, tmp_path: Path) -> No
 
 def test_rasterize_options(runner: CliRunner, tmp_path: Path, monkeypatch) -> None:
     monkeypatch.chdir(tmp_path)
-    result = runner.invoke(cli, ["rasterize", str(sample_path("office")), "--mode", "scale",
-                                 "--inflate", "200", "--forbidden-as-walls", "--margin", "1"])
+    result = runner.invoke(
+        cli,
+        [
+            "rasterize",
+            str(sample_path("office")),
+            "--mode",
+            "scale",
+            "--inflate",
+            "200",
+            "--forbidden-as-walls",
+            "--margin",
+            "1",
+        ],
+    )
     assert result.exit_code == 0, result.output
     assert (tmp_path / "office.yaml").exists() and (tmp_path / "office.png").exists()
-    bad = runner.invoke(cli, ["rasterize", str(sample_path("office")), "-o", "x.yaml",
-                              "--resolution", "-1"])
+    bad = runner.invoke(
+        cli, ["rasterize", str(sample_path("office")), "-o", "x.yaml", "--resolution", "-1"]
+    )
     assert bad.exit_code == 1 and "resolution must be a positive number" in bad.output
     bad = runner.invoke(cli, ["rasterize", str(sample_path("office")), "--mode", "binary"])
     assert bad.exit_code == 2
@@ -56,10 +101,23 @@ def test_rasterize_options(runner: CliRunner, tmp_path: Path, monkeypatch) -> No
 
 def test_import_ros_round_trip(runner: CliRunner, tmp_path: Path, real_sample: Path) -> None:
     y = tmp_path / "r.yaml"
-    assert runner.invoke(cli, ["rasterize", str(real_sample), "-o", str(y), "--keepout"]).exit_code == 0
+    assert (
+        runner.invoke(cli, ["rasterize", str(real_sample), "-o", str(y), "--keepout"]).exit_code
+        == 0
+    )
     out = tmp_path / "back.map"
-    result = runner.invoke(cli, ["import-ros", str(y), "-o", str(out), "--keepout",
-                                 str(tmp_path / "r_keepout.yaml"), "--json"])
+    result = runner.invoke(
+        cli,
+        [
+            "import-ros",
+            str(y),
+            "-o",
+            str(out),
+            "--keepout",
+            str(tmp_path / "r_keepout.yaml"),
+            "--json",
+        ],
+    )
     assert result.exit_code == 0, result.output
     info = json.loads(result.output)
     back = mapkit.load(out)
@@ -73,12 +131,15 @@ def test_import_ros_round_trip(runner: CliRunner, tmp_path: Path, real_sample: P
 
 def test_import_ros_errors_and_text(runner: CliRunner, tmp_path: Path, monkeypatch) -> None:
     monkeypatch.chdir(tmp_path)
-    (tmp_path / "bad.yaml").write_text("image: x.pgm\nresolution: 0.05\norigin: [0, 0]\n"
-                                       "negate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n")
+    (tmp_path / "bad.yaml").write_text(
+        "image: x.pgm\nresolution: 0.05\norigin: [0, 0]\n"
+        "negate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n"
+    )
     result = runner.invoke(cli, ["import-ros", "bad.yaml"])
     assert result.exit_code == 1
-    assert result.output.strip() == ("Error: bad.yaml:3: origin needs at least 3 numbers "
-                                     "(x, y, yaw), got 2")
+    assert result.output.strip() == (
+        "Error: bad.yaml:3: origin needs at least 3 numbers (x, y, yaw), got 2"
+    )
     assert runner.invoke(cli, ["rasterize", str(sample_path("office"))]).exit_code == 0
     result = runner.invoke(cli, ["import-ros", "office.yaml", "--no-lines"])
     assert result.exit_code == 0 and "0 lines" in result.output

@@ -17,9 +17,13 @@ from mapkit.model import MapData, MapObject, Scan
 @pytest.fixture
 def office(tmp_path: Path) -> Path:
     scan = Scan.from_arrays([[0, 0], [6000, 4000]], [[0, 0, 6000, 0], [0, 0, 0, 4000]])
-    m = MapData(scans=(scan,),
-                objects=(MapObject("GoalWithHeading", 3000, 2000, 90, name="Desk"),
-                         MapObject("ForbiddenArea", 0, 0, 0, from_to=(1000, 1000, 2000, 2000))))
+    m = MapData(
+        scans=(scan,),
+        objects=(
+            MapObject("GoalWithHeading", 3000, 2000, 90, name="Desk"),
+            MapObject("ForbiddenArea", 0, 0, 0, from_to=(1000, 1000, 2000, 2000)),
+        ),
+    )
     path = tmp_path / "office.map"
     mapkit.save(m, path)
     return path
@@ -41,11 +45,25 @@ def test_render_png(runner: CliRunner, office: Path, tmp_path: Path) -> None:
 
 
 @pytest.mark.parametrize("suffix", [".svg", ".pdf"])
-def test_render_vector_formats_json(runner: CliRunner, office: Path, tmp_path: Path,
-                                    suffix: str) -> None:
+def test_render_vector_formats_json(
+    runner: CliRunner, office: Path, tmp_path: Path, suffix: str
+) -> None:
     out = tmp_path / ("office" + suffix)
-    res = runner.invoke(cli, ["render", str(office), "-o", str(out), "--json", "--no-names",
-                              "--no-points", "--no-legend", "--title", ""])
+    res = runner.invoke(
+        cli,
+        [
+            "render",
+            str(office),
+            "-o",
+            str(out),
+            "--json",
+            "--no-names",
+            "--no-points",
+            "--no-legend",
+            "--title",
+            "",
+        ],
+    )
     assert res.exit_code == 0, res.output
     data = json.loads(res.output)
     assert data["path"] == str(out) and data["format"] == suffix[1:] and data["width"] == 1600
@@ -72,8 +90,9 @@ def test_render_bad_suffix(runner: CliRunner, office: Path, tmp_path: Path) -> N
     assert res.exit_code == 1 and "pictures are .png, .svg or .pdf, not '.gif'" in res.output
 
 
-def test_render_show_without_display(runner: CliRunner, office: Path,
-                                     monkeypatch: pytest.MonkeyPatch) -> None:
+def test_render_show_without_display(
+    runner: CliRunner, office: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     monkeypatch.delenv("DISPLAY", raising=False)
     monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
     res = runner.invoke(cli, ["render", str(office), "--show"])

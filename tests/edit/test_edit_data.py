@@ -5,8 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import shapely
-from hypothesis import given
-from hypothesis import strategies as st
+from hypothesis import given, strategies as st
 
 from mapkit import edit
 from mapkit.edit.selection import TOUCH, clip_lines, cut_lines, lines_overlapping, points_inside

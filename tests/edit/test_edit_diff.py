@@ -5,8 +5,7 @@ from __future__ import annotations
 import json
 
 import numpy as np
-from hypothesis import given
-from hypothesis import strategies as st
+from hypothesis import given, strategies as st
 
 from mapkit import edit
 from mapkit.formats.map import dumpb, loads

@@ -7,8 +7,7 @@ import math
 import numpy as np
 import pytest
 import shapely
-from hypothesis import given
-from hypothesis import strategies as st
+from hypothesis import given, strategies as st
 from shapely import affinity
 
 from mapkit import edit
@@ -146,8 +145,9 @@ def test_an_angle_turns_the_box_about_its_own_centre_by_default(
 
 def test_rotating_about_both_is_refused() -> None:
     with pytest.raises(EditError, match="not both"):
-        edit.forbid_area(MapData(), 0, 0, 1, 1, angle=5, rotate_about="origin",
-                         rotate_about_centre=True)
+        edit.forbid_area(
+            MapData(), 0, 0, 1, 1, angle=5, rotate_about="origin", rotate_about_centre=True
+        )
     with pytest.raises(EditError, match="'centre' or 'origin'"):
         edit.forbid_area(MapData(), 0, 0, 1, 1, angle=5, rotate_about="middle")
 

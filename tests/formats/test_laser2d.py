@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 import tracemalloc
 
 import numpy as np
@@ -15,8 +14,8 @@ from mapkit.formats.laser2d import (
     goal_event,
     goal_fields,
     iter_log,
-    log_summary,
     loads_log,
+    log_summary,
     loop_event,
     read_log,
     recover_log,
@@ -38,9 +37,15 @@ def v4(body: str, *, lx: int = 0, ly: int = 0, lth: str = "0.00", n: int = 2) ->
 
 def test_t25_v4_reading_to_global_point() -> None:
     """FORMATS.md T25: one valid point, robot frame (100, 500), global (500, 100)."""
-    log = read_log(v4("logTime: 1.000\nvelocities: 0.00 0.00 0.00\nscanId: 0\n"
-                      "robot: 1000 0 90.00\nrobotGlobal: 1000 0 90.00\nscan1: 500 0  0 0 \n"
-                      "# End of log\n", lx=100, lth="90.00"))
+    log = read_log(
+        v4(
+            "logTime: 1.000\nvelocities: 0.00 0.00 0.00\nscanId: 0\n"
+            "robot: 1000 0 90.00\nrobotGlobal: 1000 0 90.00\nscan1: 500 0  0 0 \n"
+            "# End of log\n",
+            lx=100,
+            lth="90.00",
+        )
+    )
     (scan,) = log.scans
     laser = log.header.laser(1)
     assert scan.valid.tolist() == [True, False]
@@ -52,10 +57,16 @@ def test_t25_v4_reading_to_global_point() -> None:
 @pytest.mark.parametrize("version", [2, 3])
 def test_v2_v3_pairs_are_robot_frame_offsets(version: int) -> None:
     """B.5: in v2/v3 a pair is the hit in the robot frame minus the mount offset (not rotated)."""
-    head = ("LaserOdometryLog\nversion: %d\nsick1pose: 100 0 90.00\nsick1conf: -90 90 2\n" % version)
-    body = ("scan1Id: 1\ntime: 5.7\n" + ("robot: 1000 0 90.00 0 0\n" if version == 2 else
-            "velocities: 0.00 0.00 0.00\nrobot: 1000 0 90.00\nrobotGlobal: 1000 0 90.00\n")
-            + "scan1: 500 0  0 0 \n")
+    head = f"LaserOdometryLog\nversion: {version}\nsick1pose: 100 0 90.00\nsick1conf: -90 90 2\n"
+    body = (
+        "scan1Id: 1\ntime: 5.7\n"
+        + (
+            "robot: 1000 0 90.00 0 0\n"
+            if version == 2
+            else "velocities: 0.00 0.00 0.00\nrobot: 1000 0 90.00\nrobotGlobal: 1000 0 90.00\n"
+        )
+        + "scan1: 500 0  0 0 \n"
+    )
     log = loads_log(head + body)
     (scan,) = log.scans
     laser = log.header.laser(1)
@@ -67,10 +78,12 @@ def test_v2_v3_pairs_are_robot_frame_offsets(version: int) -> None:
 
 def test_v3_raw_ranges_run_from_the_largest_angle() -> None:
     """B.5: v3 writes sick1: from the largest angle down while sick1conf lists min then max."""
-    log = loads_log("LaserOdometryLog\nversion: 3\nsick1pose: 0 0 0.00\nsick1conf: -90 90 3\n"
-                    "locationTypes: robot robotGlobal\nscan1Id: 1\ntime: 0.0\n"
-                    "robot: 0 0 0.00\nrobotGlobal: 0 0 0.00\nsick1: 1000 2000 3000\n"
-                    "scan1: 0 1000  2000 0  0 -3000 \n")
+    log = loads_log(
+        "LaserOdometryLog\nversion: 3\nsick1pose: 0 0 0.00\nsick1conf: -90 90 3\n"
+        "locationTypes: robot robotGlobal\nscan1Id: 1\ntime: 0.0\n"
+        "robot: 0 0 0.00\nrobotGlobal: 0 0 0.00\nsick1: 1000 2000 3000\n"
+        "scan1: 0 1000  2000 0  0 -3000 \n"
+    )
     scan = log.scans[0]
     laser = log.header.laser(1)
     assert laser.angles().tolist() == [90.0, 0.0, -90.0]
@@ -80,9 +93,11 @@ def test_v3_raw_ranges_run_from_the_largest_angle() -> None:
 
 
 def test_v1_raw_ranges_and_scan_comment() -> None:
-    text = ("LaserOdometryLog\nversion: 1\nsick1pose: 0 0 0\nsick1conf: -90 90 3\n"
-            "#scan1\nrobot: 10.5 20.25 45.0\nrobot_id: 0\nsick1: 1000 0 2000\n"
-            "#scan2\nrobot: 11 20 45\nrobot_id: 0\nsick1: 1000 1000 1000\n")
+    text = (
+        "LaserOdometryLog\nversion: 1\nsick1pose: 0 0 0\nsick1conf: -90 90 3\n"
+        "#scan1\nrobot: 10.5 20.25 45.0\nrobot_id: 0\nsick1: 1000 0 2000\n"
+        "#scan2\nrobot: 11 20 45\nrobot_id: 0\nsick1: 1000 1000 1000\n"
+    )
     log = loads_log(text)
     assert [s.scan_id for s in log.scans] == [1, 2]
     s = log.scans[0]
@@ -93,20 +108,27 @@ def test_v1_raw_ranges_and_scan_comment() -> None:
 
 
 def test_events_goals_loops_tags_and_unknown_lines_survive() -> None:
-    body = ("logTime: 0.100\nvelocities: 0.00 0.00 0.00\nscanId: 0\nrobot: 0 0 0.00\n"
-            "robotGlobal: 0 0 0.00\nscan1: 1000 0  0 0 \n"
-            "time: 0.200\nrobot: 5 6 7.00\nrobotGlobal: 5 6 7.00\n"
-            'cairn: GoalWithHeading "" ICON_GOALWITHHEADING "goal1"\n'
-            "time: 0.300\nrobot: 5 6 7.00\nrobotGlobal: 5 6 7.00\nloop: start 1\n"
-            "time: 0.400\nrobot: 5 6 7.00\nrobotGlobal: 5 6 7.00\nloop stop 1\n"
-            "time: 0.500\nrobot: 5 6 7.00\nrobotGlobal: 5 6 7.00\nmy custom tag\n"
-            "serverInfo: hello world\n"
-            "logTime: 0.600\nvelocities: 0.00 0.00 0.00\nscanId: 1\nrobot: 0 0 0.00\n"
-            "robotGlobal: 0 0 0.00\nintensity1: 5 5\nscan1: 1000 0  0 0 \n# End of log\n")
+    body = (
+        "logTime: 0.100\nvelocities: 0.00 0.00 0.00\nscanId: 0\nrobot: 0 0 0.00\n"
+        "robotGlobal: 0 0 0.00\nscan1: 1000 0  0 0 \n"
+        "time: 0.200\nrobot: 5 6 7.00\nrobotGlobal: 5 6 7.00\n"
+        'cairn: GoalWithHeading "" ICON_GOALWITHHEADING "goal1"\n'
+        "time: 0.300\nrobot: 5 6 7.00\nrobotGlobal: 5 6 7.00\nloop: start 1\n"
+        "time: 0.400\nrobot: 5 6 7.00\nrobotGlobal: 5 6 7.00\nloop stop 1\n"
+        "time: 0.500\nrobot: 5 6 7.00\nrobotGlobal: 5 6 7.00\nmy custom tag\n"
+        "serverInfo: hello world\n"
+        "logTime: 0.600\nvelocities: 0.00 0.00 0.00\nscanId: 1\nrobot: 0 0 0.00\n"
+        "robotGlobal: 0 0 0.00\nintensity1: 5 5\nscan1: 1000 0  0 0 \n# End of log\n"
+    )
     log, issues = recover_log(v4(body))
     kinds = [(e.kind, e.name, e.action) for e in log.events]
-    assert kinds == [("goal", "goal1", ""), ("loop", "1", "start"), ("loop", "1", "stop"),
-                     ("tag", "", ""), ("info", "", "")]
+    assert kinds == [
+        ("goal", "goal1", ""),
+        ("loop", "1", "start"),
+        ("loop", "1", "stop"),
+        ("tag", "", ""),
+        ("info", "", ""),
+    ]
     goal = log.events[0]
     assert goal.robot == Pose2D(5, 6, 7) and goal.time == pytest.approx(0.2)
     assert goal_fields(goal) == ("GoalWithHeading", "", "ICON_GOALWITHHEADING", "goal1")
@@ -119,7 +141,10 @@ def test_events_goals_loops_tags_and_unknown_lines_survive() -> None:
 
 
 def test_goal_and_loop_event_helpers() -> None:
-    assert goal_event("desk", Pose2D(1, 2, 3)).text == 'cairn: GoalWithHeading "" ICON_GOALWITHHEADING "desk"'
+    assert (
+        goal_event("desk", Pose2D(1, 2, 3)).text
+        == 'cairn: GoalWithHeading "" ICON_GOALWITHHEADING "desk"'
+    )
     assert loop_event("stop", "2", Pose2D(0, 0, 0)).text == "loop: stop 2"
     with pytest.raises(ValueError, match="start, stop or end"):
         loop_event("halt", "1", Pose2D(0, 0, 0))
@@ -127,50 +152,106 @@ def test_goal_and_loop_event_helpers() -> None:
 
 # -- bad input ---------------------------------------------------------------------------------
 
-GOOD = ("logTime: 0.100\nvelocities: 0.00 0.00 0.00\nscanId: 0\nrobot: 0 0 0.00\n"
-        "robotGlobal: 0 0 0.00\nscan1: 1000 0  0 0 \n")
+GOOD = (
+    "logTime: 0.100\nvelocities: 0.00 0.00 0.00\nscanId: 0\nrobot: 0 0 0.00\n"
+    "robotGlobal: 0 0 0.00\nscan1: 1000 0  0 0 \n"
+)
 HEAD_LINES = V4_HEAD.count("\n")
 
 
 @pytest.mark.parametrize(
     ("bad", "line", "code", "message"),
     [
-        ("scanId: 1\nrobot: 0 0 0.00\nscan1: 1000 0  0 0  5 5 \n", 3, IssueCode.LOG_WRONG_READING_COUNT,
-         r"has 3 readings, sick1conf: says 2"),
-        ("scanId: 1\nrobot: 0 0 0.00\nscan1: 1000 0  0 \n", 3, IssueCode.LOG_WRONG_READING_COUNT,
-         r"odd number of values"),
-        ("scanId: 1\nrobot: 0 0 0.00\nscan1: 1000 nan  0 0 \n", 3, IssueCode.LOG_NON_FINITE,
-         r"NaN or infinite"),
-        ("scanId: 1\nrobot: nan 0 0.00\nscan1: 1000 0  0 0 \n", 2, IssueCode.LOG_NON_FINITE,
-         r"robot: NaN"),
-        ("scanId: 1\nrobot: 0 zero 0.00\nscan1: 1000 0  0 0 \n", 2, IssueCode.LOG_BAD_VALUE,
-         r"robot: values that are not numbers"),
+        (
+            "scanId: 1\nrobot: 0 0 0.00\nscan1: 1000 0  0 0  5 5 \n",
+            3,
+            IssueCode.LOG_WRONG_READING_COUNT,
+            r"has 3 readings, sick1conf: says 2",
+        ),
+        (
+            "scanId: 1\nrobot: 0 0 0.00\nscan1: 1000 0  0 \n",
+            3,
+            IssueCode.LOG_WRONG_READING_COUNT,
+            r"odd number of values",
+        ),
+        (
+            "scanId: 1\nrobot: 0 0 0.00\nscan1: 1000 nan  0 0 \n",
+            3,
+            IssueCode.LOG_NON_FINITE,
+            r"NaN or infinite",
+        ),
+        (
+            "scanId: 1\nrobot: nan 0 0.00\nscan1: 1000 0  0 0 \n",
+            2,
+            IssueCode.LOG_NON_FINITE,
+            r"robot: NaN",
+        ),
+        (
+            "scanId: 1\nrobot: 0 zero 0.00\nscan1: 1000 0  0 0 \n",
+            2,
+            IssueCode.LOG_BAD_VALUE,
+            r"robot: values that are not numbers",
+        ),
         # Numbers are read as C's strtod reads them: Python's '1_0' and a cut-off hex are not.
-        ("scanId: 1\nrobot: 0 0 0.00\nscan1: 1000 1_0  0 0 \n", 3, IssueCode.LOG_BAD_VALUE,
-         r"scan1: values that are not numbers"),
-        ("scanId: 1\nrobot: 0 0 0.00\nscan1: 1000 0x1g  0 0 \n", 3, IssueCode.LOG_BAD_VALUE,
-         r"scan1: values that are not numbers"),
-        ("scanId: 1\nrobot: 0 0 1_0\nscan1: 1000 0  0 0 \n", 2, IssueCode.LOG_BAD_VALUE,
-         r"robot: values that are not numbers"),
-        ("scanId: 1\nrobot: 0 0 0.00\nscan1: 1000 1e999  0 0 \n", 3, IssueCode.LOG_NON_FINITE,
-         r"NaN or infinite"),
-        ("logTime: 1_0\nscanId: 1\nrobot: 0 0 0.00\nscan1: 1000 0  0 0 \n", 1,
-         IssueCode.LOG_BAD_VALUE, r"logTime: expects seconds.milliseconds"),
-        ("scanId: 1_0\nrobot: 0 0 0.00\nscan1: 1000 0  0 0 \n", 1,
-         IssueCode.LOG_BAD_VALUE, r"scanId: expects an integer"),
-        ("\x00\x01garbage line\nscanId: 1\nrobot: 0 0 0.00\nscan1: 1000 0  0 0 \n", 1,
-         IssueCode.LOG_GARBAGE_LINE, r"expected a tag"),
-        ("scanId: 1\nrobot: 0 0 0.00\nscanId: 2\nrobot: 0 0 0.00\nscan1: 1000 0  0 0 \n", 1,
-         IssueCode.LOG_INCOMPLETE_RECORD, r"has no scanK: line"),
+        (
+            "scanId: 1\nrobot: 0 0 0.00\nscan1: 1000 1_0  0 0 \n",
+            3,
+            IssueCode.LOG_BAD_VALUE,
+            r"scan1: values that are not numbers",
+        ),
+        (
+            "scanId: 1\nrobot: 0 0 0.00\nscan1: 1000 0x1g  0 0 \n",
+            3,
+            IssueCode.LOG_BAD_VALUE,
+            r"scan1: values that are not numbers",
+        ),
+        (
+            "scanId: 1\nrobot: 0 0 1_0\nscan1: 1000 0  0 0 \n",
+            2,
+            IssueCode.LOG_BAD_VALUE,
+            r"robot: values that are not numbers",
+        ),
+        (
+            "scanId: 1\nrobot: 0 0 0.00\nscan1: 1000 1e999  0 0 \n",
+            3,
+            IssueCode.LOG_NON_FINITE,
+            r"NaN or infinite",
+        ),
+        (
+            "logTime: 1_0\nscanId: 1\nrobot: 0 0 0.00\nscan1: 1000 0  0 0 \n",
+            1,
+            IssueCode.LOG_BAD_VALUE,
+            r"logTime: expects seconds.milliseconds",
+        ),
+        (
+            "scanId: 1_0\nrobot: 0 0 0.00\nscan1: 1000 0  0 0 \n",
+            1,
+            IssueCode.LOG_BAD_VALUE,
+            r"scanId: expects an integer",
+        ),
+        (
+            "\x00\x01garbage line\nscanId: 1\nrobot: 0 0 0.00\nscan1: 1000 0  0 0 \n",
+            1,
+            IssueCode.LOG_GARBAGE_LINE,
+            r"expected a tag",
+        ),
+        (
+            "scanId: 1\nrobot: 0 0 0.00\nscanId: 2\nrobot: 0 0 0.00\nscan1: 1000 0  0 0 \n",
+            1,
+            IssueCode.LOG_INCOMPLETE_RECORD,
+            r"has no scanK: line",
+        ),
     ],
 )
-def test_bad_records_strict_and_tolerant(bad: str, line: int, code: IssueCode, message: str) -> None:
+def test_bad_records_strict_and_tolerant(
+    bad: str, line: int, code: IssueCode, message: str
+) -> None:
     data = v4(GOOD + bad + GOOD.replace("scanId: 0", "scanId: 9") + "# End of log\n")
     first_bad = HEAD_LINES + GOOD.count("\n") + line
     with pytest.raises(LogFormatError, match=rf"^bad\.2d:{first_bad}: .*{message}"):
         read_log(data, name="bad.2d")
     log, issues = recover_log(data, name="bad.2d")
-    assert [s.scan_id for s in log.scans][0] == 0 and log.scans[-1].scan_id == 9
+    assert log.scans[0].scan_id == 0 and log.scans[-1].scan_id == 9
     assert any(i.code == code and i.location.line == first_bad for i in issues), issues
 
 
@@ -187,10 +268,13 @@ def test_truncated_log() -> None:
         read_log(mid)
 
 
-@pytest.mark.parametrize(("data", "message"), [
-    (b"", r"empty file"),
-    (b"2D-Map\nDATA\n", r"not a \.2d laser log: expected 'LaserOdometryLog'"),
-])
+@pytest.mark.parametrize(
+    ("data", "message"),
+    [
+        (b"", r"empty file"),
+        (b"2D-Map\nDATA\n", r"not a \.2d laser log: expected 'LaserOdometryLog'"),
+    ],
+)
 def test_not_a_log(data: bytes, message: str) -> None:
     with pytest.raises(LogFormatError, match=message):
         read_log(data)
@@ -207,8 +291,9 @@ def test_bad_header_line() -> None:
 
 
 def test_unknown_version_and_laser_are_noted() -> None:
-    log, issues = recover_log(b"LaserOdometryLog\nversion: 9\nscanId: 0\nrobot: 0 0 0\n"
-                              b"scan2: 5 5 \n")
+    log, issues = recover_log(
+        b"LaserOdometryLog\nversion: 9\nscanId: 0\nrobot: 0 0 0\nscan2: 5 5 \n"
+    )
     codes = {i.code for i in issues}
     assert log.header.version == 4 and len(log.scans) == 1
     assert {IssueCode.LOG_UNKNOWN_VERSION, IssueCode.LOG_UNKNOWN_LASER} <= codes
@@ -223,10 +308,19 @@ def _big_log(n: int, readings: int = 181) -> LaserLog:
     recs = []
     for i in range(n):
         xy = np.rint(rng.uniform(-8000, 8000, (readings, 2)))
-        recs.append(LaserScan(scan_id=i, robot=Pose2D(i, 0, 0), robot_global=Pose2D(i, 0, 0),
-                              time=i / 10, velocities=(1.0, 0.0, 0.0), xy=xy))
-    return LaserLog(header=LogHeader(lasers=(laser,), location_types=("robot", "robotGlobal")),
-                    records=recs)
+        recs.append(
+            LaserScan(
+                scan_id=i,
+                robot=Pose2D(i, 0, 0),
+                robot_global=Pose2D(i, 0, 0),
+                time=i / 10,
+                velocities=(1.0, 0.0, 0.0),
+                xy=xy,
+            )
+        )
+    return LaserLog(
+        header=LogHeader(lasers=(laser,), location_types=("robot", "robotGlobal")), records=recs
+    )
 
 
 def test_iter_log_streams_in_bounded_memory(tmp_path) -> None:
@@ -237,7 +331,7 @@ def test_iter_log_streams_in_bounded_memory(tmp_path) -> None:
     tracemalloc.start()
     reader = iter_log(path)
     count = 0
-    for rec in reader:
+    for _rec in reader:
         count += 1
     peak = tracemalloc.get_traced_memory()[1]
     tracemalloc.stop()
@@ -253,9 +347,14 @@ def test_versions_convert_without_moving_points(tmp_path, version: int) -> None:
     ranges = np.array([1000.0, 0.0, 2500.0, 800.0, 3000.0])
     a = np.radians(laser.angles())
     xy = np.stack([ranges * np.cos(a), ranges * np.sin(a)], axis=1)
-    scan = LaserScan(scan_id=1, robot=Pose2D(100, 200, 30), robot_global=Pose2D(100, 200, 30),
-                     time=1.5, ranges=ranges if version == 1 else None,
-                     xy=None if version == 1 else xy)
+    scan = LaserScan(
+        scan_id=1,
+        robot=Pose2D(100, 200, 30),
+        robot_global=Pose2D(100, 200, 30),
+        time=1.5,
+        ranges=ranges if version == 1 else None,
+        xy=None if version == 1 else xy,
+    )
     log = LaserLog(header=LogHeader(lasers=(laser,)), records=[scan])
     want = scan.global_points(laser)
     for target in (1, 2, 3, 4):
@@ -289,8 +388,10 @@ def test_log_summary_counts(tmp_path) -> None:
     assert s["complete"] and s["issues"] == []
 
 
-@pytest.mark.parametrize(("name", "version", "readings", "loops"),
-                         [("office-loop", 4, 361, 2), ("building-labs", 3, 181, 0)])
+@pytest.mark.parametrize(
+    ("name", "version", "readings", "loops"),
+    [("office-loop", 4, 361, 2), ("building-labs", 3, 181, 0)],
+)
 def test_bundled_logs(name: str, version: int, readings: int, loops: int) -> None:
     from mapkit.samples import sample_path
     from mapkit.simulate import read_truth, truth_path_for

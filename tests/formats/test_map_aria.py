@@ -1,4 +1,5 @@
-"""mapkit's reader and writer against ARIA's own: byte-exact rewrites and ARIA's parse of each real map."""
+"""mapkit's reader and writer against ARIA's own: byte-exact rewrites and ARIA's parse of each
+real map."""
 
 from __future__ import annotations
 
@@ -36,9 +37,12 @@ def test_aria_output_is_a_fixed_point(real_sample: Path, shared_dir: Path) -> No
     assert mapkit.dumpb(mapkit.load(written)) == written.read_bytes()
 
 
-def test_save_writes_the_same_bytes_and_returns_md5(real_sample: Path, shared_dir: Path,
-                                                    tmp_path: Path) -> None:
-    dump = json.loads((shared_dir / "aria-dump" / (real_sample.stem + ".json")).read_bytes().decode())
+def test_save_writes_the_same_bytes_and_returns_md5(
+    real_sample: Path, shared_dir: Path, tmp_path: Path
+) -> None:
+    dump = json.loads(
+        (shared_dir / "aria-dump" / (real_sample.stem + ".json")).read_bytes().decode()
+    )
     out = tmp_path / real_sample.name
     md5 = mapkit.save(mapkit.load(real_sample), out)
     assert md5 == dump["md5_calculated"] == hashlib.md5(out.read_bytes()).hexdigest()
@@ -57,11 +61,13 @@ def _check_object(o: MapObject, d: dict[str, Any], m: MapData) -> None:
         assert o.from_to == (d["x1"], d["y1"], d["x2"], d["y2"])
     line = mapkit.dumps(MapData(objects=(o,))).splitlines()
     cairn = next(x for x in line if x.startswith("Cairn: "))
-    assert cairn[len("Cairn: "):] == d["to_string"]
+    assert cairn[len("Cairn: ") :] == d["to_string"]
 
 
 def test_parse_agrees_with_aria(real_sample: Path, shared_dir: Path) -> None:
-    dump = json.loads((shared_dir / "aria-dump" / (real_sample.stem + ".json")).read_bytes().decode())
+    dump = json.loads(
+        (shared_dir / "aria-dump" / (real_sample.stem + ".json")).read_bytes().decode()
+    )
     assert dump["ok"]
     m = mapkit.load(real_sample)
     assert written_category(m) == dump["version_header"]
@@ -86,13 +92,18 @@ def test_parse_agrees_with_aria(real_sample: Path, shared_dir: Path) -> None:
         assert int(scan.points[:, 1].sum()) == d["points_sum_y"]
         assert int(scan.lines.sum()) == d["lines_sum"]
     assert m.scan.display == dump["display"]
-    for key, objs in (("objects", m.objects), ("inactive_objects", m.inactive_objects),
-                      ("child_objects", m.child_objects)):
+    for key, objs in (
+        ("objects", m.objects),
+        ("inactive_objects", m.inactive_objects),
+        ("child_objects", m.child_objects),
+    ):
         assert len(objs) == len(dump[key])
-        for o, d in zip(objs, dump[key]):
+        for o, d in zip(objs, dump[key], strict=True):
             _check_object(o, d, m)
     for key, info in (("info", m.info), ("inactive_info", m.inactive_info)):
-        expected = {k.rstrip(":").lstrip("_"): [tuple(x["args"]) for x in v] for k, v in dump[key].items()}
+        expected = {
+            k.rstrip(":").lstrip("_"): [tuple(x["args"]) for x in v] for k, v in dump[key].items()
+        }
         assert {k: list(v) for k, v in info.items()} == expected
         for k, v in dump[key].items():
             keyword = k.rstrip(":").lstrip("_")

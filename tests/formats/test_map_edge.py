@@ -34,8 +34,18 @@ def test_t6_counts_are_corrected_and_box_widened() -> None:
 
 
 def test_t7_data_rows_follow_arias_scanner() -> None:
-    rows = [b"1.5 2", b"12 34.7", b"5 6 7", b"-7 -8", b"+9 10", b"0x10 5", b"- 3", b" 2 2",
-            b"\t3 3", b"4\t4"]
+    rows = [
+        b"1.5 2",
+        b"12 34.7",
+        b"5 6 7",
+        b"-7 -8",
+        b"+9 10",
+        b"0x10 5",
+        b"- 3",
+        b" 2 2",
+        b"\t3 3",
+        b"4\t4",
+    ]
     m, issues = mapkit.recover(b"2D-Map\nDATA\n" + b"\n".join(rows) + b"\n")
     assert m.points.tolist() == [[12, 34], [5, 6], [-7, -8], [0, 3], [4, 4]]
     bad_lines = sorted(i.location.line for i in issues if i.code == IssueCode.BAD_DATA_ROW)
@@ -71,8 +81,10 @@ def test_t9_numpoints_zero_is_accepted() -> None:
         (b'Cairn: Goal 1 2 0 "" ICON', r"bad.map:2: Cairn: expects at least 7 fields"),
         (b"Cairn:", r"bad.map:2: Cairn: expects at least 7 fields"),
         (b'_Cairn: Goal x 2 0 "" ICON "a"', r"bad.map:2: _Cairn: expects a number, got 'x'"),
-        (b'ChildCairn: Goal 1 2 0 "" ICON "a" 1 2 3 four',
-         r"bad.map:2: ChildCairn: expects a number, got 'four'"),
+        (
+            b'ChildCairn: Goal 1 2 0 "" ICON "a" 1 2 3 four',
+            r"bad.map:2: ChildCairn: expects a number, got 'four'",
+        ),
         (b'Cairn: Goal 1 2 nan "" ICON "a"', r"bad.map:2: Cairn: 'a' has a NaN coordinate"),
         (b'Cairn: Goal 1 -NaN(x1) 0 "" ICON "a"', r"bad.map:2: Cairn: 'a' has a NaN coordinate"),
         (b"MinPos: +0x10 1", r"bad.map:2: MinPos: expects integers, got '\+0x10'"),
@@ -97,7 +109,9 @@ def test_t12_description_override_moves_to_slot_4() -> None:
     assert 'Cairn: Goal 1 2 0.000000 "my desc" ICON "N"\n' in mapkit.dumps(m)
 
 
-@pytest.mark.parametrize(("theta", "expected"), [("270", -90), ("-180", 180), ("540", 180), ("1e2", 100)])
+@pytest.mark.parametrize(
+    ("theta", "expected"), [("270", -90), ("-180", 180), ("540", 180), ("1e2", 100)]
+)
 def test_t13_theta_normalised(theta: str, expected: float) -> None:
     m = mapkit.loads(f'2D-Map\nCairn: GoalWithHeading 1 2 {theta} "" ICON "a"\nDATA\n')
     assert m.objects[0].theta == expected
@@ -105,8 +119,10 @@ def test_t13_theta_normalised(theta: str, expected: float) -> None:
 
 
 def test_t14_rounding_half_even() -> None:
-    text = ('2D-Map\nCairn: Goal 1.5 2.5 0.1234567 "" ICON "g"\n'
-            'Cairn: ForbiddenArea 0.4 -0.6 30 "" ICON "f" 10.5 11.5 -3.5 20.49\nDATA\n')
+    text = (
+        '2D-Map\nCairn: Goal 1.5 2.5 0.1234567 "" ICON "g"\n'
+        'Cairn: ForbiddenArea 0.4 -0.6 30 "" ICON "f" 10.5 11.5 -3.5 20.49\nDATA\n'
+    )
     out = mapkit.dumps(mapkit.loads(text))
     assert 'Cairn: Goal 2 2 0.123457 "" ICON "g"\n' in out
     assert 'Cairn: ForbiddenArea 0 -1 30.000000 "" ICON "f" 10 12 -4 20\n' in out
@@ -125,15 +141,33 @@ def test_t16_info_lines_normalised() -> None:
 
 
 def test_t17_info_order_and_upgrade_to_ex4() -> None:
-    keys = ["TaskInfo", "RouteInfo", "CairnInfo", "MapInfo", "CustomInfo", "SchedTaskInfo",
-            "SchedInfo", "MacroInfo", "MetaInfo"]
+    keys = [
+        "TaskInfo",
+        "RouteInfo",
+        "CairnInfo",
+        "MapInfo",
+        "CustomInfo",
+        "SchedTaskInfo",
+        "SchedInfo",
+        "MacroInfo",
+        "MetaInfo",
+    ]
     text = "2D-Map\n" + "".join(f"{k}: x{i}\n" for i, k in enumerate(keys)) + "DATA\n"
     m = mapkit.loads(text)
     out = mapkit.dumps(m).splitlines()
     assert out[0] == "2D-Map-Ex4" and written_category(m) == "2D-Map-Ex4" and m.category == "2D-Map"
     written = [line.split(":")[0] for line in out if "Info:" in line]
-    assert written == ["CairnInfo", "CustomInfo", "MacroInfo", "MapInfo", "MetaInfo", "RouteInfo",
-                       "SchedInfo", "SchedTaskInfo", "TaskInfo"]
+    assert written == [
+        "CairnInfo",
+        "CustomInfo",
+        "MacroInfo",
+        "MapInfo",
+        "MetaInfo",
+        "RouteInfo",
+        "SchedInfo",
+        "SchedTaskInfo",
+        "TaskInfo",
+    ]
 
 
 def test_t18_comment_lines_are_kept_after_objects() -> None:
@@ -151,17 +185,21 @@ def test_t19_bom_fails_junk_before_intro_loads() -> None:
 
 
 def test_t20_multi_source_layout() -> None:
-    text = (b"2D-Map-Ex\nSources: SickLaser Sonar\nSonarDisplay: \"Sonar data\"\nsonarminpos: 100 100\n"
-            b"Sonar_LINES\n100 100 200 200\nDATA\n1 1\nsonar_data\n150 150\n")
+    text = (
+        b'2D-Map-Ex\nSources: SickLaser Sonar\nSonarDisplay: "Sonar data"\nsonarminpos: 100 100\n'
+        b"Sonar_LINES\n100 100 200 200\nDATA\n1 1\nsonar_data\n150 150\n"
+    )
     m = mapkit.loads(text)
     assert [s.name for s in m.scans] == ["SickLaser", "Sonar"]
     assert m.scans[1].points.tolist() == [[150, 150]] and m.scans[1].display == "Sonar data"
     assert mapkit.dumps(m) == (
-        "2D-Map-Ex\nSources: SickLaser Sonar\nDisplay: \"SickLaser\"\nMinPos: 0 0\nMaxPos: 1 1\n"
-        "NumPoints: 1\nPointsAreSorted: false\nResolution: 0\nSonarDisplay: \"Sonar data\"\n"
-        "SonarMinPos: 100 100\nSonarMaxPos: 150 150\nSonarNumPoints: 1\nSonarPointsAreSorted: false\n"
+        '2D-Map-Ex\nSources: SickLaser Sonar\nDisplay: "SickLaser"\nMinPos: 0 0\nMaxPos: 1 1\n'
+        'NumPoints: 1\nPointsAreSorted: false\nResolution: 0\nSonarDisplay: "Sonar data"\n'
+        "SonarMinPos: 100 100\nSonarMaxPos: 150 150\nSonarNumPoints: 1\n"
+        "SonarPointsAreSorted: false\n"
         "SonarResolution: 0\nSonarLineMinPos: 0 0\nSonarLineMaxPos: 200 200\nSonarNumLines: 1\n"
-        "SonarLinesAreSorted: false\nSonar_LINES\n100 100 200 200\nDATA\n1 1\nSonar_DATA\n150 150\n")
+        "SonarLinesAreSorted: false\nSonar_LINES\n100 100 200 200\nDATA\n1 1\nSonar_DATA\n150 150\n"
+    )
     assert mapkit.loads(mapkit.dumpb(m)) == m
 
 
@@ -191,10 +229,17 @@ def test_t23_quote_inside_name_does_not_crash() -> None:
 
 
 def test_t24_rotated_forbidden_area_corners() -> None:
-    m = mapkit.loads(b'2D-Map\nCairn: ForbiddenArea 0 0 180 "" ICON "FA3" -21124 1564 6001 7648\nDATA\n')
+    m = mapkit.loads(
+        b'2D-Map\nCairn: ForbiddenArea 0 0 180 "" ICON "FA3" -21124 1564 6001 7648\nDATA\n'
+    )
     xs = [c[0] for c in m.objects[0].corners()]
     ys = [c[1] for c in m.objects[0].corners()]
-    assert (round(min(xs)), round(max(xs)), round(min(ys)), round(max(ys))) == (-6001, 21124, -7648, -1564)
+    assert (round(min(xs)), round(max(xs)), round(min(ys)), round(max(ys))) == (
+        -6001,
+        21124,
+        -7648,
+        -1564,
+    )
 
 
 def test_keywords_case_insensitive_and_quoted_keyword() -> None:
@@ -205,7 +250,9 @@ def test_keywords_case_insensitive_and_quoted_keyword() -> None:
 
 
 def test_crlf_and_cr_inside_header() -> None:
-    m, issues = mapkit.recover(b'2D-Map\r\nCairn: RobotHome 1 2 0 "" ICON "Ho\rme" 0 0 10 10\r\nDATA\r\n1 1\r\n')
+    m, issues = mapkit.recover(
+        b'2D-Map\r\nCairn: RobotHome 1 2 0 "" ICON "Ho\rme" 0 0 10 10\r\nDATA\r\n1 1\r\n'
+    )
     assert m.objects[0].name == "Home" and m.objects[0].from_to == (0, 0, 10, 10)
     assert m.points.tolist() == [[1, 1]]
     assert [i.code for i in issues] == [IssueCode.CR_IN_HEADER]
@@ -239,14 +286,18 @@ def test_undecodable_bytes_survive() -> None:
 
 
 def test_inactive_and_child_sections_round_trip() -> None:
-    text = (b'2D-Map-Ex4\n_MapInfo: GoalType Name=X\n_Cairn: Goal 1 2 0 "" ICON "off"\n'
-            b'ChildCairn: Goal 3 4 0 "" ICON "kid"\nFoo: bar\nDATA\n')
+    text = (
+        b'2D-Map-Ex4\n_MapInfo: GoalType Name=X\n_Cairn: Goal 1 2 0 "" ICON "off"\n'
+        b'ChildCairn: Goal 3 4 0 "" ICON "kid"\nFoo: bar\nDATA\n'
+    )
     m = mapkit.loads(text)
     assert m.inactive_info == {"MapInfo": (("GoalType", "Name=X"),)}
     assert m.inactive_objects[0].name == "off" and m.child_objects[0].name == "kid"
-    assert mapkit.dumps(m) == ('2D-Map-Ex4\nResolution: 0\n_MapInfo: GoalType Name=X\n'
-                               '_Cairn: Goal 1 2 0.000000 "" ICON "off"\n'
-                               'ChildCairn: Goal 3 4 0.000000 "" ICON "kid"\nFoo: bar\nDATA\n')
+    assert mapkit.dumps(m) == (
+        "2D-Map-Ex4\nResolution: 0\n_MapInfo: GoalType Name=X\n"
+        '_Cairn: Goal 1 2 0.000000 "" ICON "off"\n'
+        'ChildCairn: Goal 3 4 0.000000 "" ICON "kid"\nFoo: bar\nDATA\n'
+    )
 
 
 def test_tokenizer_rules() -> None:
@@ -275,7 +326,7 @@ def test_save_is_atomic_when_writing_fails(tmp_path: Path, monkeypatch: pytest.M
         yield b"2D-Map\n"
         raise OSError(28, "No space left on device")
 
-    monkeypatch.setattr("mapkit.formats.map.iter_map_chunks", boom)
+    monkeypatch.setattr("mapkit.formats.map.writer.iter_map_chunks", boom)
     with pytest.raises(OSError, match="No space left"):
         mapkit.save(m, target)
     assert target.read_bytes() == b"old"

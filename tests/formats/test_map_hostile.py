@@ -18,31 +18,95 @@ C = IssueCode
 
 # name: (input, what ARIA 2.9.1 writes after reading it)
 ARIA_REWRITES = {
-    'origin_nan_sign': (b'2D-Map\nOriginLatLongAlt: -nan NaN(x) -0\nDATA\n1 2\n',
-        b'2D-Map\nMinPos: 0 0\nMaxPos: 1 2\nNumPoints: 1\nPointsAreSorted: false\nResolution: 0\n'
-        b'OriginLatLongAlt: -nan nan -0.000000\nDATA\n1 2\n'),
-    'unknown_keywords': (b'2D-Map\n2D-Map-Ex2\nFoo:\n"quoted kw" x\n  "Cairn:" Goal 1 2 3 "" ICON "q"\n"unterminated kw\n# comment  with   spaces \nDATA\n1 2\n',
-        b'2D-Map\nMinPos: 0 0\nMaxPos: 1 2\nNumPoints: 1\nPointsAreSorted: false\nResolution: 0\nCairn: Goal 1 2 3.000000 "" ICON "q"\n2D-Map-Ex2\nFoo:\nquoted kw" x\nunterminated kw\n# comment with spaces\nDATA\n1 2\n'),
-    'cairn_inf_hex': (b'2D-Map\nCairn: Goal INF -INF 0x10 "" ICON "a"\nCairn: ForbiddenArea 0 0 0 "" ICON "b" INF 0x10 -inf 1e400\nDATA\n1 2\n',
-        b'2D-Map\nMinPos: 0 0\nMaxPos: 1 2\nNumPoints: 1\nPointsAreSorted: false\nResolution: 0\nCairn: Goal inf -inf 16.000000 "" ICON "a"\nCairn: ForbiddenArea 0 0 0.000000 "" ICON "b" inf 16 -inf inf\nDATA\n1 2\n'),
-    'cairn_strtod': (b'2D-Map\nCairn: Goal 1e400 -1e400 1e-400 "" ICON "a"\nCairn: Goal 0x1.8p1 .5 -0X10 "" ICON "b"\nDATA\n1 2\n',
-        b'2D-Map\nMinPos: 0 0\nMaxPos: 1 2\nNumPoints: 1\nPointsAreSorted: false\nResolution: 0\nCairn: Goal inf -inf 0.000000 "" ICON "a"\nCairn: Goal 3 0 -16.000000 "" ICON "b"\nDATA\n1 2\n'),
-    'header_ints': (b'2D-Map\nMinPos: 0x-10 99999999999999999999999\nMaxPos: 0x0x10 +5\nDATA\n1 2\n',
-        b'2D-Map\nMinPos: -16 -1\nMaxPos: 16 5\nNumPoints: 1\nPointsAreSorted: false\nResolution: 0\nDATA\n1 2\n'),
-    'header_wrap': (b'2D-Map\nMinPos: 4294967297 -99999999999999999999999\nNumPoints: 0x1\nDATA\n1 2\n',
-        b'2D-Map\nMinPos: 1 0\nMaxPos: 1 2\nNumPoints: 1\nPointsAreSorted: false\nResolution: 0\nDATA\n1 2\n'),
-    'origin_strtod': (b'2D-Map\nOriginLatLongAlt: INF 0x1p4 1e400\nDATA\n1 2\n',
-        b'2D-Map\nMinPos: 0 0\nMaxPos: 1 2\nNumPoints: 1\nPointsAreSorted: false\nResolution: 0\nOriginLatLongAlt: inf 16.000000 inf\nDATA\n1 2\n'),
-    'origin_words': (b'2D-Map\nOriginLatLongAlt: infinity -Infinity 0x.8\nDATA\n1 2\n',
-        b'2D-Map\nMinPos: 0 0\nMaxPos: 1 2\nNumPoints: 1\nPointsAreSorted: false\nResolution: 0\nOriginLatLongAlt: inf -inf 0.500000\nDATA\n1 2\n'),
-    'flags_case': (b'2D-Map\nPointsAreSorted: TRUE\nLinesAreSorted: 0\nResolution: 0x14\nDATA\n1 2\n',
-        b'2D-Map\nMinPos: 0 0\nMaxPos: 1 2\nNumPoints: 1\nPointsAreSorted: true\nResolution: 20\nDATA\n1 2\n'),
-    'sources_bytes': (b'2D-Map-Ex\nSources: \xff\xfe Abc\n\xff\xfeMinPos: 1 1\n\xff\xfe_DATA\n1 1\nabc_DATA\n2 2\n',
-        b'2D-Map-Ex\nSources: \xff\xfe Abc\n\xff\xfeDisplay: "\xff\xfe"\n\xff\xfeMinPos: 1 1\n\xff\xfeMaxPos: 1 1\n\xff\xfeNumPoints: 1\n\xff\xfePointsAreSorted: false\n\xff\xfeResolution: 0\nAbcDisplay: "Abc"\nAbcMinPos: 0 0\nAbcMaxPos: 2 2\nAbcNumPoints: 1\nAbcPointsAreSorted: false\nAbcResolution: 0\n\xff\xfe_DATA\n1 1\nAbc_DATA\n2 2\n'),
-    'long_source': (b'2D-Map-Ex\nSources: SickLaser SSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSS\nSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSMinPos: 1 1\nSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSS_DATA\n3 3\nDATA\n4 4\n',
-        b'2D-Map-Ex\nSources: SickLaser SSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSS\nDisplay: "SickLaser"\nMinPos: 0 0\nMaxPos: 4 4\nNumPoints: 1\nPointsAreSorted: false\nResolution: 0\nSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSDisplay: "SSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSS"\nSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSMinPos: 1 1\nSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSMaxPos: 3 3\nSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSNumPoints: 1\nSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSPointsAreSorted: false\nSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSResolution: 0\nDATA\n4 4\nSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSS_DATA\n3 3\n'),
-    'unicode_keyword': (b'2D-Map\nTas\xe2\x84\xaaInfo: x\nTaskInfo: y\nDATA\n1 2\n',
-        b'2D-Map\nMinPos: 0 0\nMaxPos: 1 2\nNumPoints: 1\nPointsAreSorted: false\nResolution: 0\nTaskInfo: y\nTas\xe2\x84\xaaInfo: x\nDATA\n1 2\n'),
+    "origin_nan_sign": (
+        b"2D-Map\nOriginLatLongAlt: -nan NaN(x) -0\nDATA\n1 2\n",
+        b"2D-Map\nMinPos: 0 0\nMaxPos: 1 2\nNumPoints: 1\nPointsAreSorted: false\nResolution: 0\n"
+        b"OriginLatLongAlt: -nan nan -0.000000\nDATA\n1 2\n",
+    ),
+    "unknown_keywords": (
+        b'2D-Map\n2D-Map-Ex2\nFoo:\n"quoted kw" x\n  "Cairn:" Goal 1 2 3 "" ICON "q"\n'
+        b'"unterminated kw\n# comment  with   spaces \nDATA\n1 2\n',
+        b"2D-Map\nMinPos: 0 0\nMaxPos: 1 2\nNumPoints: 1\nPointsAreSorted: false\nResolution: 0\n"
+        b'Cairn: Goal 1 2 3.000000 "" ICON "q"\n2D-Map-Ex2\nFoo:\nquoted kw" x\nunterminated kw\n'
+        b"# comment with spaces\nDATA\n1 2\n",
+    ),
+    "cairn_inf_hex": (
+        b'2D-Map\nCairn: Goal INF -INF 0x10 "" ICON "a"\n'
+        b'Cairn: ForbiddenArea 0 0 0 "" ICON "b" INF 0x10 -inf 1e400\nDATA\n1 2\n',
+        b"2D-Map\nMinPos: 0 0\nMaxPos: 1 2\nNumPoints: 1\nPointsAreSorted: false\nResolution: 0\n"
+        b'Cairn: Goal inf -inf 16.000000 "" ICON "a"\n'
+        b'Cairn: ForbiddenArea 0 0 0.000000 "" ICON "b" inf 16 -inf inf\nDATA\n1 2\n',
+    ),
+    "cairn_strtod": (
+        b'2D-Map\nCairn: Goal 1e400 -1e400 1e-400 "" ICON "a"\n'
+        b'Cairn: Goal 0x1.8p1 .5 -0X10 "" ICON "b"\nDATA\n1 2\n',
+        b"2D-Map\nMinPos: 0 0\nMaxPos: 1 2\nNumPoints: 1\nPointsAreSorted: false\nResolution: 0\n"
+        b'Cairn: Goal inf -inf 0.000000 "" ICON "a"\nCairn: Goal 3 0 -16.000000 "" ICON "b"\n'
+        b"DATA\n1 2\n",
+    ),
+    "header_ints": (
+        b"2D-Map\nMinPos: 0x-10 99999999999999999999999\nMaxPos: 0x0x10 +5\nDATA\n1 2\n",
+        b"2D-Map\nMinPos: -16 -1\nMaxPos: 16 5\nNumPoints: 1\nPointsAreSorted: false\n"
+        b"Resolution: 0\nDATA\n1 2\n",
+    ),
+    "header_wrap": (
+        b"2D-Map\nMinPos: 4294967297 -99999999999999999999999\nNumPoints: 0x1\nDATA\n1 2\n",
+        b"2D-Map\nMinPos: 1 0\nMaxPos: 1 2\nNumPoints: 1\nPointsAreSorted: false\nResolution: 0\n"
+        b"DATA\n1 2\n",
+    ),
+    "origin_strtod": (
+        b"2D-Map\nOriginLatLongAlt: INF 0x1p4 1e400\nDATA\n1 2\n",
+        b"2D-Map\nMinPos: 0 0\nMaxPos: 1 2\nNumPoints: 1\nPointsAreSorted: false\nResolution: 0\n"
+        b"OriginLatLongAlt: inf 16.000000 inf\nDATA\n1 2\n",
+    ),
+    "origin_words": (
+        b"2D-Map\nOriginLatLongAlt: infinity -Infinity 0x.8\nDATA\n1 2\n",
+        b"2D-Map\nMinPos: 0 0\nMaxPos: 1 2\nNumPoints: 1\nPointsAreSorted: false\nResolution: 0\n"
+        b"OriginLatLongAlt: inf -inf 0.500000\nDATA\n1 2\n",
+    ),
+    "flags_case": (
+        b"2D-Map\nPointsAreSorted: TRUE\nLinesAreSorted: 0\nResolution: 0x14\nDATA\n1 2\n",
+        b"2D-Map\nMinPos: 0 0\nMaxPos: 1 2\nNumPoints: 1\nPointsAreSorted: true\nResolution: 20\n"
+        b"DATA\n1 2\n",
+    ),
+    "sources_bytes": (
+        b"2D-Map-Ex\nSources: \xff\xfe Abc\n\xff\xfeMinPos: 1 1\n\xff\xfe_DATA\n1 1\nabc_DATA\n"
+        b"2 2\n",
+        b'2D-Map-Ex\nSources: \xff\xfe Abc\n\xff\xfeDisplay: "\xff\xfe"\n\xff\xfeMinPos: 1 1\n'
+        b"\xff\xfeMaxPos: 1 1\n\xff\xfeNumPoints: 1\n\xff\xfePointsAreSorted: false\n"
+        b'\xff\xfeResolution: 0\nAbcDisplay: "Abc"\nAbcMinPos: 0 0\nAbcMaxPos: 2 2\n'
+        b"AbcNumPoints: 1\nAbcPointsAreSorted: false\nAbcResolution: 0\n\xff\xfe_DATA\n1 1\n"
+        b"Abc_DATA\n2 2\n",
+    ),
+    "long_source": (
+        b"2D-Map-Ex\n"
+        b"Sources: SickLaser SSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSS"
+        b"SSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSS\n"
+        b"SSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSMinPos: 1 1\n"
+        b"SSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSS_DATA\n3 3\nDATA\n"
+        b"4 4\n",
+        b"2D-Map-Ex\n"
+        b"Sources: SickLaser SSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSS"
+        b"SSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSS\n"
+        b'Display: "SickLaser"\nMinPos: 0 0\nMaxPos: 4 4\nNumPoints: 1\nPointsAreSorted: false\n'
+        b"Resolution: 0\n"
+        b"SSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSS"
+        b'SSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSDisplay: "'
+        b'SSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSS"\n'
+        b"SSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSMinPos: 1 1\n"
+        b"SSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSMaxPos: 3 3\n"
+        b"SSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSNumPoints: 1\n"
+        b"SSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSS"
+        b"SSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSPointsAreSorted: false\n"
+        b"SSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSResolution: 0\n"
+        b"DATA\n4 4\nSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSSS_DATA\n"
+        b"3 3\n",
+    ),
+    "unicode_keyword": (
+        b"2D-Map\nTas\xe2\x84\xaaInfo: x\nTaskInfo: y\nDATA\n1 2\n",
+        b"2D-Map\nMinPos: 0 0\nMaxPos: 1 2\nNumPoints: 1\nPointsAreSorted: false\nResolution: 0\n"
+        b"TaskInfo: y\nTas\xe2\x84\xaaInfo: x\nDATA\n1 2\n",
+    ),
 }
 
 
@@ -68,7 +132,10 @@ def test_quoted_keyword_loses_only_its_opening_quote() -> None:
 
 
 def test_cairn_inf_and_hex_are_kept_and_warned() -> None:
-    text = b'2D-Map\nCairn: Goal INF -INF 0x10 "" ICON "far"\nCairn: Goal 1 2 0 "" ICON "near"\nDATA\n1 1\n'
+    text = (
+        b'2D-Map\nCairn: Goal INF -INF 0x10 "" ICON "far"\nCairn: Goal 1 2 0 "" ICON "near"\n'
+        b"DATA\n1 1\n"
+    )
     m = mapkit.loads(text)
     far = m.objects[0]
     assert (far.x, far.y, far.theta) == (float("inf"), float("-inf"), 16.0)
@@ -151,7 +218,11 @@ def test_object_and_origin_numbers_with_many_digits_in_linear_time(digits: int) 
     ).encode()
     m = mapkit.loads(text)
     assert m.origin_lla == (float("inf"), 1.0, 0.0)
-    assert [(o.x, o.y, o.theta) for o in m.objects][0] == (float("inf"), float("-inf"), float("inf"))
+    assert (m.objects[0].x, m.objects[0].y, m.objects[0].theta) == (
+        float("inf"),
+        float("-inf"),
+        float("inf"),
+    )
     # atoi's strtol saturates (and the rows, wider than 2 km, are sorted as ARIA 2.9.4 does)
     assert sorted(m.points.tolist()) == [[1, -(2**63)], [2**63 - 1, 1]]
     bad = f'2D-Map\nCairn: Goal 1{d}x 1 0 "" ICON "g"\nOriginLatLongAlt: {d} 1{d}x 1\nDATA\n'
@@ -159,7 +230,9 @@ def test_object_and_origin_numbers_with_many_digits_in_linear_time(digits: int) 
         mapkit.loads(bad)
     m, issues = mapkit.recover(bad.encode())
     assert [(i.code, i.location.line) for i in issues if i.code is not C.TOO_MANY_TOKENS] == [
-        (C.BAD_HEADER_LINE, 2), (C.BAD_HEADER_LINE, 3)]  # and both lines are longer than ARIA reads
+        (C.BAD_HEADER_LINE, 2),
+        (C.BAD_HEADER_LINE, 3),
+    ]  # and both lines are longer than ARIA reads
     assert all(len(i.message) < 300 for i in issues)  # the line is named, not copied
 
 
@@ -197,10 +270,14 @@ def test_keywords_are_matched_in_ascii_case_only() -> None:
     assert m.info == {} and m.remainder == ("Tas\u212aInfo: x",)
 
 
-LOG_HEAD = (b"LaserOdometryLog\n#Created by ArLaserLogger\nversion: 4\nsick1pose: 0 0 0.00\n"
-            b"sick1conf: -90.00 90.00 2\n")
-LOG_REC = (b"logTime: 0.100\nvelocities: 0.00 0.00 0.00\nscanId: 0\nrobot: 1000 0 90.00\n"
-           b"robotGlobal: 1000 0 90.00\nscan1: 500 0  0 0 \n")
+LOG_HEAD = (
+    b"LaserOdometryLog\n#Created by ArLaserLogger\nversion: 4\nsick1pose: 0 0 0.00\n"
+    b"sick1conf: -90.00 90.00 2\n"
+)
+LOG_REC = (
+    b"logTime: 0.100\nvelocities: 0.00 0.00 0.00\nscanId: 0\nrobot: 1000 0 90.00\n"
+    b"robotGlobal: 1000 0 90.00\nscan1: 500 0  0 0 \n"
+)
 D2 = b"9" * 50_000
 
 

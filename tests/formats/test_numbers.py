@@ -8,8 +8,7 @@ import math
 import time
 
 import pytest
-from hypothesis import given
-from hypothesis import strategies as st
+from hypothesis import given, strategies as st
 
 from mapkit.formats._numbers import (
     LONG_MAX,
@@ -63,7 +62,10 @@ def same_double(a: float, b: float) -> bool:
 number_text = st.text(alphabet="0123456789.eEpPxX+-infatyINFATY() _\t", max_size=24)
 long_digits = st.builds(
     lambda a, n, d, b: a + d * n + b,
-    number_text, st.integers(300, 1200), st.sampled_from("0159f"), number_text,
+    number_text,
+    st.integers(300, 1200),
+    st.sampled_from("0159f"),
+    number_text,
 )
 
 

@@ -12,13 +12,11 @@ from collections.abc import Iterator
 
 import numpy as np
 import pytest
-from hypothesis import example, given
-from hypothesis import strategies as st
+from hypothesis import example, given, strategies as st
 from hypothesis.extra import numpy as hnp
 
 import mapkit
 from mapkit.formats import _rows
-from mapkit.formats import map as mapformat
 from mapkit.formats._rows import (
     RowReader,
     _format_rows_reference,
@@ -26,6 +24,7 @@ from mapkit.formats._rows import (
     format_rows,
     parse_rows,
 )
+from mapkit.formats.map import parser as map_parser, writer as map_writer
 from tests.strategies import maps
 
 INT32 = st.integers(-(2**31), 2**31 - 1)
@@ -38,9 +37,13 @@ def small_chunks(threads: bool = True) -> Iterator[None]:
     With ``threads`` the map reader's worker threads parse from the second chunk on; without,
     the data phase runs on the calling thread only.
     """
-    names = [(_rows, "_PARSE_CHUNK", 48), (_rows, "_MIN_SPLIT", 16), (_rows, "_FORMAT_CHUNK", 3),
-             (mapformat, "_DATA_CHUNK", 40),
-             (mapformat, "_PARALLEL_SPANS", 2 if threads else 1 << 40)]
+    names = [
+        (_rows, "_PARSE_CHUNK", 48),
+        (_rows, "_MIN_SPLIT", 16),
+        (_rows, "_FORMAT_CHUNK", 3),
+        (map_parser, "_DATA_CHUNK", 40),
+        (map_parser, "_PARALLEL_SPANS", 2 if threads else 1 << 40),
+    ]
     saved = [getattr(module, name) for module, name, _ in names]
     for module, name, value in names:
         setattr(module, name, value)
@@ -61,6 +64,7 @@ def same_parse(seg: bytes, ncols: int) -> None:
 
 
 # -- strategies -----------------------------------------------------------------------------
+
 
 def number(limit: int = 10**9) -> st.SearchStrategy[bytes]:
     return st.integers(-limit, limit).map(lambda v: b"%d" % v)
@@ -106,14 +110,16 @@ def near_canonical_row(draw: st.DrawFn, ncols: int) -> bytes:
 
 @st.composite
 def segments(draw: st.DrawFn, ncols: int) -> bytes:
-    row = st.one_of(canonical_row(ncols), canonical_row(ncols), near_canonical_row(ncols),
-                    messy_row())
+    row = st.one_of(
+        canonical_row(ncols), canonical_row(ncols), near_canonical_row(ncols), messy_row()
+    )
     rows = draw(st.lists(row, max_size=30))
     eol = draw(st.sampled_from([b"\n", b"\n", b"\r\n"]))
     return b"".join(r + eol for r in rows)
 
 
 # -- reading --------------------------------------------------------------------------------
+
 
 @pytest.mark.parametrize("ncols", [2, 4])
 @given(data=st.data())
@@ -138,16 +144,28 @@ T7_ROWS = b"1.5 2\n12 34.7\n5 6 7\n-7 -8\n+9 10\n0x10 5\n- 3\n4\t4\n"
         # FORMATS.md T7 (the rows that start with a digit or '-'; see the map-level test below).
         (T7_ROWS, 2, [[12, 34], [5, 6], [-7, -8], [0, 3], [4, 4]], [0, 4, 5]),
         (b"- -\n-0 0\n007 -08\n", 2, [[0, 0], [0, 0], [7, -8]], []),
-        (b"--5 1\n5-3 1\n1 --\n1 -.\n1 .5\n1 /5\n-/ 1\n-. 1\n", 2, [[1, 0], [1, 0]],
-         [0, 1, 4, 5, 6, 7]),
-        (b"99999999 -9999999\n-99999999 123456789\n", 2,
-         [[99999999, -9999999], [-99999999, 123456789]], []),
+        (
+            b"--5 1\n5-3 1\n1 --\n1 -.\n1 .5\n1 /5\n-/ 1\n-. 1\n",
+            2,
+            [[1, 0], [1, 0]],
+            [0, 1, 4, 5, 6, 7],
+        ),
+        (
+            b"99999999 -9999999\n-99999999 123456789\n",
+            2,
+            [[99999999, -9999999], [-99999999, 123456789]],
+            [],
+        ),
         (b"12345678901234567 -1\n", 2, [[12345678901234567, -1]], []),
         (b"1 2\r\n3 4\r\n", 2, [[1, 2], [3, 4]], []),
         (b"1 2\r\n3 4\n5\r6\n", 2, [[1, 2], [3, 4], [5, 6]], []),
         (b"1  2\n1 2 \n1\x0b2\n1\x0c\t2\n1 \n1\n", 2, [[1, 2], [1, 2], [1, 2], [1, 2]], [4, 5]),
-        (b"1 2 3 4\n1 2 3\n-1 -2 -3 -4 x\n1 2\t3  4\r\n", 4,
-         [[1, 2, 3, 4], [-1, -2, -3, -4], [1, 2, 3, 4]], [1]),
+        (
+            b"1 2 3 4\n1 2 3\n-1 -2 -3 -4 x\n1 2\t3  4\r\n",
+            4,
+            [[1, 2, 3, 4], [-1, -2, -3, -4], [1, 2, 3, 4]],
+            [1],
+        ),
         (b"1 2 3 4\r\n5 6 7 8\r\n", 4, [[1, 2, 3, 4], [5, 6, 7, 8]], []),
     ],
 )
@@ -178,8 +196,21 @@ def test_canonical_text_takes_the_vectorised_path(text: bytes) -> None:
 
 @pytest.mark.parametrize(
     "text",
-    [b"1 2\n3\n", b"1  2\n", b"1 2 \n", b"1\t2\n", b"1 +2\n", b"1 2.5\n", b"1 2-\n", b"1 2x\n",
-     b"1 123456789\n", b"-12345678 1\n", b"1 2\n3 4", b"1 2\r\n3 4\n", b"1 \xc3\n"],
+    [
+        b"1 2\n3\n",
+        b"1  2\n",
+        b"1 2 \n",
+        b"1\t2\n",
+        b"1 +2\n",
+        b"1 2.5\n",
+        b"1 2-\n",
+        b"1 2x\n",
+        b"1 123456789\n",
+        b"-12345678 1\n",
+        b"1 2\n3 4",
+        b"1 2\r\n3 4\n",
+        b"1 \xc3\n",
+    ],
 )
 def test_non_canonical_text_is_left_to_the_reference(text: bytes) -> None:
     data = b"DATA\n" * 2 + text
@@ -200,6 +231,7 @@ def test_a_large_section_reads_like_the_reference() -> None:
 
 # -- writing --------------------------------------------------------------------------------
 
+
 def int_arrays(ncols: int, elements: st.SearchStrategy[int]) -> st.SearchStrategy[np.ndarray]:
     return hnp.arrays(np.int64, st.tuples(st.integers(0, 50), st.just(ncols)), elements=elements)
 
@@ -207,8 +239,9 @@ def int_arrays(ncols: int, elements: st.SearchStrategy[int]) -> st.SearchStrateg
 @pytest.mark.parametrize("ncols", [2, 4])
 @given(data=st.data())
 def test_format_equals_reference(ncols: int, data: st.DataObject) -> None:
-    elements = data.draw(st.sampled_from([INT32, st.integers(-(2**63), 2**63 - 1),
-                                          st.integers(-(10**8), 10**8)]))
+    elements = data.draw(
+        st.sampled_from([INT32, st.integers(-(2**63), 2**63 - 1), st.integers(-(10**8), 10**8)])
+    )
     values = data.draw(int_arrays(ncols, elements))
     assert format_rows(values) == _format_rows_reference(values)
     with small_chunks():
@@ -222,8 +255,9 @@ def test_format_then_parse_is_identity(ncols: int, data: st.DataObject | None) -
     if data is None:  # the extremes
         values = np.array([[-(2**31), 2**31 - 1, -(10**8), 10**8 - 1][:ncols]] * 3, np.int64)
     else:
-        values = data.draw(int_arrays(ncols, data.draw(st.sampled_from(
-            [INT32, st.integers(-(2**63), 2**63 - 1)]))))
+        values = data.draw(
+            int_arrays(ncols, data.draw(st.sampled_from([INT32, st.integers(-(2**63), 2**63 - 1)])))
+        )
     parsed, bad = parse_rows(format_rows(values), ncols)
     assert bad == []
     assert np.array_equal(parsed, values)
@@ -253,16 +287,17 @@ def test_format_accepts_read_only_and_strided_arrays() -> None:
 
 # -- the map reader's data phase ------------------------------------------------------------
 
+
 @contextlib.contextmanager
 def line_by_line() -> Iterator[None]:
     """The data phase without the vectorised path and without chunks (the original algorithm)."""
-    saved = (RowReader.fast, mapformat._DATA_CHUNK)
+    saved = (RowReader.fast, map_parser._DATA_CHUNK)
     RowReader.fast = lambda self, s, e, k: None  # type: ignore[method-assign]
-    mapformat._DATA_CHUNK = 1 << 40
+    map_parser._DATA_CHUNK = 1 << 40
     try:
         yield
     finally:
-        RowReader.fast, mapformat._DATA_CHUNK = saved  # type: ignore[method-assign]
+        RowReader.fast, map_parser._DATA_CHUNK = saved  # type: ignore[method-assign]
 
 
 def outcome(text: bytes) -> tuple[object, ...]:
@@ -334,16 +369,17 @@ def test_large_map_with_odd_rows_between_chunks() -> None:
 
 # -- the map writer's threads ---------------------------------------------------------------
 
+
 @given(m=maps())
 def test_threaded_writer_and_reader_round_trip(m: mapkit.MapData) -> None:
-    sequential = b"".join(mapformat._map_chunks(m, None))
-    saved = mapformat._PARALLEL_ROWS
-    mapformat._PARALLEL_ROWS = 1
+    sequential = b"".join(map_writer._map_chunks(m, None))
+    saved = map_writer._PARALLEL_ROWS
+    map_writer._PARALLEL_ROWS = 1
     try:
         with small_chunks(threads=True):
             text = mapkit.dumpb(m)
             back = mapkit.loads(text)
     finally:
-        mapformat._PARALLEL_ROWS = saved
+        map_writer._PARALLEL_ROWS = saved
     assert text == sequential
     assert back.equals(m)

@@ -11,11 +11,21 @@ from typing import Any
 
 CHROMEDRIVER = os.environ.get("MAPKIT_CHROMEDRIVER", "/usr/bin/chromedriver")
 CHROMIUM = os.environ.get("MAPKIT_CHROMIUM", "/usr/bin/chromium")
-FLAGS = ("--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-         "--disable-background-networking", "--disable-component-update", "--disable-sync",
-         "--disable-dev-shm-usage")
-INSTALL_HINT = ("headless Chromium is needed: apt-get install chromium chromium-driver "
-                "(scripts/setup does) and pip install selenium (the test extra)")
+FLAGS = (
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--disable-dev-shm-usage",
+)
+INSTALL_HINT = (
+    "headless Chromium is needed: apt-get install chromium chromium-driver "
+    "(scripts/setup does) and pip install selenium (the test extra)"
+)
 
 
 def missing() -> str | None:

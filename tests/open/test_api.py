@@ -31,8 +31,16 @@ class Client:
     def __init__(self, editor: Editor) -> None:
         self.editor = editor
 
-    def call(self, method: str, path: str, body: Any = None, *, token: str | None = "",
-             host: str | None = None, origin: str | None = None) -> tuple[int, Any]:
+    def call(
+        self,
+        method: str,
+        path: str,
+        body: Any = None,
+        *,
+        token: str | None = "",
+        host: str | None = None,
+        origin: str | None = None,
+    ) -> tuple[int, Any]:
         ed = self.editor
         tok = ed.token if token == "" else token
         target = path + ("" if tok is None else ("&" if "?" in path else "?") + f"token={tok}")
@@ -96,8 +104,11 @@ def cli_bytes(src: Path, folder: Path, edits: list[dict[str, Any]]) -> bytes:
 
 # -- access --------------------------------------------------------------------------------------
 
-@pytest.mark.parametrize("path", ["/", "/api/map", "/api/validate", "/static/app.js",
-                                  "/tiles/0/-5/0/-1.png", "/api/script"])
+
+@pytest.mark.parametrize(
+    "path",
+    ["/", "/api/map", "/api/validate", "/static/app.js", "/tiles/0/-5/0/-1.png", "/api/script"],
+)
 def test_every_path_needs_the_token(client: Client, path: str) -> None:
     assert client.call("GET", path, token=None)[0] == 403
     assert client.call("GET", path, token="wrong")[0] == 403
@@ -106,16 +117,26 @@ def test_every_path_needs_the_token(client: Client, path: str) -> None:
 
 def test_posts_need_the_token_and_leave_the_map_alone(client: Client, office: Path) -> None:
     before = office.read_bytes()
-    status, doc = client.call("POST", "/api/edit", {"edits": [{"add-goal": {"name": "X", "x": 0,
-                                                                             "y": 0}}]}, token=None)
+    status, doc = client.call(
+        "POST", "/api/edit", {"edits": [{"add-goal": {"name": "X", "x": 0, "y": 0}}]}, token=None
+    )
     assert status == 403 and "token" in doc["error"]
     assert client.call("POST", "/api/save", {}, token="nope")[0] == 403
     assert client.call("GET", "/api/map")[1]["counts"]["objects"] == 11
     assert office.read_bytes() == before
 
 
-@pytest.mark.parametrize("host", ["evil.example", "evil.example:{port}", "127.0.0.1:1",
-                                  "localhost.evil.example:{port}", "10.0.0.1:{port}", ""])
+@pytest.mark.parametrize(
+    "host",
+    [
+        "evil.example",
+        "evil.example:{port}",
+        "127.0.0.1:1",
+        "localhost.evil.example:{port}",
+        "10.0.0.1:{port}",
+        "",
+    ],
+)
 def test_foreign_host_header_is_refused(client: Client, host: str) -> None:
     status, doc = client.call("GET", "/api/map", host=host.format(port=client.editor.port) or " ")
     assert status == 403 and "127.0.0.1 or localhost" in doc["error"]
@@ -166,8 +187,16 @@ EVERY_OPERATION = [
     [{"add-goal": {"name": "Desk 2", "x": -1500, "y": 300, "heading": 135}}],
     [{"add-dock": {"name": "Charger 2", "x": 500, "y": 500, "heading": -90}}],
     [{"add-home": {"x": 0, "y": 100, "heading": 45}}],
-    [{"add-object": {"type": "ForbiddenArea", "area": [0, 0, 800, 400], "angle": 20,
-                     "rotate-about-centre": True}}],
+    [
+        {
+            "add-object": {
+                "type": "ForbiddenArea",
+                "area": [0, 0, 800, 400],
+                "angle": 20,
+                "rotate-about-centre": True,
+            }
+        }
+    ],
     [{"forbid": {"area": [-2000, -1000, -1000, 0]}}, {"move": {"name": "#12", "heading": 30}}],
     [{"forbid": {"line": [0, 0, 3000, 1000], "name": "Stairs"}}],
     [{"remove": {"names": ["#1"]}}],
@@ -183,8 +212,9 @@ EVERY_OPERATION = [
 
 
 @pytest.mark.parametrize("edits", EVERY_OPERATION, ids=lambda e: "+".join(next(iter(x)) for x in e))
-def test_every_operation_saves_the_clis_bytes(client: Client, office: Path, tmp_path: Path,
-                                              edits: list[dict[str, Any]]) -> None:
+def test_every_operation_saves_the_clis_bytes(
+    client: Client, office: Path, tmp_path: Path, edits: list[dict[str, Any]]
+) -> None:
     status, doc = client.edit(*edits)
     assert status == 200, doc
     assert doc["summary"] and doc["map"]["dirty"] and doc["map"]["edits"] == edits
@@ -199,28 +229,44 @@ def test_declared_type_with_parameters(tmp_path: Path, shared_dir: Path) -> None
     with serving(_copy(src, tmp_path)) as c:
         types = {t["name"]: t for t in c.call("GET", "/api/map")[1]["types"]}
         assert types["BadGPSSector"]["shape"] == "rect" and types["Measure"]["shape"] == "line"
-        edits = [{"add-object": {"type": "BadGPSSector", "area": [0, 0, 5000, 2000],
-                                 "name": "Car park"}},
-                 {"add-object": {"type": "Measure", "line": [0, 0, 10000, 0], "name": "Stick"}}]
+        edits = [
+            {
+                "add-object": {
+                    "type": "BadGPSSector",
+                    "area": [0, 0, 5000, 2000],
+                    "name": "Car park",
+                }
+            },
+            {"add-object": {"type": "Measure", "line": [0, 0, 10000, 0], "name": "Stick"}},
+        ]
         assert c.edit(*edits)[0] == 200
         assert c.call("POST", "/api/save", {})[0] == 200
         assert c.editor.app.session.path.read_bytes() == cli_bytes(src, tmp_path / "cli", edits)
 
 
-@pytest.mark.parametrize("edits, words", [
-    ([{"add-goal": {"name": "A", "x": 0}}], "missing argument y"),
-    ([{"add-goal": {"name": "A", "x": 0, "y": 0, "colour": 1}}], "unknown argument colour"),
-    ([{"teleport": {}}], "unknown operation 'teleport'"),
-    ([{"remove": {"names": ["No such thing"]}}], "No such thing"),
-    ([{"add-goal": {"name": "A", "x": 0, "y": 0}}, {"add-goal": {"name": "A", "x": 1, "y": 1}}],
-     "edit 2 (add-goal)"),
-    ([{"add-goal": {"name": "A", "x": 1e12, "y": 0}}], "edit 1"),
-    ([{"merge": {"other": "/etc/passwd"}}], "merge reads another file"),
-    ([], "non-empty list"),
-    ("add-goal", "non-empty list"),
-])
-def test_refused_edits_are_400_and_change_nothing(client: Client, office: Path, edits: Any,
-                                                  words: str) -> None:
+@pytest.mark.parametrize(
+    "edits, words",
+    [
+        ([{"add-goal": {"name": "A", "x": 0}}], "missing argument y"),
+        ([{"add-goal": {"name": "A", "x": 0, "y": 0, "colour": 1}}], "unknown argument colour"),
+        ([{"teleport": {}}], "unknown operation 'teleport'"),
+        ([{"remove": {"names": ["No such thing"]}}], "No such thing"),
+        (
+            [
+                {"add-goal": {"name": "A", "x": 0, "y": 0}},
+                {"add-goal": {"name": "A", "x": 1, "y": 1}},
+            ],
+            "edit 2 (add-goal)",
+        ),
+        ([{"add-goal": {"name": "A", "x": 1e12, "y": 0}}], "edit 1"),
+        ([{"merge": {"other": "/etc/passwd"}}], "merge reads another file"),
+        ([], "non-empty list"),
+        ("add-goal", "non-empty list"),
+    ],
+)
+def test_refused_edits_are_400_and_change_nothing(
+    client: Client, office: Path, edits: Any, words: str
+) -> None:
     before = office.read_bytes()
     status, doc = client.call("POST", "/api/edit", {"edits": edits})
     assert status == 400 and words in doc["error"], doc
@@ -253,7 +299,9 @@ def test_undo_and_redo(client: Client, office: Path) -> None:
     doc = client.call("GET", "/api/map")[1]
     assert not doc["can_redo"] and [o["name"] for o in doc["objects"]][-2:] == ["A", "D"]
     assert client.call("GET", "/api/script")[1]["edits"] == [
-        {"add-goal": {"name": "A", "x": 0, "y": 0}}, {"add-dock": {"name": "D", "x": 5, "y": 5}}]
+        {"add-goal": {"name": "A", "x": 0, "y": 0}},
+        {"add-dock": {"name": "D", "x": 5, "y": 5}},
+    ]
     client.call("POST", "/api/undo", {})
     client.call("POST", "/api/undo", {})
     assert client.call("POST", "/api/save", {})[1]["written"] == []  # back where it started
@@ -268,6 +316,7 @@ def test_data_edits_change_the_tiles_version(client: Client) -> None:
 
 
 # -- saving --------------------------------------------------------------------------------------
+
 
 def test_save_keeps_a_backup_when_asked(client: Client, office: Path) -> None:
     before = office.read_bytes()
@@ -313,8 +362,10 @@ def test_same_edits_same_bytes_on_every_real_sample(real_sample: Path, tmp_path:
 
 
 def test_validate_findings_have_codes_and_places(client: Client) -> None:
-    client.edit({"draw-line": {"line": [-500, 7000, 500, 7000]}},
-                {"add-goal": {"name": "In the wall", "x": 0, "y": 7000}})
+    client.edit(
+        {"draw-line": {"line": [-500, 7000, 500, 7000]}},
+        {"add-goal": {"name": "In the wall", "x": 0, "y": 7000}},
+    )
     status, doc = client.call("GET", "/api/validate?radius=250")
     assert status == 200
     hits = [f for f in doc["findings"] if f["name"] == "GOAL_IN_WALL"]
@@ -324,9 +375,14 @@ def test_validate_findings_have_codes_and_places(client: Client) -> None:
 
 # -- the command ---------------------------------------------------------------------------------
 
+
 def test_cli_prints_one_line_and_serves_until_interrupted(office: Path) -> None:
-    proc = subprocess.Popen([sys.executable, "-m", "mapkit", "open", str(office), "--no-browser"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "mapkit", "open", str(office), "--no-browser"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     try:
         assert proc.stdout is not None
         line = proc.stdout.readline()
@@ -351,11 +407,13 @@ def test_cli_refuses_a_file_that_is_not_a_map(tmp_path: Path) -> None:
 
 # -- ROS maps: keepout zones -----------------------------------------------------------------------
 
+
 @pytest.fixture
 def ros_map(tmp_path: Path) -> Path:
     """office.map rasterised for ROS, with its keepout mask (NAME_keepout.*) beside it."""
-    res = CliRunner().invoke(cli, ["rasterize", str(OFFICE), "-o", str(tmp_path / "office.yaml"),
-                                   "--keepout"])
+    res = CliRunner().invoke(
+        cli, ["rasterize", str(OFFICE), "-o", str(tmp_path / "office.yaml"), "--keepout"]
+    )
     assert res.exit_code == 0, res.output
     return tmp_path / "office.yaml"
 
@@ -371,19 +429,26 @@ def test_ros_keepout_zones_are_edited_and_saved_as_the_mask(ros_map: Path, tmp_p
         assert {o["type"] for o in doc["objects"]} <= {"ForbiddenArea", "ForbiddenLine"}
         zones = doc["counts"]["objects"]
         assert zones >= 1  # office.map's forbidden area came back from the mask
-        for refused in ({"add-goal": {"name": "A", "x": 0, "y": 0}},
-                        {"erase": {"box": [0, 0, 1000, 1000]}},
-                        {"draw-line": {"line": [0, 0, 1000, 0]}}):
+        for refused in (
+            {"add-goal": {"name": "A", "x": 0, "y": 0}},
+            {"erase": {"box": [0, 0, 1000, 1000]}},
+            {"draw-line": {"line": [0, 0, 1000, 0]}},
+        ):
             status, err = c.edit(refused)
             assert status == 400 and "read only" in err["error"]
-        status, out = c.edit({"forbid": {"area": [2000, 2000, 4000, 3000]}},
-                             {"move": {"name": f"#{zones + 1}", "heading": 30}},
-                             {"forbid": {"line": [6000, 1000, 9000, 1000]}})
+        status, out = c.edit(
+            {"forbid": {"area": [2000, 2000, 4000, 3000]}},
+            {"move": {"name": f"#{zones + 1}", "heading": 30}},
+            {"forbid": {"line": [6000, 1000, 9000, 1000]}},
+        )
         assert status == 200, out
         status, saved = c.call("POST", "/api/save", {"backup": True})
         assert status == 200, saved
         assert [Path(p).name for p in saved["written"]] == [
-            "office_keepout.yaml", "office_keepout.pgm", "office_filters.yaml"]
+            "office_keepout.yaml",
+            "office_keepout.pgm",
+            "office_filters.yaml",
+        ]
         assert (folder / "office.yaml").read_bytes() == before["office.yaml"]
         assert (folder / "office.pgm").read_bytes() == before["office.pgm"]
         assert (folder / "office_keepout.pgm.bak").read_bytes() == before["office_keepout.pgm"]
@@ -394,8 +459,9 @@ def test_ros_keepout_zones_are_edited_and_saved_as_the_mask(ros_map: Path, tmp_p
         write_filters(c.editor.app.session.map, c.editor.app.session.grid, other / "office.yaml")
         for name in ("office_keepout.yaml", "office_keepout.pgm"):
             assert (folder / name).read_bytes() == (other / name).read_bytes()
-        assert (folder / "office_filters.yaml").read_text().replace(str(folder), "D") == \
-            (other / "office_filters.yaml").read_text().replace(str(other), "D")
+        assert (folder / "office_filters.yaml").read_text().replace(str(folder), "D") == (
+            other / "office_filters.yaml"
+        ).read_text().replace(str(other), "D")
         assert (folder / "office_keepout.pgm").read_bytes() != before["office_keepout.pgm"]
     again = Editor.open(ros_map)  # the saved mask reads back with the new zones
     assert again.app.session.describe()["counts"]["objects"] >= zones + 2
@@ -412,7 +478,10 @@ def test_ros_keepout_option_and_refusals(ros_map: Path, tmp_path: Path) -> None:
         status, saved = c.call("POST", "/api/save", {})
         assert status == 200, saved
         assert [Path(p).name for p in saved["written"]] == [
-            "zones.yaml", "office_keepout.pgm", "office_filters.yaml"]  # the image zones.yaml names
+            "zones.yaml",
+            "office_keepout.pgm",
+            "office_filters.yaml",
+        ]  # the image zones.yaml names
         assert "zones.yaml" in (ros_map.parent / "office_filters.yaml").read_text()
     with pytest.raises(OpenError, match="no such keepout mask"):
         Editor.open(ros_map, keepout=tmp_path / "none.yaml")
@@ -421,8 +490,9 @@ def test_ros_keepout_option_and_refusals(ros_map: Path, tmp_path: Path) -> None:
 
 
 def test_cli_says_when_the_port_is_taken(office: Path, client: Client) -> None:
-    res = CliRunner().invoke(cli, ["open", str(office), "--no-browser",
-                                   "--port", str(client.editor.port)])
+    res = CliRunner().invoke(
+        cli, ["open", str(office), "--no-browser", "--port", str(client.editor.port)]
+    )
     assert res.exit_code == 1 and f"cannot serve on 127.0.0.1:{client.editor.port}" in res.output
 
 
@@ -431,14 +501,35 @@ def test_declared_types_with_their_parameters(tmp_path: Path, shared_dir: Path) 
     with serving(_copy(src, tmp_path)) as c:
         types = {t["name"]: t for t in c.call("GET", "/api/map")[1]["types"]}
         assert {p["name"] for p in types["MovementParametersSector"]["params"]} >= {"TransVelMax"}
-        status, err = c.edit({"add-object": {"type": "DoorGoal", "at": [0, 0], "name": "D",
-                                             "params": {"NoSuchParam": 1}}})
+        status, err = c.edit(
+            {
+                "add-object": {
+                    "type": "DoorGoal",
+                    "at": [0, 0],
+                    "name": "D",
+                    "params": {"NoSuchParam": 1},
+                }
+            }
+        )
         assert status == 400 and "NoSuchParam" in err["error"]
         edits = [
-            {"add-object": {"type": "MovementParametersSector", "area": [0, 0, 3000, 2000],
-                            "name": "Slow zone", "params": {"TransVelMax": "300"}}},
-            {"add-object": {"type": "DoorGoal", "at": [1500, 1000], "heading": 90,
-                            "name": "Door goal", "params": {"CustomDoneDist": 250}}},
+            {
+                "add-object": {
+                    "type": "MovementParametersSector",
+                    "area": [0, 0, 3000, 2000],
+                    "name": "Slow zone",
+                    "params": {"TransVelMax": "300"},
+                }
+            },
+            {
+                "add-object": {
+                    "type": "DoorGoal",
+                    "at": [1500, 1000],
+                    "heading": 90,
+                    "name": "Door goal",
+                    "params": {"CustomDoneDist": 250},
+                }
+            },
         ]
         status, doc = c.edit(*edits)
         assert status == 200, doc

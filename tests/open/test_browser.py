@@ -63,7 +63,8 @@ def open_page(d: Any, ed: Editor) -> tuple[int, int]:
         "const el = document.getElementById('map'); el.style.right = 'auto';"
         "el.style.bottom = 'auto'; el.style.width = '800px'; el.style.height = '600px';"
         "mapkit.map.invalidateSize(false);"
-        f"mapkit.map.setView([{cy}, {cx}], {ZOOM}, {{animate: false}});")
+        f"mapkit.map.setView([{cy}, {cx}], {ZOOM}, {{animate: false}});"
+    )
     return cx, cy
 
 
@@ -92,8 +93,9 @@ def cli_edit(src: Path, folder: Path, edits: list[dict[str, Any]]) -> bytes:
     return copy.read_bytes()
 
 
-def test_click_drag_rotate_save_gives_the_clis_bytes(driver: Any, shared_dir: Path,
-                                                     tmp_path: Path) -> None:
+def test_click_drag_rotate_save_gives_the_clis_bytes(
+    driver: Any, shared_dir: Path, tmp_path: Path
+) -> None:
     from selenium.webdriver.common.action_chains import ActionChains
     from selenium.webdriver.common.by import By
 
@@ -118,13 +120,27 @@ def test_click_drag_rotate_save_gives_the_clis_bytes(driver: Any, shared_dir: Pa
         edits_done(1)
         # 2. A dock by click and drag: the drag sets its heading (45 degrees).
         tool("dock")
-        (ActionChains(d).move_to_element_with_offset(map_el, -100, 60).click_and_hold()
-         .move_by_offset(20, -20).move_by_offset(20, -20).release().perform())
+        (
+            ActionChains(d)
+            .move_to_element_with_offset(map_el, -100, 60)
+            .click_and_hold()
+            .move_by_offset(20, -20)
+            .move_by_offset(20, -20)
+            .release()
+            .perform()
+        )
         edits_done(2)
         # 3. A forbidden area by dragging a box.
         tool("area")
-        (ActionChains(d).move_to_element_with_offset(map_el, 50, -80).click_and_hold()
-         .move_by_offset(50, 25).move_by_offset(50, 25).release().perform())
+        (
+            ActionChains(d)
+            .move_to_element_with_offset(map_el, 50, -80)
+            .click_and_hold()
+            .move_by_offset(50, 25)
+            .move_by_offset(50, 25)
+            .release()
+            .perform()
+        )
         edits_done(3)
         # 4. Rotate it with its handle (the new area is selected; the handle is above its centre).
         tool("select")
@@ -132,7 +148,9 @@ def test_click_drag_rotate_save_gives_the_clis_bytes(driver: Any, shared_dir: Pa
         hx, hy = d.execute_script(
             "const p = mapkit.map.latLngToContainerPoint("
             "  mapkit.map.layerPointToLatLng(L.DomUtil.getPosition(arguments[0])));"
-            "return [p.x, p.y];", handle)
+            "return [p.x, p.y];",
+            handle,
+        )
         chain = ActionChains(d).click_and_hold(handle)
         for _ in range(6):
             chain = chain.move_by_offset(10, 4).pause(0.05)
@@ -146,8 +164,14 @@ def test_click_drag_rotate_save_gives_the_clis_bytes(driver: Any, shared_dir: Pa
         n = ed.app.session.describe()["counts"]["objects"]  # the area is the last object
         expected = [
             {"add-goal": {"name": "Goal1", "x": cx, "y": cy}},
-            {"add-dock": {"name": "Dock1", "x": round(at(-100, 60)[0]), "y": round(at(-100, 60)[1]),
-                          "heading": 45}},
+            {
+                "add-dock": {
+                    "name": "Dock1",
+                    "x": round(at(-100, 60)[0]),
+                    "y": round(at(-100, 60)[1]),
+                    "heading": 45,
+                }
+            },
             {"forbid": {"area": [*map(round, at(50, -80)), *map(round, at(150, -30))]}},
             {"move": {"name": f"#{n}", "heading": round(turn)}},
         ]
@@ -160,7 +184,8 @@ def test_click_drag_rotate_save_gives_the_clis_bytes(driver: Any, shared_dir: Pa
         # The picture for docs/open.md: the whole map, findings shown, the area selected.
         d.execute_script(
             "const el = document.getElementById('map'); el.style.width = ''; el.style.height = '';"
-            "el.style.right = ''; el.style.bottom = ''; mapkit.map.invalidateSize(false);")
+            "el.style.right = ''; el.style.bottom = ''; mapkit.map.invalidateSize(false);"
+        )
         d.find_element(By.ID, "validate").click()
         wait_for(d, "return document.getElementById('fcount').textContent !== ''")
         d.execute_script(f"mapkit.map.setView([{cy - 300}, {cx + 800}], -3, {{animate: false}});")
@@ -171,8 +196,9 @@ def test_click_drag_rotate_save_gives_the_clis_bytes(driver: Any, shared_dir: Pa
         assert console_errors(d) == []
 
 
-def test_every_tool_undo_redo_and_the_external_change(driver: Any, shared_dir: Path,
-                                                      tmp_path: Path) -> None:
+def test_every_tool_undo_redo_and_the_external_change(
+    driver: Any, shared_dir: Path, tmp_path: Path
+) -> None:
     from selenium.webdriver.common.action_chains import ActionChains
     from selenium.webdriver.common.by import By
     from selenium.webdriver.support.ui import Select
@@ -197,9 +223,15 @@ def test_every_tool_undo_redo_and_the_external_change(driver: Any, shared_dir: P
 
         def drag(a: tuple[int, int], b: tuple[int, int]) -> None:
             mid = ((b[0] - a[0]) // 2, (b[1] - a[1]) // 2)
-            (ActionChains(d).move_to_element_with_offset(map_el, *a).click_and_hold()
-             .move_by_offset(*mid).move_by_offset(b[0] - a[0] - mid[0], b[1] - a[1] - mid[1])
-             .release().perform())
+            (
+                ActionChains(d)
+                .move_to_element_with_offset(map_el, *a)
+                .click_and_hold()
+                .move_by_offset(*mid)
+                .move_by_offset(b[0] - a[0] - mid[0], b[1] - a[1] - mid[1])
+                .release()
+                .perform()
+            )
 
         def button(id_: str) -> None:
             d.find_element(By.ID, id_).click()
@@ -260,8 +292,16 @@ def test_every_tool_undo_redo_and_the_external_change(driver: Any, shared_dir: P
         Select(d.find_element(By.ID, "type")).select_by_value("Sim.BoxObstacle")
         drag((200, -250), (260, -200))
         step()
-        expected.append({"add-object": {"type": "Sim.BoxObstacle", "name": "Sim.BoxObstacle1",
-                                        "params": {}, "area": [*px(200, -250), *px(260, -200)]}})
+        expected.append(
+            {
+                "add-object": {
+                    "type": "Sim.BoxObstacle",
+                    "name": "Sim.BoxObstacle1",
+                    "params": {},
+                    "area": [*px(200, -250), *px(260, -200)],
+                }
+            }
+        )
         # Undo and redo with the buttons, then delete the goal with the Delete button.
         button("undo")
         wait_for(d, f"return mapkit.state.doc.edits.length === {done[0] - 1}")
@@ -300,8 +340,9 @@ def test_every_tool_undo_redo_and_the_external_change(driver: Any, shared_dir: P
         assert console_errors(d) == []
 
 
-def test_declared_type_with_a_parameter_from_the_form(driver: Any, shared_dir: Path,
-                                                      tmp_path: Path) -> None:
+def test_declared_type_with_a_parameter_from_the_form(
+    driver: Any, shared_dir: Path, tmp_path: Path
+) -> None:
     from selenium.webdriver.common.action_chains import ActionChains
     from selenium.webdriver.common.by import By
     from selenium.webdriver.support.ui import Select
@@ -314,13 +355,27 @@ def test_declared_type_with_a_parameter_from_the_form(driver: Any, shared_dir: P
         Select(d.find_element(By.ID, "type")).select_by_value("MovementParametersSector")
         d.find_element(By.CSS_SELECTOR, '#params input[data-param="TransVelMax"]').send_keys("300")
         map_el = d.find_element(By.ID, "map")
-        (ActionChains(d).move_to_element_with_offset(map_el, -50, -50).click_and_hold()
-         .move_by_offset(50, 25).move_by_offset(50, 25).release().perform())
+        (
+            ActionChains(d)
+            .move_to_element_with_offset(map_el, -50, -50)
+            .click_and_hold()
+            .move_by_offset(50, 25)
+            .move_by_offset(50, 25)
+            .release()
+            .perform()
+        )
         wait_for(d, "return mapkit.state.doc.edits.length === 1")
         box = [round(cx - 50 * MM), round(cy + 50 * MM), round(cx + 50 * MM), round(cy)]
-        expected = [{"add-object": {"type": "MovementParametersSector",
-                                    "name": "MovementParametersSector1",
-                                    "params": {"TransVelMax": "300"}, "area": box}}]
+        expected = [
+            {
+                "add-object": {
+                    "type": "MovementParametersSector",
+                    "name": "MovementParametersSector1",
+                    "params": {"TransVelMax": "300"},
+                    "area": box,
+                }
+            }
+        ]
         assert ed.app.session.edits == expected
         d.find_element(By.ID, "save").click()
         wait_for(d, "return document.getElementById('status').textContent.startsWith('wrote')")

@@ -24,8 +24,11 @@ def test_the_page_refers_only_to_files_it_ships() -> None:
 
 @pytest.mark.slow
 def test_the_wheel_holds_the_page_and_leaflet_with_its_licence(tmp_path: Path) -> None:
-    subprocess.run([sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "-w", str(tmp_path),
-                    str(ROOT)], check=True, capture_output=True)
+    subprocess.run(
+        [sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "-w", str(tmp_path), str(ROOT)],
+        check=True,
+        capture_output=True,
+    )
     (wheel,) = tmp_path.glob("mapkit-*.whl")
     names = set(zipfile.ZipFile(wheel).namelist())
     html = (ROOT / STATIC / "index.html").read_text()

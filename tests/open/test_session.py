@@ -8,8 +8,7 @@ import shutil
 from pathlib import Path
 
 import numpy as np
-from hypothesis import given, settings
-from hypothesis import strategies as st
+from hypothesis import given, settings, strategies as st
 
 import mapkit
 from mapkit.edit import apply_script, diff, parse_script
@@ -20,14 +19,28 @@ OFFICE = Path(__file__).resolve().parents[2] / "mapkit" / "sample_maps" / "offic
 
 coord = st.integers(-20_000, 20_000)
 an_edit = st.one_of(
-    st.builds(lambda x, y, h: {"add-goal": {"name": f"G{x}_{y}", "x": x, "y": y, "heading": h}},
-              coord, coord, st.integers(-179, 180)),
-    st.builds(lambda x, y, w, h: {"forbid": {"area": [x, y, x + w, y + h]}},
-              coord, coord, st.integers(1, 5000), st.integers(1, 5000)),
-    st.builds(lambda x, y, w: {"erase": {"box": [x, y, x + w, y + w]}}, coord, coord,
-              st.integers(1, 8000)),
-    st.builds(lambda x, y, w: {"draw-line": {"line": [x, y, x + w, y]}}, coord, coord,
-              st.integers(1, 8000)),
+    st.builds(
+        lambda x, y, h: {"add-goal": {"name": f"G{x}_{y}", "x": x, "y": y, "heading": h}},
+        coord,
+        coord,
+        st.integers(-179, 180),
+    ),
+    st.builds(
+        lambda x, y, w, h: {"forbid": {"area": [x, y, x + w, y + h]}},
+        coord,
+        coord,
+        st.integers(1, 5000),
+        st.integers(1, 5000),
+    ),
+    st.builds(
+        lambda x, y, w: {"erase": {"box": [x, y, x + w, y + w]}}, coord, coord, st.integers(1, 8000)
+    ),
+    st.builds(
+        lambda x, y, w: {"draw-line": {"line": [x, y, x + w, y]}},
+        coord,
+        coord,
+        st.integers(1, 8000),
+    ),
 )
 
 
@@ -57,8 +70,13 @@ def test_undo_all_redo_all_and_save_bytes(tmp_path_factory: object, edits: list[
 
 
 @settings(max_examples=60, deadline=None)
-@given(st.integers(-12, 2), st.integers(-50, 50), st.integers(-50, 50),
-       st.integers(0, TILE - 1), st.integers(0, TILE - 1))
+@given(
+    st.integers(-12, 2),
+    st.integers(-50, 50),
+    st.integers(-50, 50),
+    st.integers(0, TILE - 1),
+    st.integers(0, TILE - 1),
+)
 def test_a_point_lights_its_pixel(z: int, tx: int, ty: int, col: int, row: int) -> None:
     x0, _, _, y1 = tile_bounds(z, tx, ty)
     s = 2.0**z

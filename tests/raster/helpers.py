@@ -28,7 +28,7 @@ def covered(g, mask: np.ndarray, xy: np.ndarray, eps_cells: float = 1e-7) -> np.
     ok = np.zeros(len(xy), dtype=bool)
     for dx in (-eps_cells * r, 0.0, eps_cells * r):
         for dy in (-eps_cells * r, 0.0, eps_cells * r):
-            rc = g.world_to_cell(xy + [dx, dy])
+            rc = g.world_to_cell(xy + np.array([dx, dy]))
             inside = g.inside(rc)
             hit = np.zeros(len(xy), dtype=bool)
             hit[inside] = mask[rc[inside, 0], rc[inside, 1]]

@@ -41,15 +41,15 @@ def decode(path: Path) -> tuple[np.ndarray, np.ndarray | None]:
         assert fields, "bad PGM header"
         w, h, maxval = (int(x) for x in fields.groups())
         assert maxval == 255, "8-bit PGM expected"
-        body = data[fields.end():]
+        body = data[fields.end() :]
         assert len(body) == w * h, "PGM has exactly width*height bytes after the header"
         return np.frombuffer(body, np.uint8).reshape(h, w), None
     assert data[:8] == b"\x89PNG\r\n\x1a\n"
     pos, idat, ihdr = 8, b"", None
     while pos < len(data):
-        n = int.from_bytes(data[pos:pos + 4], "big")
-        kind, body = data[pos + 4:pos + 8], data[pos + 8:pos + 8 + n]
-        assert zlib.crc32(kind + body) == int.from_bytes(data[pos + 8 + n:pos + 12 + n], "big")
+        n = int.from_bytes(data[pos : pos + 4], "big")
+        kind, body = data[pos + 4 : pos + 8], data[pos + 8 : pos + 8 + n]
+        assert zlib.crc32(kind + body) == int.from_bytes(data[pos + 8 + n : pos + 12 + n], "big")
         if kind == b"IHDR":
             ihdr = body
         elif kind == b"IDAT":

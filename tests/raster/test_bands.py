@@ -11,8 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
-from hypothesis import strategies as st
+from hypothesis import HealthCheck, given, settings, strategies as st
 
 import mapkit
 from mapkit.model import MapData, MapObject, Scan
@@ -54,8 +53,14 @@ def _same_cells(m: MapData, rows: int = 5, **opts: object) -> None:
 
 def _check_map(m: MapData) -> None:
     for free, inflate_mm, fw, res, margin in OPTIONS:
-        _same_cells(m, free=free, inflate_mm=inflate_mm, forbidden_as_walls=fw, resolution=res,
-                    margin_m=margin)
+        _same_cells(
+            m,
+            free=free,
+            inflate_mm=inflate_mm,
+            forbidden_as_walls=fw,
+            resolution=res,
+            margin_m=margin,
+        )
 
 
 def test_bands_match_the_whole_grid_on_every_real_sample(real_sample: Path) -> None:
@@ -87,24 +92,46 @@ def _small_maps(draw: st.DrawFn) -> MapData:
     coord = st.integers(-3000, 3000)
     pts = draw(st.lists(st.tuples(coord, coord), max_size=40))
     lines = draw(st.lists(st.tuples(coord, coord, coord, coord), max_size=12))
-    objects = [MapObject(draw(st.sampled_from(["Goal", "RobotHome", "Dock"])), x, y)
-               for x, y in draw(st.lists(st.tuples(coord, coord), max_size=3))]
-    for x1, y1, x2, y2, th in draw(st.lists(st.tuples(coord, coord, coord, coord,
-                                                      st.integers(-179, 180)), max_size=3)):
+    objects = [
+        MapObject(draw(st.sampled_from(["Goal", "RobotHome", "Dock"])), x, y)
+        for x, y in draw(st.lists(st.tuples(coord, coord), max_size=3))
+    ]
+    for x1, y1, x2, y2, th in draw(
+        st.lists(st.tuples(coord, coord, coord, coord, st.integers(-179, 180)), max_size=3)
+    ):
         objects.append(MapObject("ForbiddenArea", 0, 0, th, from_to=(x1, y1, x2, y2)))
-    return MapData(scans=(Scan.from_arrays(np.array(pts, dtype=np.int64).reshape(-1, 2),
-                                           np.array(lines, dtype=np.int64).reshape(-1, 4)),),
-                   objects=tuple(objects))
+    return MapData(
+        scans=(
+            Scan.from_arrays(
+                np.array(pts, dtype=np.int64).reshape(-1, 2),
+                np.array(lines, dtype=np.int64).reshape(-1, 4),
+            ),
+        ),
+        objects=tuple(objects),
+    )
 
 
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(m=_small_maps(), rows=st.integers(1, 9), res=st.sampled_from([0.02, 0.05, 0.07, 0.1]),
-       free=st.sampled_from(["flood", "hull", "all", "none"]), infl=st.sampled_from([0, 30, 160]),
-       fw=st.booleans())
-def test_bands_match_the_whole_grid_on_random_maps(m: MapData, rows: int, res: float, free: str,
-                                                   infl: int, fw: bool) -> None:
-    _same_cells(m, rows=rows, resolution=res, free=free, inflate_mm=infl, forbidden_as_walls=fw,
-                margin_m=0.1)
+@given(
+    m=_small_maps(),
+    rows=st.integers(1, 9),
+    res=st.sampled_from([0.02, 0.05, 0.07, 0.1]),
+    free=st.sampled_from(["flood", "hull", "all", "none"]),
+    infl=st.sampled_from([0, 30, 160]),
+    fw=st.booleans(),
+)
+def test_bands_match_the_whole_grid_on_random_maps(
+    m: MapData, rows: int, res: float, free: str, infl: int, fw: bool
+) -> None:
+    _same_cells(
+        m,
+        rows=rows,
+        resolution=res,
+        free=free,
+        inflate_mm=infl,
+        forbidden_as_walls=fw,
+        margin_m=0.1,
+    )
 
 
 def test_masks_by_bands_match_the_whole_masks() -> None:
@@ -113,8 +140,9 @@ def test_masks_by_bands_match_the_whole_masks() -> None:
     for infl in (0, 260):
         bands = list(keepout_bands(m, g, inflate_mm=infl, band_cells=g.width * 3))
         assert len(bands) > 10
-        assert np.array_equal(np.concatenate([b for _, b in bands[::-1]]),
-                              keepout_mask(m, g, inflate_mm=infl).data)
+        assert np.array_equal(
+            np.concatenate([b for _, b in bands[::-1]]), keepout_mask(m, g, inflate_mm=infl).data
+        )
     sbands, mult = speed_bands(m, g, band_cells=g.width * 4)
     whole, mult2 = speed_mask(m, g)
     assert mult == mult2
@@ -130,10 +158,13 @@ def _reference_export(m: MapData, folder: Path, mode: str, fmt: str, **opts: obj
     return folder / "ref.yaml"
 
 
-@pytest.mark.parametrize("mode,fmt", [("trinary", "pgm"), ("raw", "pgm"), ("trinary", "png"),
-                                      ("scale", "png"), ("raw", "png")])
-def test_streamed_export_writes_the_same_maps_and_masks(tmp_path: Path, mode: str,
-                                                        fmt: str) -> None:
+@pytest.mark.parametrize(
+    "mode,fmt",
+    [("trinary", "pgm"), ("raw", "pgm"), ("trinary", "png"), ("scale", "png"), ("raw", "png")],
+)
+def test_streamed_export_writes_the_same_maps_and_masks(
+    tmp_path: Path, mode: str, fmt: str
+) -> None:
     m = _speed_map()
     real = ROOT.parent / "shared" / "sample-data" / "real" / "omron-ld-showroom-ex4.map"
     maps = [m] + ([mapkit.load(real)] if real.exists() else [])
@@ -142,8 +173,16 @@ def test_streamed_export_writes_the_same_maps_and_masks(tmp_path: Path, mode: st
         folder.mkdir()
         opts = {"resolution": 0.05, "free": "flood", "inflate_mm": 60.0}
         ref = _reference_export(mp, folder, mode, fmt, **opts)
-        res = export_ros(mp, folder / "out.yaml", mode=mode, image_format=fmt,  # type: ignore[arg-type]
-                         keepout=True, speed=True, band_cells=1000, **opts)  # type: ignore[arg-type]
+        res = export_ros(
+            mp,
+            folder / "out.yaml",
+            mode=mode,
+            image_format=fmt,  # type: ignore[arg-type]
+            keepout=True,
+            speed=True,
+            band_cells=1000,
+            **opts,
+        )  # type: ignore[arg-type]
         for stem in ("", "_keepout", "_speed"):
             a, b = folder / f"ref{stem}.yaml", folder / f"out{stem}.yaml"
             assert read_ros_map(a) == read_ros_map(b), (stem, mode, fmt)
@@ -206,8 +245,13 @@ print(json.dumps({"width": res.grid.width, "height": res.grid.height, "counts": 
 
 def test_a_map_above_the_old_limit_is_written_in_bounded_memory(tmp_path: Path) -> None:
     """A 100 x 100 m room at 1 cm: 100.2 M cells, over the old 100 M refusal, in a subprocess."""
-    out = subprocess.run([sys.executable, "-c", _BIG, str(tmp_path)], capture_output=True,
-                         text=True, check=True, cwd=ROOT)
+    out = subprocess.run(
+        [sys.executable, "-c", _BIG, str(tmp_path)],
+        capture_output=True,
+        text=True,
+        check=True,
+        cwd=ROOT,
+    )
     r = json.loads(out.stdout)
     w, h = r["width"], r["height"]
     assert w * h > MAX_CELLS
@@ -219,15 +263,18 @@ def test_a_map_above_the_old_limit_is_written_in_bounded_memory(tmp_path: Path) 
     assert r["counts"]["free"] > 99_000_000 and r["counts"]["occupied"] > 40_000
     pgm = tmp_path / "big.pgm"
     header = f"P5\n# CREATOR: mapkit 0.010 m/pix\n{w} {h}\n255\n".encode()
-    assert pgm.read_bytes()[:len(header)] == header
+    assert pgm.read_bytes()[: len(header)] == header
     img = np.memmap(pgm, dtype=np.uint8, mode="r", offset=len(header), shape=(h, w))
     row = np.asarray(img[h // 2])  # the middle row, north up: margin, wall, room, wall, room, wall
     walls = np.flatnonzero(row == 0)
-    assert len(walls) == 3 and set(row[walls[0] + 1:walls[-1]].tolist()) == {0, 254}
-    assert set(row[:walls[0]].tolist()) == {205}
-    keep = np.memmap(tmp_path / "big_keepout.pgm", dtype=np.uint8, mode="r", offset=len(header),
-                     shape=(h, w))
-    zone = sum(int(np.count_nonzero(np.asarray(keep[i:i + 1000]) == 0)) for i in range(0, h, 1000))
+    assert len(walls) == 3 and set(row[walls[0] + 1 : walls[-1]].tolist()) == {0, 254}
+    assert set(row[: walls[0]].tolist()) == {205}
+    keep = np.memmap(
+        tmp_path / "big_keepout.pgm", dtype=np.uint8, mode="r", offset=len(header), shape=(h, w)
+    )
+    zone = sum(
+        int(np.count_nonzero(np.asarray(keep[i : i + 1000]) == 0)) for i in range(0, h, 1000)
+    )
     assert 500_000 <= zone <= 505_000  # the 10 x 5 m forbidden area at 1 cm, and its outline
 
 
@@ -249,8 +296,9 @@ def test_rasterize_makes_grids_over_max_cells_by_bands(monkeypatch: pytest.Monke
     assert not banded.data.flags.writeable
 
 
-def test_a_map_too_large_for_ros1_is_said_before_the_work(tmp_path: Path,
-                                                          monkeypatch: pytest.MonkeyPatch) -> None:
+def test_a_map_too_large_for_ros1_is_said_before_the_work(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     from mapkit.raster import export
     from mapkit.raster.export import consumer_warnings
 
@@ -259,8 +307,12 @@ def test_a_map_too_large_for_ros1_is_said_before_the_work(tmp_path: Path,
     assert "1,127,978,381 cells" in text and "1,000,000,000 bytes" in text
     monkeypatch.setattr(export, "ROS1_MAX_CELLS", 1000)
     events: list[str] = []
-    export_ros(_speed_map(), tmp_path / "s.yaml", warn=lambda t: events.append("warn: " + t),
-               progress=lambda d, t: events.append("progress"))
+    export_ros(
+        _speed_map(),
+        tmp_path / "s.yaml",
+        warn=lambda t: events.append("warn: " + t),
+        progress=lambda d, t: events.append("progress"),
+    )
     assert events[0].startswith("warn: a 221 x 181 map (40,001 cells) is too large for ROS 1")
     assert events[1:] and set(events[1:]) == {"progress"}
 
@@ -268,20 +320,33 @@ def test_a_map_too_large_for_ros1_is_said_before_the_work(tmp_path: Path,
 def _png_chunks(data: bytes) -> list[bytes]:
     kinds, pos = [], 8
     while pos < len(data):
-        n = int.from_bytes(data[pos:pos + 4], "big")
-        kinds.append(data[pos + 4:pos + 8])
+        n = int.from_bytes(data[pos : pos + 4], "big")
+        kinds.append(data[pos + 4 : pos + 8])
         pos += 12 + n
     return kinds
 
 
-@settings(max_examples=40, deadline=None,
-          suppress_health_check=[HealthCheck.function_scoped_fixture])
-@given(h=st.integers(1, 30), w=st.integers(1, 30), seed=st.integers(0, 2**32 - 1),
-       cuts=st.lists(st.integers(1, 29), max_size=5),
-       mode=st.sampled_from(["trinary", "scale", "raw"]), fmt=st.sampled_from(["pgm", "png"]))
-def test_any_band_split_round_trips(tmp_path_factory: pytest.TempPathFactory,
-                                    monkeypatch: pytest.MonkeyPatch, h: int, w: int, seed: int,
-                                    cuts: list[int], mode: str, fmt: str) -> None:
+@settings(
+    max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
+@given(
+    h=st.integers(1, 30),
+    w=st.integers(1, 30),
+    seed=st.integers(0, 2**32 - 1),
+    cuts=st.lists(st.integers(1, 29), max_size=5),
+    mode=st.sampled_from(["trinary", "scale", "raw"]),
+    fmt=st.sampled_from(["pgm", "png"]),
+)
+def test_any_band_split_round_trips(
+    tmp_path_factory: pytest.TempPathFactory,
+    monkeypatch: pytest.MonkeyPatch,
+    h: int,
+    w: int,
+    seed: int,
+    cuts: list[int],
+    mode: str,
+    fmt: str,
+) -> None:
     from mapkit.raster import image_stream
 
     monkeypatch.setattr(image_stream, "IDAT_BYTES", 16)  # many IDAT chunks
@@ -293,8 +358,13 @@ def test_any_band_split_round_trips(tmp_path_factory: pytest.TempPathFactory,
     edges = sorted({0, h, *[c for c in cuts if c < h]})
     bands = [(a, g.data[a:b]) for a, b in itertools.pairwise(edges)][::-1]
     folder = tmp_path_factory.mktemp("split")
-    files = write_ros_map_bands(g, bands, folder / "m.yaml", mode=mode,  # type: ignore[arg-type]
-                                image_format=fmt)
+    files = write_ros_map_bands(
+        g,
+        bands,
+        folder / "m.yaml",
+        mode=mode,  # type: ignore[arg-type]
+        image_format=fmt,
+    )
     ref = write_ros_map(g, folder / "ref.yaml", mode=mode, image_format=fmt)  # type: ignore[arg-type]
     for flavor in ("ros1", "nav2"):
         back = read_ros_map(files.yaml, flavor=flavor)  # type: ignore[arg-type]
@@ -308,14 +378,16 @@ def test_any_band_split_round_trips(tmp_path_factory: pytest.TempPathFactory,
         assert kinds[0] == b"IHDR" and kinds[-1] == b"IEND" and set(kinds[1:-1]) == {b"IDAT"}
 
 
-def test_a_png_in_many_idat_chunks_reads_back(tmp_path: Path,
-                                              monkeypatch: pytest.MonkeyPatch) -> None:
+def test_a_png_in_many_idat_chunks_reads_back(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     from mapkit.raster import image_stream
 
     monkeypatch.setattr(image_stream, "IDAT_BYTES", 2048)
     rng = np.random.default_rng(7)
-    g = OccupancyGrid(rng.choice(np.array([-1, 0, 100], dtype=np.int8), size=(600, 700)), 0.05,
-                      (0.0, 0.0))
+    g = OccupancyGrid(
+        rng.choice(np.array([-1, 0, 100], dtype=np.int8), size=(600, 700)), 0.05, (0.0, 0.0)
+    )
     bands = [(r0, g.data[r0:r1]) for r0, r1 in band_spans(600, 37)]
     files = write_ros_map_bands(g, bands, tmp_path / "noise.yaml", image_format="png")
     kinds = _png_chunks(files.image.read_bytes())
@@ -323,13 +395,19 @@ def test_a_png_in_many_idat_chunks_reads_back(tmp_path: Path,
     assert read_ros_map(files.yaml) == g and read_ros_map(files.yaml, flavor="nav2") == g
 
 
-@pytest.mark.parametrize("mode,negate,occ,free", [("trinary", False, 0.65, 0.196),
-                                                  ("trinary", True, 0.65, 0.196),
-                                                  ("trinary", False, 0.9, 0.1),
-                                                  ("raw", False, 0.65, 0.196),
-                                                  ("scale", False, 0.65, 0.196)])
-def test_pgm_read_by_bands_is_read_ros_map(tmp_path: Path, mode: str, negate: bool, occ: float,
-                                           free: float) -> None:
+@pytest.mark.parametrize(
+    "mode,negate,occ,free",
+    [
+        ("trinary", False, 0.65, 0.196),
+        ("trinary", True, 0.65, 0.196),
+        ("trinary", False, 0.9, 0.1),
+        ("raw", False, 0.65, 0.196),
+        ("scale", False, 0.65, 0.196),
+    ],
+)
+def test_pgm_read_by_bands_is_read_ros_map(
+    tmp_path: Path, mode: str, negate: bool, occ: float, free: float
+) -> None:
     from mapkit.raster.image_stream import pgm_bands
     from mapkit.raster.ros import read_ros_yaml
 
@@ -338,8 +416,15 @@ def test_pgm_read_by_bands_is_read_ros_map(tmp_path: Path, mode: str, negate: bo
         g = g.with_data(np.where(g.data < 0, 40, g.data))
     elif mode == "raw":
         g = g.with_data(np.where(g.data == 0, 17, g.data))
-    files = write_ros_map(g, tmp_path / "m.yaml", mode=mode, image_format="pgm",  # type: ignore[arg-type]
-                          negate=negate, occupied_thresh=occ, free_thresh=free)
+    files = write_ros_map(
+        g,
+        tmp_path / "m.yaml",
+        mode=mode,
+        image_format="pgm",  # type: ignore[arg-type]
+        negate=negate,
+        occupied_thresh=occ,
+        free_thresh=free,
+    )
     for flavor in ("ros1", "nav2"):
         pgm = pgm_bands(read_ros_yaml(files.yaml, flavor=flavor), flavor=flavor)  # type: ignore[arg-type]
         assert pgm is not None
@@ -367,13 +452,22 @@ def test_pgm_bands_leaves_other_images_to_the_whole_reader(tmp_path: Path) -> No
 
 
 @pytest.mark.parametrize("mode,fmt", [("trinary", "pgm"), ("scale", "png")])
-def test_streamed_files_equal_on_every_real_sample(real_sample: Path, tmp_path: Path, mode: str,
-                                                   fmt: str) -> None:
+def test_streamed_files_equal_on_every_real_sample(
+    real_sample: Path, tmp_path: Path, mode: str, fmt: str
+) -> None:
     m = mapkit.load(real_sample)
     opts = {"resolution": 0.05, "free": "flood", "inflate_mm": 100.0}
     ref = _reference_export(m, tmp_path, mode, fmt, **opts)
-    export_ros(m, tmp_path / "out.yaml", mode=mode, image_format=fmt,  # type: ignore[arg-type]
-               keepout=True, speed=True, band_cells=20_000, **opts)  # type: ignore[arg-type]
+    export_ros(
+        m,
+        tmp_path / "out.yaml",
+        mode=mode,
+        image_format=fmt,  # type: ignore[arg-type]
+        keepout=True,
+        speed=True,
+        band_cells=20_000,
+        **opts,
+    )  # type: ignore[arg-type]
     for stem in ("", "_keepout", "_speed"):
         a, b = tmp_path / f"ref{stem}.yaml", tmp_path / f"out{stem}.yaml"
         if fmt == "pgm":

@@ -6,8 +6,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given
-from hypothesis import strategies as st
+from hypothesis import given, strategies as st
 
 from mapkit.raster import OccupancyGrid, RasterError, grid_for_bounds
 
@@ -84,7 +83,12 @@ def test_grid_is_immutable_and_compares_by_value() -> None:
 def test_values_at_and_masks() -> None:
     g = OccupancyGrid(np.array([[0, 100, -1], [50, 0, 0]], dtype=np.int8), 1.0, (0, 0))
     assert g.values_at([[500, 500], [1500, 500], [2500, 500], [500, 1500], [-1, 0]]).tolist() == [
-        0, 100, -1, 50, -1]
+        0,
+        100,
+        -1,
+        50,
+        -1,
+    ]
     assert g.occupied.sum() == 1 and g.free.sum() == 3 and g.unknown.sum() == 1
     d = g.to_dict()
     assert d["origin"] == [0.0, 0.0, 0.0] and d["bounds_mm"] == [[0.0, 0.0], [3000.0, 2000.0]]

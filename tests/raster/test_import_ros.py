@@ -7,8 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
+from hypothesis import given, settings, strategies as st
 from hypothesis.extra import numpy as hnp
 
 import mapkit
@@ -20,12 +19,18 @@ from mapkit.raster.ros import read_ros_map, write_ros_map
 
 from .helpers import dense, off_corners
 
-occupancy = hnp.arrays(np.int8, st.tuples(st.integers(1, 25), st.integers(1, 25)),
-                       elements=st.sampled_from([-1, 0, 0, 100]))
+occupancy = hnp.arrays(
+    np.int8,
+    st.tuples(st.integers(1, 25), st.integers(1, 25)),
+    elements=st.sampled_from([-1, 0, 0, 100]),
+)
 
 
-@given(occupancy, st.sampled_from([0.02, 0.05, 0.1]), st.tuples(st.integers(-500, 500),
-                                                                st.integers(-500, 500)))
+@given(
+    occupancy,
+    st.sampled_from([0.02, 0.05, 0.1]),
+    st.tuples(st.integers(-500, 500), st.integers(-500, 500)),
+)
 @settings(max_examples=60)
 def test_rasterise_of_import_reproduces_the_occupied_cells(tmp_path_factory, data, res, o) -> None:
     g = OccupancyGrid(data, res, (o[0] * res, o[1] * res))
@@ -55,8 +60,9 @@ def test_points_are_cell_centres_without_transposition(tmp_path: Path) -> None:
 def test_yaw_rotates_about_the_origin(tmp_path: Path) -> None:
     g = OccupancyGrid(np.array([[100]], dtype=np.int8), 1.0, (2.0, 0.0))
     files = write_ros_map(g, tmp_path / "m.yaml")
-    text = files.yaml.read_text().replace("origin: [2.0, 0.0, 0.0]",
-                                          f"origin: [2.0, 0.0, {math.pi / 2!r}]")
+    text = files.yaml.read_text().replace(
+        "origin: [2.0, 0.0, 0.0]", f"origin: [2.0, 0.0, {math.pi / 2!r}]"
+    )
     files.yaml.write_text(text)
     m = import_ros(files.yaml)
     assert m.points.tolist() == [[1500, 500]]  # (0.5, 0.5) m turned 90 degrees, then shifted
@@ -64,8 +70,8 @@ def test_yaw_rotates_about_the_origin(tmp_path: Path) -> None:
 
 def test_cell_runs_all_directions() -> None:
     m = np.zeros((6, 6), dtype=bool)
-    m[0, :4] = True            # a row
-    m[1:5, 5] = True           # a column
+    m[0, :4] = True  # a row
+    m[1:5, 5] = True  # a column
     m[[2, 3, 4], [1, 2, 3]] = True  # a diagonal
     m[[5, 4, 3], [0, 1, 2]] |= True  # an anti-diagonal crossing it
     runs = {tuple(r) for r in cell_runs(m, 3).tolist()}
@@ -81,15 +87,17 @@ def test_diagonal_lines_mark_only_diagonal_cells() -> None:
 
 
 def _keepout_map() -> MapData:
-    return MapData(objects=(
-        MapObject("ForbiddenArea", 0, 0, 0, from_to=(1000, 1000, 2500, 1600)),
-        MapObject("ForbiddenArea", 0, 0, 30, from_to=(4000, -1000, 6000, 200)),
-        MapObject("ForbiddenLine", 0, 4000, 0, from_to=(0, 4000, 3000, 4000)),
-        # An L made of two touching rectangles.
-        MapObject("ForbiddenArea", 0, 0, 0, from_to=(-4000, -4000, -3000, -1000)),
-        MapObject("ForbiddenArea", 0, 0, 0, from_to=(-3000, -4000, -1000, -3000)),
-        MapObject("Goal", 5000, 5000),
-    ))
+    return MapData(
+        objects=(
+            MapObject("ForbiddenArea", 0, 0, 0, from_to=(1000, 1000, 2500, 1600)),
+            MapObject("ForbiddenArea", 0, 0, 30, from_to=(4000, -1000, 6000, 200)),
+            MapObject("ForbiddenLine", 0, 4000, 0, from_to=(0, 4000, 3000, 4000)),
+            # An L made of two touching rectangles.
+            MapObject("ForbiddenArea", 0, 0, 0, from_to=(-4000, -4000, -3000, -1000)),
+            MapObject("ForbiddenArea", 0, 0, 0, from_to=(-3000, -4000, -1000, -3000)),
+            MapObject("Goal", 5000, 5000),
+        )
+    )
 
 
 def test_keepout_mask_imports_as_forbidden_objects(tmp_path: Path) -> None:
@@ -103,7 +111,10 @@ def test_keepout_mask_imports_as_forbidden_objects(tmp_path: Path) -> None:
     lines = [o for o in back.objects if o.type == "ForbiddenLine"]
     assert len(lines) == 1
     (x1, y1, x2, y2) = lines[0].from_to
-    assert sorted([(x1, y1), (x2, y2)]) == [(25, 4025), (3025, 4025)]  # 3000 lies in the cell [3000, 3050)
+    assert sorted([(x1, y1), (x2, y2)]) == [
+        (25, 4025),
+        (3025, 4025),
+    ]  # 3000 lies in the cell [3000, 3050)
     # The axis-aligned area comes back within a cell, theta 0.
     first = [a for a in areas if a.theta == 0 and abs(a.from_to[0] - 1000) <= 50]
     assert len(first) == 1 and np.allclose(first[0].from_to, (1000, 1000, 2550, 1650), atol=50)

@@ -35,16 +35,29 @@ def yaml_text(**fields: str | None) -> str:
     return "".join(f"{k}: {v}\n" for k, v in values.items() if v is not None)
 
 
-def png_bytes(w: int, h: int, raw: bytes, *, depth: int = 8, color: int = 0,
-              extra: list[tuple[bytes, bytes]] | None = None) -> bytes:
+def png_bytes(
+    w: int,
+    h: int,
+    raw: bytes,
+    *,
+    depth: int = 8,
+    color: int = 0,
+    extra: list[tuple[bytes, bytes]] | None = None,
+) -> bytes:
     def chunk(kind: bytes, data: bytes) -> bytes:
         crc = struct.pack(">I", zlib.crc32(kind + data))
         return struct.pack(">I", len(data)) + kind + data + crc
 
     ihdr = struct.pack(">IIBBBBB", w, h, depth, color, 0, 0, 0)
-    return b"".join([b"\x89PNG\r\n\x1a\n", chunk(b"IHDR", ihdr),
-                     *(chunk(k, d) for k, d in (extra or [])),
-                     chunk(b"IDAT", zlib.compress(raw)), chunk(b"IEND", b"")])
+    return b"".join(
+        [
+            b"\x89PNG\r\n\x1a\n",
+            chunk(b"IHDR", ihdr),
+            *(chunk(k, d) for k, d in (extra or [])),
+            chunk(b"IDAT", zlib.compress(raw)),
+            chunk(b"IEND", b""),
+        ]
+    )
 
 
 def expect_error(yaml_path: Path, names: str, **kw: object) -> MapkitError:
@@ -63,31 +76,70 @@ def folder(tmp_path: Path) -> Path:
 # -- every YAML field ------------------------------------------------------------------------
 
 BAD_FIELDS = [
-    ("image", None), ("image", '""'), ("image", "[a.pgm]"), ("image", "{a: 1}"),
-    ("image", '"m\\0.pgm"'), ("image", "x" * 300 + ".pgm"), ("image", "."), ("image", "gone.pgm"),
-    ("image", "m.pgm/inner.pgm"), ("image", "/dev/zero"), ("image", "/dev/null"),
-    ("resolution", None), ("resolution", "abc"), ("resolution", "[0.05]"), ("resolution", "0"),
-    ("resolution", "-0.05"), ("resolution", ".nan"), ("resolution", ".inf"),
+    ("image", None),
+    ("image", '""'),
+    ("image", "[a.pgm]"),
+    ("image", "{a: 1}"),
+    ("image", '"m\\0.pgm"'),
+    ("image", "x" * 300 + ".pgm"),
+    ("image", "."),
+    ("image", "gone.pgm"),
+    ("image", "m.pgm/inner.pgm"),
+    ("image", "/dev/zero"),
+    ("image", "/dev/null"),
+    ("resolution", None),
+    ("resolution", "abc"),
+    ("resolution", "[0.05]"),
+    ("resolution", "0"),
+    ("resolution", "-0.05"),
+    ("resolution", ".nan"),
+    ("resolution", ".inf"),
     ("resolution", "1e309"),
-    ("resolution", "1e308"), ("resolution", "1" * 5000), ("resolution", "0x10"),
-    ("resolution", "0." + "5" * 5000 + "x"), ("resolution", "~"),
-    ("origin", None), ("origin", "0"), ("origin", "[0, 0]"), ("origin", "{x: 0}"),
-    ("origin", "[[0], 0, 0]"), ("origin", "[a, 0, 0]"), ("origin", "[.nan, 0, 0]"),
-    ("origin", "[0, .inf, 0]"), ("origin", "[0, 0, .nan]"), ("origin", "[1e300, 0, 0]"),
-    ("origin", "[0, -3e6, 0]"), ("origin", "[" + "9" * 5000 + ", 0, 0]"),
-    ("negate", None), ("negate", "09"), ("negate", "1.0"), ("negate", "true"),
+    ("resolution", "1e308"),
+    ("resolution", "1" * 5000),
+    ("resolution", "0x10"),
+    ("resolution", "0." + "5" * 5000 + "x"),
+    ("resolution", "~"),
+    ("origin", None),
+    ("origin", "0"),
+    ("origin", "[0, 0]"),
+    ("origin", "{x: 0}"),
+    ("origin", "[[0], 0, 0]"),
+    ("origin", "[a, 0, 0]"),
+    ("origin", "[.nan, 0, 0]"),
+    ("origin", "[0, .inf, 0]"),
+    ("origin", "[0, 0, .nan]"),
+    ("origin", "[1e300, 0, 0]"),
+    ("origin", "[0, -3e6, 0]"),
+    ("origin", "[" + "9" * 5000 + ", 0, 0]"),
+    ("negate", None),
+    ("negate", "09"),
+    ("negate", "1.0"),
+    ("negate", "true"),
     ("negate", "1" * 5000),
-    ("negate", "2147483648"), ("negate", "[0]"), ("negate", "0o7"), ("negate", "''"),
-    ("occupied_thresh", None), ("occupied_thresh", "high"), ("occupied_thresh", ".nan"),
-    ("occupied_thresh", "-.inf"), ("occupied_thresh", "[0.6]"), ("free_thresh", ".inf"),
-    ("free_thresh", "1e400"), ("free_thresh", "{}"),
-    ("mode", "Trinary"), ("mode", "1"), ("mode", "[scale]"), ("mode", "''"),
+    ("negate", "2147483648"),
+    ("negate", "[0]"),
+    ("negate", "0o7"),
+    ("negate", "''"),
+    ("occupied_thresh", None),
+    ("occupied_thresh", "high"),
+    ("occupied_thresh", ".nan"),
+    ("occupied_thresh", "-.inf"),
+    ("occupied_thresh", "[0.6]"),
+    ("free_thresh", ".inf"),
+    ("free_thresh", "1e400"),
+    ("free_thresh", "{}"),
+    ("mode", "Trinary"),
+    ("mode", "1"),
+    ("mode", "[scale]"),
+    ("mode", "''"),
 ]
 
 
 @pytest.mark.parametrize(("key", "value"), BAD_FIELDS)
-def test_every_bad_field_is_mapkits_error_naming_the_file(folder: Path, key: str,
-                                                          value: str | None) -> None:
+def test_every_bad_field_is_mapkits_error_naming_the_file(
+    folder: Path, key: str, value: str | None
+) -> None:
     y = folder / "m.yaml"
     y.write_text(yaml_text(**{key: value}))
     err = expect_error(y, "m", flavor="ros1")
@@ -135,7 +187,8 @@ def test_invalid_utf8_and_alias_bombs(folder: Path) -> None:
     # A billion laughs: aliases are not expanded, so this is quick and small.
     bomb = "a: &a [x, x, x, x, x, x, x, x, x]\n" + "".join(
         f"{c}: &{c} [*{p}, *{p}, *{p}, *{p}, *{p}, *{p}, *{p}, *{p}, *{p}]\n"
-        for p, c in zip("abcdefgh", "bcdefghi", strict=True))
+        for p, c in zip("abcdefgh", "bcdefghi", strict=True)
+    )
     y.write_text(bomb + yaml_text(origin="*i"))
     expect_error(y, "origin must hold numbers")
     y.write_text("r: &r [*r]\n" + yaml_text(origin="&s [*s, 0, 0]"))
@@ -146,9 +199,13 @@ def test_odd_but_valid_yaml_imports(folder: Path) -> None:
     y = folder / "m.yaml"
     y.write_text(yaml_text(image="!!python/object:os.system m.pgm"))  # tags are not acted on
     assert import_ros(y).scan.num_points == 3
-    y.write_text("\ufeff# comment\r\n" + yaml_text(origin="&o [-1.0, 2.0, 0.0]",
-                                                    resolution="'5e-2'", negate="0x0")
-                 .replace("\n", "\r\n") + "again: *o\nextra: {nested: [1, 2]}\n")
+    y.write_text(
+        "\ufeff# comment\r\n"
+        + yaml_text(origin="&o [-1.0, 2.0, 0.0]", resolution="'5e-2'", negate="0x0").replace(
+            "\n", "\r\n"
+        )
+        + "again: *o\nextra: {nested: [1, 2]}\n"
+    )
     assert import_ros(y).scan.num_points == 3
 
 
@@ -183,8 +240,12 @@ def test_keepout_yaml_goes_through_the_same_checks(folder: Path) -> None:
     y = folder / "m.yaml"
     y.write_text(yaml_text())
     k = folder / "k.yaml"
-    for bad in (yaml_text(negate="09"), yaml_text(image='"k\\0.pgm"'), "- 1\n",
-                yaml_text(resolution="1e308")):
+    for bad in (
+        yaml_text(negate="09"),
+        yaml_text(image='"k\\0.pgm"'),
+        "- 1\n",
+        yaml_text(resolution="1e308"),
+    ):
         k.write_text(bad)
         expect_error(y, "k", keepout=k)
     k.write_text(yaml_text())
@@ -251,8 +312,9 @@ def test_16_bit_pgm_is_refused_as_ros1_map_server_does_and_read_by_nav2(tmp_path
     for name in ("d.pgm", "a.pgm"):
         y = tmp_path / f"{name}.yaml"
         y.write_text(yaml_text(image=name))
-        expect_error(y, f"{name}: 16-bit PGM images (maxval 65535) fail to load in ROS 1",
-                     flavor="ros1")
+        expect_error(
+            y, f"{name}: 16-bit PGM images (maxval 65535) fail to load in ROS 1", flavor="ros1"
+        )
         assert import_ros(y, flavor="nav2").scan.num_points == 1
         assert read_ros_map(y, flavor="nav2").data.tolist() == [[100, 0, -1]]
 
@@ -280,7 +342,8 @@ def test_image_variants_that_load(tmp_path: Path) -> None:
     pal.save(tmp_path / "pal.png")
     pal.save(tmp_path / "pal-alpha.png", transparency=0)
     Image.fromarray(np.stack([grey] * 3 + [np.full_like(grey, 255)], axis=2), "RGBA").save(
-        tmp_path / "rgba.png")
+        tmp_path / "rgba.png"
+    )
     for name in [*cases, "grey.png", "la.png", "deep.png", "pal.png", "pal-alpha.png", "rgba.png"]:
         y = tmp_path / f"{name}.yaml"
         y.write_text(yaml_text(image=name))
@@ -297,9 +360,11 @@ def test_cli_gives_one_line_and_exit_1(folder: Path) -> None:
     from mapkit.cli.main import cli
 
     y = folder / "m.yaml"
-    for text, says in ((yaml_text(negate="09"), "m.yaml:4: negate must be an integer"),
-                       (yaml_text(image='"m\\0.pgm"'), r"m\x00.pgm: image file name is not"),
-                       (yaml_text(resolution="1e308"), "reaches beyond the +-2,147,483 m")):
+    for text, says in (
+        (yaml_text(negate="09"), "m.yaml:4: negate must be an integer"),
+        (yaml_text(image='"m\\0.pgm"'), r"m\x00.pgm: image file name is not"),
+        (yaml_text(resolution="1e308"), "reaches beyond the +-2,147,483 m"),
+    ):
         y.write_text(text)
         result = CliRunner().invoke(cli, ["import-ros", str(y), "-o", str(folder / "o.map")])
         assert result.exit_code == 1, result.output

@@ -11,8 +11,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
+from hypothesis import given, settings, strategies as st
 from hypothesis.extra import numpy as hnp
 
 import mapkit
@@ -48,19 +47,41 @@ def test_every_shared_sample_imports_the_same_in_bands(real_sample: Path, tmp_pa
     same(import_ros(files.yaml, band_rows=11), whole(files.yaml, yaw=yaw))
 
 
-@given(hnp.arrays(np.int8, st.tuples(st.integers(1, 30), st.integers(1, 30)),
-                  elements=st.sampled_from([-1, 0, 0, 100, 100, 37, 80])),
-       st.integers(1, 8), st.sampled_from(["trinary", "scale", "raw"]),
-       st.sampled_from(["ros1", "nav2"]), st.sampled_from([0.0, 0.1, 0.5]))
+@given(
+    hnp.arrays(
+        np.int8,
+        st.tuples(st.integers(1, 30), st.integers(1, 30)),
+        elements=st.sampled_from([-1, 0, 0, 100, 100, 37, 80]),
+    ),
+    st.integers(1, 8),
+    st.sampled_from(["trinary", "scale", "raw"]),
+    st.sampled_from(["ros1", "nav2"]),
+    st.sampled_from([0.0, 0.1, 0.5]),
+)
 @settings(max_examples=80, deadline=None)
-def test_bands_equal_the_whole_image(tmp_path_factory: pytest.TempPathFactory, data: np.ndarray,
-                                     rows: int, mode: str, flavor: str, min_line: float) -> None:
+def test_bands_equal_the_whole_image(
+    tmp_path_factory: pytest.TempPathFactory,
+    data: np.ndarray,
+    rows: int,
+    mode: str,
+    flavor: str,
+    min_line: float,
+) -> None:
     g = OccupancyGrid(data, 0.05, (-0.35, 1.2))
     fmt = "png" if mode == "scale" else "pgm"
-    files = write_ros_map(g, tmp_path_factory.mktemp("b") / "m.yaml", mode=mode,  # type: ignore[arg-type]
-                          image_format=fmt)
-    got = import_ros(files.yaml, band_rows=rows, flavor=flavor,  # type: ignore[arg-type]
-                     min_line_m=min_line, occupied_value=50)
+    files = write_ros_map(
+        g,
+        tmp_path_factory.mktemp("b") / "m.yaml",
+        mode=mode,  # type: ignore[arg-type]
+        image_format=fmt,
+    )
+    got = import_ros(
+        files.yaml,
+        band_rows=rows,
+        flavor=flavor,  # type: ignore[arg-type]
+        min_line_m=min_line,
+        occupied_value=50,
+    )
     same(got, whole(files.yaml, flavor, min_line_m=min_line, occupied_value=50))
 
 
@@ -117,8 +138,7 @@ def reference_wall_cells(occ: np.ndarray, n: int) -> np.ndarray:
     return np.concatenate([straight, diag])
 
 
-@given(hnp.arrays(np.bool_, st.tuples(st.integers(1, 40), st.integers(1, 40))),
-       st.integers(2, 6))
+@given(hnp.arrays(np.bool_, st.tuples(st.integers(1, 40), st.integers(1, 40))), st.integers(2, 6))
 @settings(max_examples=150, deadline=None)
 def test_face_lines_match_the_grid_sized_coverage(occ: np.ndarray, n: int) -> None:
     from mapkit.raster.import_ros import _face_lines, _faces

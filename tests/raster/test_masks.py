@@ -24,7 +24,13 @@ from .rosloader import cells, decode
 
 MOVEMENT_INFO = [
     ("SectorType", "Name=MovementParametersSector", '"Label=MovementParameters"'),
-    ("ArgDesc", "Name=Importance", "Parent=MovementParametersSector", "Type=string", "Value=Normal"),
+    (
+        "ArgDesc",
+        "Name=Importance",
+        "Parent=MovementParametersSector",
+        "Type=string",
+        "Value=Normal",
+    ),
     ("ArgDesc", "Name=TransVelMax", "Parent=MovementParametersSector", "Type=int", "Value=0"),
     ("ArgDesc", "Name=RotVelMax", "Parent=MovementParametersSector", "Type=int", "Value=0"),
     ("SectorType", "Name=SlowSector"),
@@ -36,26 +42,43 @@ def _speed_map() -> MapData:
     walls = [[0, 0, 10000, 0], [10000, 0, 10000, 8000], [10000, 8000, 0, 8000], [0, 8000, 0, 0]]
     objects = (
         MapObject("RobotHome", 500, 500),
-        MapObject("MovementParametersSector", 0, 0, 0, name="Slow hall",
-                  from_to=(1000, 1000, 4000, 3000)),
-        MapObject("MovementParametersSector", 0, 0, 0, name="Slower corner",
-                  from_to=(3000, 2000, 5000, 4000)),
-        MapObject("MovementParametersSector", 0, 0, 0, name="Default", from_to=(6000, 1000, 7000, 2000)),
+        MapObject(
+            "MovementParametersSector", 0, 0, 0, name="Slow hall", from_to=(1000, 1000, 4000, 3000)
+        ),
+        MapObject(
+            "MovementParametersSector",
+            0,
+            0,
+            0,
+            name="Slower corner",
+            from_to=(3000, 2000, 5000, 4000),
+        ),
+        MapObject(
+            "MovementParametersSector", 0, 0, 0, name="Default", from_to=(6000, 1000, 7000, 2000)
+        ),
         MapObject("SlowSector", 0, 0, 45, name="Diag", from_to=(8339, -2268, 9339, -1268)),
         MapObject("ForbiddenArea", 0, 0, 0, from_to=(8000, 6000, 9000, 7000)),
     )
-    info = {"MapInfo": MOVEMENT_INFO,
-            "CairnInfo": [("Params", '"Slow hall"', "Normal", "500", "0"),
-                          ("Params", '"Slower corner"', '"Most Important"', "250", "0"),
-                          ("Params", '"Default"', "Normal", "0", "0")]}
-    return MapData(category="2D-Map-Ex2", scans=(Scan.from_arrays(lines=walls),), objects=objects,
-                   info=info)
+    info = {
+        "MapInfo": MOVEMENT_INFO,
+        "CairnInfo": [
+            ("Params", '"Slow hall"', "Normal", "500", "0"),
+            ("Params", '"Slower corner"', '"Most Important"', "250", "0"),
+            ("Params", '"Default"', "Normal", "0", "0"),
+        ],
+    }
+    return MapData(
+        category="2D-Map-Ex2", scans=(Scan.from_arrays(lines=walls),), objects=objects, info=info
+    )
 
 
 def test_speed_zones_read_params_and_defaults() -> None:
     zones = speed_zones(_speed_map())
     assert [(z.name, z.speed_mm_s) for z in zones] == [
-        ("Slow hall", 500.0), ("Slower corner", 250.0), ("Diag", 300.0)]
+        ("Slow hall", 500.0),
+        ("Slower corner", 250.0),
+        ("Diag", 300.0),
+    ]
     assert speed_zones(_speed_map(), param="RotVelMax") == []
 
 
@@ -64,8 +87,17 @@ def test_speed_mask_values_and_overlap() -> None:
     g = rasterize(m, 0.1)
     mask, mult = speed_mask(m, g)
     assert mult == 0.01 and mask.same_geometry(g)
-    assert mask.values_at([[2000, 1500], [3500, 2500], [4500, 3500], [6500, 1500], [500, 500],
-                           [7500, 5000], [8100, 5600]]).tolist() == [50, 25, 25, 0, 0, 30, 0]
+    assert mask.values_at(
+        [
+            [2000, 1500],
+            [3500, 2500],
+            [4500, 3500],
+            [6500, 1500],
+            [500, 500],
+            [7500, 5000],
+            [8100, 5600],
+        ]
+    ).tolist() == [50, 25, 25, 0, 0, 30, 0]
     assert -1 not in mask.data  # unknown is an error for Nav2's speed filter
     fast, mult = speed_mask(m, g, multiplier=0.1)
     assert mult == 0.1 and fast.values_at([[2000, 1500]]).tolist() == [5]
@@ -114,11 +146,18 @@ def test_params_file_runs_as_nav2_expects(tmp_path: Path) -> None:
     assert Path(ko["yaml_filename"]).is_absolute() and Path(ko["yaml_filename"]).exists()
     assert ko["topic_name"] == "/keepout_filter_mask" and ko["frame_id"] == "map"
     ki = doc["keepout_costmap_filter_info_server"]["ros__parameters"]
-    assert ki == {"type": 0, "filter_info_topic": "/keepout_costmap_filter_info",
-                  "mask_topic": "/keepout_filter_mask", "base": 0.0, "multiplier": 1.0}
+    assert ki == {
+        "type": 0,
+        "filter_info_topic": "/keepout_costmap_filter_info",
+        "mask_topic": "/keepout_filter_mask",
+        "base": 0.0,
+        "multiplier": 1.0,
+    }
     si = doc["speed_costmap_filter_info_server"]["ros__parameters"]
-    assert si["type"] == 2 and si["mask_topic"] == doc["speed_filter_mask_server"][
-        "ros__parameters"]["topic_name"]
+    assert (
+        si["type"] == 2
+        and si["mask_topic"] == doc["speed_filter_mask_server"]["ros__parameters"]["topic_name"]
+    )
     # ROS 2 refuses ints for double parameters: base/multiplier must be YAML floats.
     for info in (ki, si):
         assert isinstance(info["base"], float) and isinstance(info["multiplier"], float)
@@ -140,7 +179,8 @@ def test_params_for_one_mask_and_errors(tmp_path: Path) -> None:
     doc = yaml.safe_load(filter_params_text(tmp_path / "k.yaml"))
     assert "speed_filter_mask_server" not in doc
     assert doc["global_costmap"]["global_costmap"]["ros__parameters"]["filters"] == [
-        "keepout_filter"]
+        "keepout_filter"
+    ]
     doc = yaml.safe_load(filter_params_text(None, tmp_path / "s.yaml"))
     assert "local_costmap" not in doc
     with pytest.raises(RasterError, match="keepout or a speed"):

@@ -7,8 +7,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given
-from hypothesis import strategies as st
+from hypothesis import given, strategies as st
 
 import mapkit
 from mapkit.model import MapData, MapObject, Scan
@@ -120,7 +119,9 @@ def test_rotated_rectangles_cover_their_cells(ft, theta, res) -> None:
     # Every cell whose centre is inside is marked (all cells of the bounding box checked) ...
     if shape is not None:
         (r0, c0), (r1, c1) = g.world_to_cell(poly.min(axis=0)), g.world_to_cell(poly.max(axis=0))
-        rr, cc = np.mgrid[max(r0, 0):min(r1, g.height - 1) + 1, max(c0, 0):min(c1, g.width - 1) + 1]
+        rr, cc = np.mgrid[
+            max(r0, 0) : min(r1, g.height - 1) + 1, max(c0, 0) : min(c1, g.width - 1) + 1
+        ]
         cells = np.stack([rr.ravel(), cc.ravel()], axis=1)
         xy = g.cell_to_world(cells)
         inside = contains_xy(shape, xy[:, 0], xy[:, 1])
@@ -170,8 +171,12 @@ def test_hull_matches_brute_force() -> None:
     from shapely.geometry import MultiPoint, Point
 
     hull = MultiPoint([(c + 0.5, r + 0.5) for r, c in np.argwhere(mask)]).convex_hull
-    want = np.array([[hull.buffer(1e-9).contains(Point(c + 0.5, r + 0.5)) for c in range(40)]
-                     for r in range(30)])
+    want = np.array(
+        [
+            [hull.buffer(1e-9).contains(Point(c + 0.5, r + 0.5)) for c in range(40)]
+            for r in range(30)
+        ]
+    )
     assert np.array_equal(got, want)
     # Collinear and single cells.
     line = np.zeros((5, 5), dtype=bool)

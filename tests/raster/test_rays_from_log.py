@@ -1,4 +1,5 @@
-"""Free space ray-cast from a real ``.2d`` log (``rasterize(log=...)``, ``mapkit rasterize --log``)."""
+"""Free space ray-cast from a real ``.2d`` log (``rasterize(log=...)``,
+``mapkit rasterize --log``)."""
 
 from __future__ import annotations
 
@@ -19,8 +20,16 @@ from mapkit.simulate import simulate_log
 @pytest.fixture(scope="module")
 def office_log(tmp_path_factory: pytest.TempPathFactory) -> tuple[mapkit.MapData, Path]:
     m = mapkit.load(sample_path("office"))
-    sim = simulate_log(m, waypoints=[(4000, 6000), (12000, 6000)], start=(1500, 6000, 0),
-                       translation_error=0, rotation_error=0, drift=0, range_noise=0, seed=3)
+    sim = simulate_log(
+        m,
+        waypoints=[(4000, 6000), (12000, 6000)],
+        start=(1500, 6000, 0),
+        translation_error=0,
+        rotation_error=0,
+        drift=0,
+        range_noise=0,
+        seed=3,
+    )
     path = tmp_path_factory.mktemp("log") / "office.2d"
     sim.save(path)
     return m, path
@@ -60,7 +69,8 @@ def test_log_and_rays_together_are_refused(office_log: tuple[mapkit.MapData, Pat
 def test_cli_rasterize_with_log(office_log: tuple[mapkit.MapData, Path], tmp_path: Path) -> None:
     _m, log = office_log
     out = tmp_path / "office.yaml"
-    result = CliRunner().invoke(cli, ["rasterize", str(sample_path("office")), "-o", str(out),
-                                      "--log", str(log)])
+    result = CliRunner().invoke(
+        cli, ["rasterize", str(sample_path("office")), "-o", str(out), "--log", str(log)]
+    )
     assert result.exit_code == 0, result.output
     assert out.exists() and (tmp_path / "office.pgm").exists()

@@ -7,8 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
+from hypothesis import given, settings, strategies as st
 from hypothesis.extra import numpy as hnp
 
 import mapkit
@@ -23,8 +22,11 @@ from mapkit.raster.ros import (
 
 from .rosloader import cells, decode, parse_map_yaml
 
-trinary_data = hnp.arrays(np.int8, hnp.array_shapes(min_dims=2, max_dims=2, max_side=12),
-                          elements=st.sampled_from([-1, 0, 100]))
+trinary_data = hnp.arrays(
+    np.int8,
+    hnp.array_shapes(min_dims=2, max_dims=2, max_side=12),
+    elements=st.sampled_from([-1, 0, 100]),
+)
 any_data = hnp.arrays(np.int8, hnp.array_shapes(min_dims=2, max_dims=2, max_side=12))
 origins = st.tuples(st.floats(-1e4, 1e4), st.floats(-1e4, 1e4))
 resolutions = st.sampled_from([0.01, 0.025, 0.05, 0.1, 0.3])
@@ -35,8 +37,9 @@ resolutions = st.sampled_from([0.01, 0.025, 0.05, 0.1, 0.3])
 def test_trinary_maps_load_as_written(tmp_path_factory, data, res, origin, png, negate) -> None:
     folder = tmp_path_factory.mktemp("m")
     g = OccupancyGrid(data, res, origin)
-    files = write_ros_map(g, folder / "map.yaml", image_format="png" if png else None,
-                          negate=negate)
+    files = write_ros_map(
+        g, folder / "map.yaml", image_format="png" if png else None, negate=negate
+    )
     assert files.image.name == ("map.png" if png else "map.pgm")
     loaded, doc = cells(files.yaml)
     assert np.array_equal(loaded, g.data)
@@ -132,7 +135,9 @@ def test_image_elsewhere_and_odd_names(tmp_path: Path) -> None:
     g = OccupancyGrid(np.zeros((2, 2), dtype=np.int8), 0.1, (0, 0))
     (tmp_path / "sub").mkdir()
     (tmp_path / "other").mkdir()
-    f = write_ros_map(g, tmp_path / "sub" / "my map.yaml", image_path=tmp_path / "other" / "a #1.pgm")
+    f = write_ros_map(
+        g, tmp_path / "sub" / "my map.yaml", image_path=tmp_path / "other" / "a #1.pgm"
+    )
     doc = parse_map_yaml(f.yaml)
     assert doc["image"] == str((tmp_path / "other" / "a #1.pgm").resolve())
     assert read_ros_map(f.yaml) == g
@@ -149,10 +154,19 @@ def _png(path: Path, arr: np.ndarray, mode: str) -> None:
     Image.fromarray(arr, mode).save(path)
 
 
-def _yaml(path: Path, image: str, mode: str | None = None, negate: str = "0",
-          occ: str = "0.65", free: str = "0.196", extra: str = "") -> Path:
-    text = (f"image: {image}\nresolution: 0.05\norigin: [-1.0, 2.0, 0.0]\nnegate: {negate}\n"
-            f"occupied_thresh: {occ}\nfree_thresh: {free}\n{extra}")
+def _yaml(
+    path: Path,
+    image: str,
+    mode: str | None = None,
+    negate: str = "0",
+    occ: str = "0.65",
+    free: str = "0.196",
+    extra: str = "",
+) -> Path:
+    text = (
+        f"image: {image}\nresolution: 0.05\norigin: [-1.0, 2.0, 0.0]\nnegate: {negate}\n"
+        f"occupied_thresh: {occ}\nfree_thresh: {free}\n{extra}"
+    )
     if mode:
         text += f"mode: {mode}\n"
     path.write_text(text)
@@ -187,8 +201,10 @@ def test_reader_alpha_rgb_palette_16bit(tmp_path: Path) -> None:
     _png(tmp_path / "la2.png", la, "LA")
     g = read_ros_map(_yaml(tmp_path / "s.yaml", "la2.png", mode="scale"))
     assert g.data[0, 1] == -1
-    assert read_ros_map(_yaml(tmp_path / "s2.yaml", "la2.png", mode="scale"),
-                        flavor="nav2").data[0, 1] == -1
+    assert (
+        read_ros_map(_yaml(tmp_path / "s2.yaml", "la2.png", mode="scale"), flavor="nav2").data[0, 1]
+        == -1
+    )
     # RGB in scale mode: ROS 1 takes the blue byte as alpha (blue 0 -> unknown), Nav2 does not.
     rgb = np.array([[[150, 150, 0], [100, 100, 100]]], dtype=np.uint8)
     _png(tmp_path / "rgb.png", rgb, "RGB")
@@ -216,12 +232,14 @@ def test_reader_pnm_variants(tmp_path: Path) -> None:
     (tmp_path / "b.pbm").write_bytes(b"P1\n2 1\n1 0\n")
     assert read_ros_map(_yaml(tmp_path / "b.yaml", "b.pbm")).data.tolist() == [[100, 100]]
     assert read_ros_map(_yaml(tmp_path / "b2.yaml", "b.pbm"), flavor="nav2").data.tolist() == [
-        [100, 0]]
+        [100, 0]
+    ]
     (tmp_path / "c.pgm").write_bytes(b"P5 2 1 65535\n" + bytes([255, 255, 0, 0]))
     with pytest.raises(RosMapError, match="16-bit PGM"):
         read_ros_map(_yaml(tmp_path / "c.yaml", "c.pgm"))
     assert read_ros_map(_yaml(tmp_path / "c2.yaml", "c.pgm"), flavor="nav2").data.tolist() == [
-        [0, 100]]
+        [0, 100]
+    ]
     (tmp_path / "d.ppm").write_bytes(b"P6\n1 1\n255\n" + bytes([0, 255, 255]))  # mean 170: unknown
     assert read_ros_map(_yaml(tmp_path / "d.yaml", "d.ppm")).data.tolist() == [[-1]]
     (tmp_path / "e.pgm").write_bytes(b"P5\n4 4\n255\n" + bytes(3))
@@ -231,8 +249,10 @@ def test_reader_pnm_variants(tmp_path: Path) -> None:
 
 def test_yaml_syntax_map_server_accepts(tmp_path: Path) -> None:
     _png(tmp_path / "g.png", np.array([[0, 254]], dtype=np.uint8), "L")
-    text = ("# a comment\r\n{image: g.png, resolution: '5e-2', origin: [1, 2, 0.5, 9],\r\n"
-            " negate: 0, occupied_thresh: \"0.65\", free_thresh: 0.196, extra: ignored}\r\n")
+    text = (
+        "# a comment\r\n{image: g.png, resolution: '5e-2', origin: [1, 2, 0.5, 9],\r\n"
+        ' negate: 0, occupied_thresh: "0.65", free_thresh: 0.196, extra: ignored}\r\n'
+    )
     (tmp_path / "f.yaml").write_bytes(text.encode())
     info = read_ros_yaml(tmp_path / "f.yaml")
     assert info.resolution == 0.05 and info.origin == (1.0, 2.0, 0.5) and info.mode == "trinary"
@@ -242,30 +262,75 @@ def test_yaml_syntax_map_server_accepts(tmp_path: Path) -> None:
 @pytest.mark.parametrize(
     ("body", "flavor", "message"),
     [
-        ("image: g.png\nresolution: 0.05\norigin: [0, 0, 0]\nnegate: 0\nfree_thresh: 0.1\n",
-         "ros1", "missing required key 'occupied_thresh'"),
-        ("image: g.png\nresolution: 0.05\norigin: [0, 0]\nnegate: 0\noccupied_thresh: 0.6\n"
-         "free_thresh: 0.1\n", "ros1", ":3: origin needs at least 3"),
-        ("image: g.png\nresolution: 0.05\norigin: [0, 0, 0, 0]\nnegate: 0\noccupied_thresh: 0.6\n"
-         "free_thresh: 0.1\n", "nav2", "exactly 3"),
-        ("image: g.png\nresolution: 0.05\norigin: [0, 0, 0]\nnegate: true\noccupied_thresh: 0.6\n"
-         "free_thresh: 0.1\n", "ros1", ":4: negate must be an integer"),
-        ("image: g.png\nresolution: 0.05\norigin: [0, 0, 0]\nnegate: 1.0\noccupied_thresh: 0.6\n"
-         "free_thresh: 0.1\n", "ros1", "negate must be an integer"),
-        ("image: g.png\nresolution: 0.05\norigin: [0, 0, 0]\nnegate: 0\noccupied_thresh: 0.6\n"
-         "free_thresh: 0.1\nmode: Trinary\n", "ros1", ":7: mode must be"),
-        ("image: ''\nresolution: 0.05\norigin: [0, 0, 0]\nnegate: 0\noccupied_thresh: 0.6\n"
-         "free_thresh: 0.1\n", "ros1", "empty string"),
-        ("image: g.png\nresolution: fast\norigin: [0, 0, 0]\nnegate: 0\noccupied_thresh: 0.6\n"
-         "free_thresh: 0.1\n", "ros1", ":2: resolution must be a number"),
-        ("image: g.png\nresolution: -1\norigin: [0, 0, 0]\nnegate: 0\noccupied_thresh: 0.6\n"
-         "free_thresh: 0.1\n", "ros1", "positive"),
-        ("image: g.png\nresolution: 0.05\norigin: 7\nnegate: 0\noccupied_thresh: 0.6\n"
-         "free_thresh: 0.1\n", "ros1", "origin must be a list"),
+        (
+            "image: g.png\nresolution: 0.05\norigin: [0, 0, 0]\nnegate: 0\nfree_thresh: 0.1\n",
+            "ros1",
+            "missing required key 'occupied_thresh'",
+        ),
+        (
+            "image: g.png\nresolution: 0.05\norigin: [0, 0]\nnegate: 0\noccupied_thresh: 0.6\n"
+            "free_thresh: 0.1\n",
+            "ros1",
+            ":3: origin needs at least 3",
+        ),
+        (
+            "image: g.png\nresolution: 0.05\norigin: [0, 0, 0, 0]\nnegate: 0\n"
+            "occupied_thresh: 0.6\n"
+            "free_thresh: 0.1\n",
+            "nav2",
+            "exactly 3",
+        ),
+        (
+            "image: g.png\nresolution: 0.05\norigin: [0, 0, 0]\nnegate: true\n"
+            "occupied_thresh: 0.6\n"
+            "free_thresh: 0.1\n",
+            "ros1",
+            ":4: negate must be an integer",
+        ),
+        (
+            "image: g.png\nresolution: 0.05\norigin: [0, 0, 0]\nnegate: 1.0\noccupied_thresh: 0.6\n"
+            "free_thresh: 0.1\n",
+            "ros1",
+            "negate must be an integer",
+        ),
+        (
+            "image: g.png\nresolution: 0.05\norigin: [0, 0, 0]\nnegate: 0\noccupied_thresh: 0.6\n"
+            "free_thresh: 0.1\nmode: Trinary\n",
+            "ros1",
+            ":7: mode must be",
+        ),
+        (
+            "image: ''\nresolution: 0.05\norigin: [0, 0, 0]\nnegate: 0\noccupied_thresh: 0.6\n"
+            "free_thresh: 0.1\n",
+            "ros1",
+            "empty string",
+        ),
+        (
+            "image: g.png\nresolution: fast\norigin: [0, 0, 0]\nnegate: 0\noccupied_thresh: 0.6\n"
+            "free_thresh: 0.1\n",
+            "ros1",
+            ":2: resolution must be a number",
+        ),
+        (
+            "image: g.png\nresolution: -1\norigin: [0, 0, 0]\nnegate: 0\noccupied_thresh: 0.6\n"
+            "free_thresh: 0.1\n",
+            "ros1",
+            "positive",
+        ),
+        (
+            "image: g.png\nresolution: 0.05\norigin: 7\nnegate: 0\noccupied_thresh: 0.6\n"
+            "free_thresh: 0.1\n",
+            "ros1",
+            "origin must be a list",
+        ),
         ("image: [g.png\n", "ros1", "not valid YAML"),
         ("- just a list\n", "ros1", "mapping of keys"),
-        ("image: missing.png\nresolution: 0.05\norigin: [0, 0, 0]\nnegate: 0\n"
-         "occupied_thresh: 0.6\nfree_thresh: 0.1\n", "ros1", "missing.png: image file not found"),
+        (
+            "image: missing.png\nresolution: 0.05\norigin: [0, 0, 0]\nnegate: 0\n"
+            "occupied_thresh: 0.6\nfree_thresh: 0.1\n",
+            "ros1",
+            "missing.png: image file not found",
+        ),
     ],
 )
 def test_yaml_errors_name_file_and_line(tmp_path: Path, body, flavor, message) -> None:

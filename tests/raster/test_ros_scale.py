@@ -12,8 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
+from hypothesis import given, settings, strategies as st
 from hypothesis.extra import numpy as hnp
 
 from mapkit.raster import OccupancyGrid
@@ -23,16 +22,30 @@ from mapkit.raster.ros import read_ros_map, write_ros_map
 from .rosloader import cells
 
 
-@given(hnp.arrays(np.int8, (5, 6), elements=st.sampled_from([-1, -1, 0, 100, 30, 70])),
-       st.floats(0.02, 0.6), st.floats(0.15, 0.4), st.booleans())
+@given(
+    hnp.arrays(np.int8, (5, 6), elements=st.sampled_from([-1, -1, 0, 100, 30, 70])),
+    st.floats(0.02, 0.6),
+    st.floats(0.15, 0.4),
+    st.booleans(),
+)
 @settings(max_examples=60, deadline=None)
 def test_unknown_cells_stay_unknown_in_ros1_for_any_thresholds(
-        tmp_path_factory: pytest.TempPathFactory, data: np.ndarray, free: float, gap: float,
-        negate: bool) -> None:
+    tmp_path_factory: pytest.TempPathFactory,
+    data: np.ndarray,
+    free: float,
+    gap: float,
+    negate: bool,
+) -> None:
     occ = min(1.0, free + gap)
     g = OccupancyGrid(data, 0.05, (0.0, 0.0))
-    files = write_ros_map(g, tmp_path_factory.mktemp("s") / "s.yaml", mode="scale",
-                          negate=negate, occupied_thresh=occ, free_thresh=free)
+    files = write_ros_map(
+        g,
+        tmp_path_factory.mktemp("s") / "s.yaml",
+        mode="scale",
+        negate=negate,
+        occupied_thresh=occ,
+        free_thresh=free,
+    )
     ros1, _ = cells(files.yaml)
     unknown = g.data < 0
     assert (ros1[unknown] == -1).all()
@@ -45,27 +58,39 @@ def test_unknown_cells_stay_unknown_in_ros1_for_any_thresholds(
 def test_thresholds_0_9_and_0_5_keep_unknown_unknown(tmp_path: Path) -> None:
     """The reported case: grey 205 reads as free in ROS 1 with these thresholds."""
     g = OccupancyGrid(np.array([[-1, 0, 50, 100]], dtype=np.int8), 0.05, (0.0, 0.0))
-    files = write_ros_map(g, tmp_path / "s.yaml", mode="scale", occupied_thresh=0.9,
-                          free_thresh=0.5)
+    files = write_ros_map(
+        g, tmp_path / "s.yaml", mode="scale", occupied_thresh=0.9, free_thresh=0.5
+    )
     assert cells(files.yaml)[0].tolist() == [[-1, 0, 50, 100]]
 
 
-def test_squashing_thresholds_warn_or_refuse(tmp_path: Path,
-                                             caplog: pytest.LogCaptureFixture) -> None:
+def test_squashing_thresholds_warn_or_refuse(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
     close = {"occupied_thresh": 0.65, "free_thresh": 0.649}
     g = OccupancyGrid(np.array([[0, 25, 50, 75, 100]], dtype=np.int8), 0.05, (0.0, 0.0))
     with caplog.at_level(logging.WARNING, logger="mapkit.raster.ros"):
         write_ros_map(g, tmp_path / "a.yaml", mode="scale", **close)
     assert "3 of the 5 cell values in this grid read back more than 1 off" in caplog.text
     caplog.clear()
-    with pytest.raises(RasterError, match="no grey level between them: ROS 1 map_server would "
-                                          "read the 1 unknown cells as free or occupied"):
-        write_ros_map(OccupancyGrid(np.array([[-1, 0]], dtype=np.int8), 0.05, (0.0, 0.0)),
-                      tmp_path / "b.yaml",
-                      mode="scale", **close)
+    with pytest.raises(
+        RasterError,
+        match="no grey level between them: ROS 1 map_server would "
+        "read the 1 unknown cells as free or occupied",
+    ):
+        write_ros_map(
+            OccupancyGrid(np.array([[-1, 0]], dtype=np.int8), 0.05, (0.0, 0.0)),
+            tmp_path / "b.yaml",
+            mode="scale",
+            **close,
+        )
     with caplog.at_level(logging.WARNING, logger="mapkit.raster.ros"):
-        write_ros_map(OccupancyGrid(np.array([[0, 100]], dtype=np.int8), 0.05, (0.0, 0.0)),
-                      tmp_path / "c.yaml", mode="scale", **close)  # nothing in between to squash
+        write_ros_map(
+            OccupancyGrid(np.array([[0, 100]], dtype=np.int8), 0.05, (0.0, 0.0)),
+            tmp_path / "c.yaml",
+            mode="scale",
+            **close,
+        )  # nothing in between to squash
         every = OccupancyGrid(np.arange(-1, 101, dtype=np.int8)[None, :], 0.05, (0.0, 0.0))
         write_ros_map(every, tmp_path / "d.yaml", mode="scale")  # the defaults squash nothing
     assert caplog.text == ""

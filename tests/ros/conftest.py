@@ -32,8 +32,15 @@ ROS_APT = (
     "ros-core python3-rospy python3-std-msgs python3-nav-msgs python3-geometry-msgs "
     "python3-std-srvs python3-rostopic python3-rosservice"
 )
-ROS_MODULES = ("rospy", "rosgraph", "std_msgs.msg", "nav_msgs.msg", "nav_msgs.srv",
-               "geometry_msgs.msg", "std_srvs.srv")
+ROS_MODULES = (
+    "rospy",
+    "rosgraph",
+    "std_msgs.msg",
+    "nav_msgs.msg",
+    "nav_msgs.srv",
+    "geometry_msgs.msg",
+    "std_srvs.srv",
+)
 ROS_TOOLS = ("roscore", "rostopic", "rosservice")
 
 
@@ -54,8 +61,10 @@ def require_ros() -> None:
     """Fail (CI) or skip (elsewhere) when ROS 1 is not installed."""
     missing = ros_missing()
     if missing:
-        message = (f"ROS 1 is missing ({missing}): install it with "
-                   f"`sudo apt-get install {ROS_APT}` (or run ./scripts/setup)")
+        message = (
+            f"ROS 1 is missing ({missing}): install it with "
+            f"`sudo apt-get install {ROS_APT}` (or run ./scripts/setup)"
+        )
         if IN_CI:
             pytest.fail(message)
         pytest.skip(message)
@@ -77,18 +86,28 @@ class Ros:
     home: Path
     procs: list[subprocess.Popen[bytes]] = field(default_factory=list)
 
-    def run(self, args: Sequence[str], timeout: float = 60, check: bool = True,
-            **kw: Any) -> subprocess.CompletedProcess[str]:
+    def run(
+        self, args: Sequence[str], timeout: float = 60, check: bool = True, **kw: Any
+    ) -> subprocess.CompletedProcess[str]:
         """Run a command against this master and wait for it (text output)."""
-        res = subprocess.run(list(args), env=kw.pop("env", self.env), capture_output=True,
-                             text=True, timeout=timeout, cwd=kw.pop("cwd", ROOT), **kw)
+        res = subprocess.run(
+            list(args),
+            env=kw.pop("env", self.env),
+            capture_output=True,
+            text=True,
+            timeout=timeout,
+            cwd=kw.pop("cwd", ROOT),
+            **kw,
+        )
         if check and res.returncode != 0:
-            raise AssertionError(f"{' '.join(args)} exited {res.returncode}:\n{res.stdout}\n"
-                                 f"{res.stderr}")
+            raise AssertionError(
+                f"{' '.join(args)} exited {res.returncode}:\n{res.stdout}\n{res.stderr}"
+            )
         return res
 
-    def mapkit(self, *args: str, timeout: float = 90, check: bool = True,
-               **kw: Any) -> subprocess.CompletedProcess[str]:
+    def mapkit(
+        self, *args: str, timeout: float = 90, check: bool = True, **kw: Any
+    ) -> subprocess.CompletedProcess[str]:
         """Run ``python -m mapkit ARGS`` against this master."""
         return self.run([sys.executable, "-m", "mapkit", *args], timeout=timeout, check=check, **kw)
 
@@ -96,9 +115,15 @@ class Ros:
         """Start a background process (its own process group); stopped at teardown."""
         fd, log_path = tempfile.mkstemp(dir=self.home, prefix="proc-", suffix=".log")
         with os.fdopen(fd, "wb") as log:
-            proc = subprocess.Popen(list(args), env=kw.pop("env", self.env), stdout=log,
-                                    stderr=subprocess.STDOUT, start_new_session=True,
-                                    cwd=kw.pop("cwd", ROOT), **kw)
+            proc = subprocess.Popen(
+                list(args),
+                env=kw.pop("env", self.env),
+                stdout=log,
+                stderr=subprocess.STDOUT,
+                start_new_session=True,
+                cwd=kw.pop("cwd", ROOT),
+                **kw,
+            )
         proc.log_path = Path(log_path)  # type: ignore[attr-defined]
         self.procs.append(proc)
         return proc
@@ -112,8 +137,9 @@ class Ros:
         """What a background process printed so far."""
         return Path(proc.log_path).read_text(errors="replace")  # type: ignore[attr-defined]
 
-    def stop(self, proc: subprocess.Popen[bytes], sig: int = signal.SIGINT,
-             timeout: float = 10) -> int:
+    def stop(
+        self, proc: subprocess.Popen[bytes], sig: int = signal.SIGINT, timeout: float = 10
+    ) -> int:
         """Stop a background process (its whole group); its exit code."""
         stop_group(proc, sig, timeout)
         return int(proc.returncode)
@@ -140,8 +166,9 @@ class Ros:
         return {name for name, nodes in state[2] if nodes}
 
 
-def stop_group(proc: subprocess.Popen[bytes], sig: int = signal.SIGINT,
-               timeout: float = 10) -> None:
+def stop_group(
+    proc: subprocess.Popen[bytes], sig: int = signal.SIGINT, timeout: float = 10
+) -> None:
     """Signal a process group, wait, and kill it when it does not go."""
     if proc.poll() is None:
         with contextlib.suppress(ProcessLookupError):
@@ -181,12 +208,23 @@ def running_roscore(tmp: Path) -> Iterator[Ros]:
             keep = ("ROS_DISTRO", "ROS_VERSION", "ROS_PYTHON_VERSION")
             if key.startswith("ROS_") and key not in keep:
                 del env[key]
-        env.update(ROS_MASTER_URI=uri, ROS_HOSTNAME="127.0.0.1", ROS_IP="127.0.0.1",
-                   ROS_HOME=str(tmp), ROS_LOG_DIR=str(tmp / "log"), PYTHONUNBUFFERED="1")
+        env.update(
+            ROS_MASTER_URI=uri,
+            ROS_HOSTNAME="127.0.0.1",
+            ROS_IP="127.0.0.1",
+            ROS_HOME=str(tmp),
+            ROS_LOG_DIR=str(tmp / "log"),
+            PYTHONUNBUFFERED="1",
+        )
         log = open(tmp / f"roscore-{port}.log", "wb")  # noqa: SIM115
-        proc = subprocess.Popen(["roscore", "-p", str(port)], env=env, stdout=log,
-                                stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
-                                start_new_session=True)
+        proc = subprocess.Popen(
+            ["roscore", "-p", str(port)],
+            env=env,
+            stdout=log,
+            stderr=subprocess.STDOUT,
+            stdin=subprocess.DEVNULL,
+            start_new_session=True,
+        )
         deadline = time.monotonic() + 30
         while proc.poll() is None and time.monotonic() < deadline and not master_answers(uri):
             time.sleep(0.1)

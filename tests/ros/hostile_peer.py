@@ -82,8 +82,15 @@ def main() -> None:
     elif mode == "flood":  # COUNT handshakes started and never finished
         from mapkit.transfer.protocol import dump_json
 
-        hello = dump_json({"versions": [1], "nonce": "ab" * 32, "auth": ["blake2b"],
-                           "peer": "flood", "software": "x"})
+        hello = dump_json(
+            {
+                "versions": [1],
+                "nonce": "ab" * 32,
+                "auth": ["blake2b"],
+                "peer": "flood",
+                "software": "x",
+            }
+        )
         for i in range(count):
             send(b"".join(encode_frame(FrameType.HELLO, hello, session=5000 + i, seq=1)))
             sent += 1

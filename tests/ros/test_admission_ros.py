@@ -13,8 +13,12 @@ from tests.ros.test_sessions import Bus, robot_on, terminal
 
 def _hello(session: int) -> bytes:
     c = Channel(initiator=True, session=session, ordered=False)
-    return c.encode(Out(FrameType.HELLO, dump_json({"versions": [1], "nonce": "ab" * 32,
-                                                    "auth": ["blake2b"], "peer": "flood"})))
+    return c.encode(
+        Out(
+            FrameType.HELLO,
+            dump_json({"versions": [1], "nonce": "ab" * 32, "auth": ["blake2b"], "peer": "flood"}),
+        )
+    )
 
 
 def test_a_hello_flood_is_bounded_and_expires(tmp_path: Path) -> None:
@@ -47,9 +51,9 @@ def test_the_same_file_from_a_new_sender_takes_over_at_once(tmp_path: Path, monk
     session, not silent long enough to count as stale, gives way to it at once."""
     import threading
 
-    import mapkit.ros.transfer as ros_transfer
+    import mapkit.ros.transfer.robot as robot_side
 
-    monkeypatch.setattr(ros_transfer, "STALE", 1000.0)  # only the same-transfer rule can apply
+    monkeypatch.setattr(robot_side, "STALE", 1000.0)  # only the same-transfer rule can apply
     bus = Bus()
     rt, robot = robot_on(bus, tmp_path)
     try:
@@ -73,8 +77,9 @@ def test_the_same_file_from_a_new_sender_takes_over_at_once(tmp_path: Path, monk
         while time.monotonic() < end and sent["data"] <= 10:
             time.sleep(0.01)
         other = os.urandom(64 * 1024)  # another file for the name: busy
-        (busy,) = terminal(bus, "/someone").push([robot], other,
-                                                 Offer.for_bytes("scan.2d", other, chunk_size=1024))
+        (busy,) = terminal(bus, "/someone").push(
+            [robot], other, Offer.for_bytes("scan.2d", other, chunk_size=1024)
+        )
         assert not busy.ok and "busy" in (busy.error or "")
         (res,) = terminal(bus, "/laptop-after").push([robot], data, offer)
         assert res.ok, res.error
@@ -98,8 +103,9 @@ def test_long_names_are_bad_names_on_every_ros_request(tmp_path: Path) -> None:
             (res,) = term.push([robot], data, Offer.for_bytes(name, data))
             assert not res.ok and "bad_name" in (res.error or ""), res.error
             for ftype, payload, answers in (
-                    (FrameType.GET, {"name": name}, [FrameType.OFFER]),
-                    (FrameType.LOAD, {"name": name, "md5": "0" * 32}, [FrameType.LOADED])):
+                (FrameType.GET, {"name": name}, [FrameType.OFFER]),
+                (FrameType.LOAD, {"name": name, "md5": "0" * 32}, [FrameType.LOADED]),
+            ):
                 with pytest.raises(RemoteTransferError, match="bad_name"):
                     term.request(robot, ftype, payload, answers)
         assert term.request(robot, FrameType.LIST, {}, [FrameType.LISTING]).json()["maps"] == []
@@ -134,8 +140,10 @@ def test_an_unexpected_error_ends_only_its_ros_session(tmp_path: Path, caplog) -
     from tests.transfer.mkt_helpers import fails_once
 
     rt, robot = robot_on(bus, tmp_path)
-    rt.node.folder.listing = fails_once(rt.node.folder.listing,  # type: ignore[method-assign]
-                                        RuntimeError("a bug"))
+    rt.node.folder.listing = fails_once(
+        rt.node.folder.listing,  # type: ignore[method-assign]
+        RuntimeError("a bug"),
+    )
     try:
         term = terminal(bus)
         with pytest.raises(RemoteTransferError, match="internal"):

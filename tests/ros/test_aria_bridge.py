@@ -34,10 +34,21 @@ def peer(tmp_path_factory: pytest.TempPathFactory, shared_dir: Path) -> Iterator
 
 @pytest.fixture(scope="module")
 def bridge(ros: Ros, peer: Peer) -> Any:
-    proc = ros.start_mapkit("ros", "aria-bridge", peer.address, "-u", "admin", "--resolution",
-                            str(RES), "--json", env=dict(ros.env, MAPKIT_ARIA_PASSWORD="secret1"))
-    ros.wait_for("the bridge's static_map service",
-                 lambda: proc.poll() is not None or "/static_map" in ros.services())
+    proc = ros.start_mapkit(
+        "ros",
+        "aria-bridge",
+        peer.address,
+        "-u",
+        "admin",
+        "--resolution",
+        str(RES),
+        "--json",
+        env=dict(ros.env, MAPKIT_ARIA_PASSWORD="secret1"),
+    )
+    ros.wait_for(
+        "the bridge's static_map service",
+        lambda: proc.poll() is not None or "/static_map" in ros.services(),
+    )
     assert proc.poll() is None, ros.output(proc)
     return proc
 
@@ -61,7 +72,9 @@ def check_served(ros: Ros, path: Path) -> None:
         assert np.array_equal(mask.reshape(grid.data.shape), keepout_mask(m, grid).data)
 
 
-def test_bridge_serves_the_robots_map_and_follows_changes(ros: Ros, peer: Peer, bridge: Any) -> None:
+def test_bridge_serves_the_robots_map_and_follows_changes(
+    ros: Ros, peer: Peer, bridge: Any
+) -> None:
     check_served(ros, peer.root / FIRST)
     assert "/change_map" not in ros.services()  # the robot decides which map is active
     assert map_info(ros)["keepout"]  # columbia has forbidden areas and lines

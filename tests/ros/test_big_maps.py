@@ -37,8 +37,10 @@ def test_a_grid_over_ros1s_limit_is_refused_before_any_work(tmp_path: Path) -> N
     assert "1,000,000,000 bytes" in str(e.value)
     # A map_server image whose header says 40000 x 30000: refused from the header alone.
     (tmp_path / "huge.pgm").write_bytes(b"P5\n# header only\n40000 30000\n255\n")
-    (tmp_path / "huge.yaml").write_text("image: huge.pgm\nresolution: 0.05\norigin: [0, 0, 0]\n"
-                                        "negate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n")
+    (tmp_path / "huge.yaml").write_text(
+        "image: huge.pgm\nresolution: 0.05\norigin: [0, 0, 0]\n"
+        "negate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n"
+    )
     with pytest.raises(MapLoadError, match=r"huge\.pgm: a 40000 x 30000 grid") as e:
         served_map(tmp_path / "huge.yaml")
     assert e.value.code == LOAD_INVALID_DATA
@@ -71,8 +73,9 @@ def test_packed_messages_are_the_bytes_rospy_writes(ros_msgs: None) -> None:
 
     assert packed.data == [] and wire(packed) == wire(plain)
     assert wire(packed_response("GetMap", packed)) == wire(GetMapResponse(map=plain))
-    assert wire(packed_response("LoadMap", packed, result=0)) == \
-        wire(LoadMapResponse(map=plain, result=0))
+    assert wire(packed_response("LoadMap", packed, result=0)) == wire(
+        LoadMapResponse(map=plain, result=0)
+    )
     back = OccupancyGrid()
     back.deserialize(wire(packed))
     assert np.array_equal(np.array(back.data, dtype=np.int8).reshape(grid.data.shape), grid.data)
@@ -106,8 +109,13 @@ print(json.dumps({"cells": g.width * g.height, "bytes": len(buf.getvalue()),
 
 
 def test_a_100m_cell_map_is_served_in_about_its_own_size(ros_msgs: None, tmp_path: Path) -> None:
-    out = subprocess.run([sys.executable, "-c", _BIG, str(tmp_path)], capture_output=True,
-                         text=True, check=True, cwd=ROOT)
+    out = subprocess.run(
+        [sys.executable, "-c", _BIG, str(tmp_path)],
+        capture_output=True,
+        text=True,
+        check=True,
+        cwd=ROOT,
+    )
     r = json.loads(out.stdout)
     assert r["cells"] > 100_000_000 and r["bytes"] > r["cells"]
     assert 500_000 <= r["keepout"] <= 505_000

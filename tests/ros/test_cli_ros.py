@@ -16,10 +16,20 @@ def no_secret(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.delenv("MAPKIT_SECRET_FILE", raising=False)
 
 
-@pytest.mark.parametrize("args", [["send", "{map}"], ["receive"], ["serve", "{dir}"],
-                                  ["fetch", "x.map"], ["maps"], ["load", "x.map"]])
-def test_every_command_wants_a_secret_or_insecure(runner: CliRunner, no_secret: None,
-                                                  args: list[str], tmp_path: Path) -> None:
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["send", "{map}"],
+        ["receive"],
+        ["serve", "{dir}"],
+        ["fetch", "x.map"],
+        ["maps"],
+        ["load", "x.map"],
+    ],
+)
+def test_every_command_wants_a_secret_or_insecure(
+    runner: CliRunner, no_secret: None, args: list[str], tmp_path: Path
+) -> None:
     (tmp_path / "a.map").write_bytes(b"2D-Map\nDATA\n")
     argv = ["ros", *(a.format(map=tmp_path / "a.map", dir=tmp_path) for a in args)]
     result = runner.invoke(cli, argv)
@@ -36,8 +46,9 @@ def test_load_needs_a_name_or_rollback(runner: CliRunner) -> None:
     assert result.exit_code == 2 and "give a map NAME or --rollback" in result.output
 
 
-def test_map_server_refuses_a_missing_or_bad_map_before_starting(runner: CliRunner,
-                                                                  tmp_path: Path) -> None:
+def test_map_server_refuses_a_missing_or_bad_map_before_starting(
+    runner: CliRunner, tmp_path: Path
+) -> None:
     result = runner.invoke(cli, ["ros", "map-server", str(tmp_path / "none.map")])
     assert result.exit_code == 2 and "cannot read" in result.output  # the rule of every command
     assert "no such file" in result.output

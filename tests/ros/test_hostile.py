@@ -27,10 +27,13 @@ def net(ros: Ros) -> Ros:
 def _robot(net: Ros, folder: Path, command: str, channel: str) -> object:
     before = net.topics()
     where = [str(folder)] if command == "serve" else ["-o", str(folder)]
-    proc = net.start_mapkit("ros", command, *where, "--name", f"{command}1", "--channel", channel,
-                            "--map-server", "")
-    net.wait_for(f"ros {command} to announce", lambda: proc.poll() is not None or
-                 f"/mapkit/{channel}/announce" in net.topics() - before)
+    proc = net.start_mapkit(
+        "ros", command, *where, "--name", f"{command}1", "--channel", channel, "--map-server", ""
+    )
+    net.wait_for(
+        f"ros {command} to announce",
+        lambda: proc.poll() is not None or f"/mapkit/{channel}/announce" in net.topics() - before,
+    )
     assert proc.poll() is None, net.output(proc)
     return proc
 

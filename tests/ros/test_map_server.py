@@ -47,9 +47,10 @@ def sample(shared_dir: Path) -> Path:
 @pytest.fixture(scope="module")
 def server(ros: Ros, sample: Path) -> subprocess.Popen[bytes]:
     proc = ros.start_mapkit("ros", "map-server", str(sample), "--resolution", str(RES))
-    ros.wait_for("the map server's services",
-                 lambda: proc.poll() is not None
-                 or {"/static_map", "/change_map"} <= ros.services())
+    ros.wait_for(
+        "the map server's services",
+        lambda: proc.poll() is not None or {"/static_map", "/change_map"} <= ros.services(),
+    )
     assert proc.poll() is None, ros.output(proc)
     return proc
 
@@ -121,8 +122,9 @@ def test_keepout_mask_and_poses(ros: Ros, server: Any, sample: Path) -> None:
     assert info["md5"] == m.md5 and info["goals"] == [g.name for g in goals]
 
 
-def test_change_map_result_codes_and_republish(ros: Ros, server: Any, sample: Path,
-                                               shared_dir: Path, tmp_path: Path) -> None:
+def test_change_map_result_codes_and_republish(
+    ros: Ros, server: Any, sample: Path, shared_dir: Path, tmp_path: Path
+) -> None:
     def change(url: str) -> int:
         out = ros.run(["rosservice", "call", "/change_map", f"map_url: '{url}'"], timeout=60).stdout
         return int(ros_yaml(out)["result"])
@@ -143,8 +145,9 @@ def test_change_map_result_codes_and_republish(ros: Ros, server: Any, sample: Pa
     check_info(echo(ros, "/map_metadata"), expected_grid(sample))
 
 
-def test_change_map_to_a_map_server_yaml(ros: Ros, server: Any, sample: Path,
-                                         tmp_path: Path) -> None:
+def test_change_map_to_a_map_server_yaml(
+    ros: Ros, server: Any, sample: Path, tmp_path: Path
+) -> None:
     from mapkit.raster.ros import write_ros_map
 
     def change(url: str) -> int:
@@ -168,8 +171,9 @@ def test_change_map_to_a_map_server_yaml(ros: Ros, server: Any, sample: Path,
         assert change(str(sample)) == 0
 
 
-def test_origin_yaw_of_a_yaml_is_published_as_map_server_does(ros: Ros, server: Any, sample: Path,
-                                                               tmp_path: Path) -> None:
+def test_origin_yaw_of_a_yaml_is_published_as_map_server_does(
+    ros: Ros, server: Any, sample: Path, tmp_path: Path
+) -> None:
     """map_server puts the YAML's origin yaw in info.origin.orientation (setEulerZYX(yaw, 0, 0))."""
     from mapkit.raster.ros import write_ros_map
 
@@ -180,8 +184,9 @@ def test_origin_yaw_of_a_yaml_is_published_as_map_server_does(ros: Ros, server: 
     grid = OccupancyGrid(np.array([[0, 100, -1], [100, 0, 0]], dtype=np.int8), 0.2, (1.0, -2.0))
     files = write_ros_map(grid, tmp_path / "turned.yaml")
     yaw = 0.7
-    files.yaml.write_text(files.yaml.read_text().replace("origin: [1.0, -2.0, 0.0]",
-                                                         f"origin: [1.0, -2.0, {yaw!r}]"))
+    files.yaml.write_text(
+        files.yaml.read_text().replace("origin: [1.0, -2.0, 0.0]", f"origin: [1.0, -2.0, {yaw!r}]")
+    )
     assert served_map(files.yaml).yaw == yaw
     try:
         assert change(str(files.yaml)) == 0

@@ -17,8 +17,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from hypothesis import HealthCheck, given, settings
-from hypothesis import strategies as st
+from hypothesis import HealthCheck, given, settings, strategies as st
 
 from mapkit.ros.transfer import FEATURES_SERVE, Robot, RobotNode, Terminal
 from mapkit.ros.transport import Faults
@@ -52,7 +51,7 @@ class Link:
         dest = self.bus.links.get(to)
         if dest is None:
             return
-        for item in (dest.faults.apply(frame) if dest.faults else [frame]):
+        for item in dest.faults.apply(frame) if dest.faults else [frame]:
             dest.inbox.put((self.node, item))
 
     def receive(self, timeout: float | None) -> tuple[str, bytes] | None:
@@ -81,10 +80,19 @@ class RobotThread:
         self.thread.join(5)
 
 
-def robot_on(bus: Bus, folder: Path, name: str = "r1", faults: Faults | None = None,
-             **kw: Any) -> tuple[RobotThread, Robot]:
-    node = RobotNode(MapFolder(folder), bus.link(f"/{name}", faults), robot=name, secret=SECRET,
-                     features=FEATURES_SERVE, map_server=None, rto=0.05, **kw)
+def robot_on(
+    bus: Bus, folder: Path, name: str = "r1", faults: Faults | None = None, **kw: Any
+) -> tuple[RobotThread, Robot]:
+    node = RobotNode(
+        MapFolder(folder),
+        bus.link(f"/{name}", faults),
+        robot=name,
+        secret=SECRET,
+        features=FEATURES_SERVE,
+        map_server=None,
+        rto=0.05,
+        **kw,
+    )
     return RobotThread(node), Robot(name, f"/{name}", list(FEATURES_SERVE), node.announcement())
 
 
@@ -93,20 +101,37 @@ def bus() -> Iterator[Bus]:
     yield Bus()
 
 
-def terminal(bus: Bus, name: str = "/term", faults: Faults | None = None,
-             secret: bytes = SECRET, **kw: Any) -> Terminal:
-    return Terminal(bus.link(name, faults), secret, peer=name, rto=0.05,
-                    idle_timeout=kw.pop("idle_timeout", 5.0), **kw)
+def terminal(
+    bus: Bus, name: str = "/term", faults: Faults | None = None, secret: bytes = SECRET, **kw: Any
+) -> Terminal:
+    return Terminal(
+        bus.link(name, faults),
+        secret,
+        peer=name,
+        rto=0.05,
+        idle_timeout=kw.pop("idle_timeout", 5.0),
+        **kw,
+    )
 
 
 @settings(deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
-@given(data=st.binary(min_size=0, max_size=120_000),
-       chunk=st.sampled_from([1024, 4096, 32768]),
-       drop=st.floats(0, 0.25), dup=st.floats(0, 0.25), corrupt=st.floats(0, 0.1),
-       seed=st.integers(0, 2**16))
-def test_push_under_any_faults_is_exact_or_clean(tmp_path_factory: pytest.TempPathFactory,
-                                                 data: bytes, chunk: int, drop: float, dup: float,
-                                                 corrupt: float, seed: int) -> None:
+@given(
+    data=st.binary(min_size=0, max_size=120_000),
+    chunk=st.sampled_from([1024, 4096, 32768]),
+    drop=st.floats(0, 0.25),
+    dup=st.floats(0, 0.25),
+    corrupt=st.floats(0, 0.1),
+    seed=st.integers(0, 2**16),
+)
+def test_push_under_any_faults_is_exact_or_clean(
+    tmp_path_factory: pytest.TempPathFactory,
+    data: bytes,
+    chunk: int,
+    drop: float,
+    dup: float,
+    corrupt: float,
+    seed: int,
+) -> None:
     bus = Bus()
     folder = tmp_path_factory.mktemp("rx")
     rt, robot = robot_on(bus, folder, faults=Faults(drop, dup, corrupt, seed))
@@ -126,8 +151,9 @@ def test_push_under_any_faults_is_exact_or_clean(tmp_path_factory: pytest.TempPa
 
 def test_fleet_push_then_load_and_list(bus: Bus, tmp_path: Path, shared_dir: Path) -> None:
     sample = (shared_dir / "real" / "aria-office.map").read_bytes()
-    robots = [robot_on(bus, tmp_path / f"r{i}", f"r{i}", Faults(0.1, 0.1, 0.02, i))
-              for i in range(3)]
+    robots = [
+        robot_on(bus, tmp_path / f"r{i}", f"r{i}", Faults(0.1, 0.1, 0.02, i)) for i in range(3)
+    ]
     try:
         term = terminal(bus, faults=Faults(0.1, 0.1, 0.02, 9))
         offer = Offer.for_bytes("office.map", sample, chunk_size=512)

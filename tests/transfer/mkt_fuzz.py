@@ -18,35 +18,86 @@ from mapkit.transfer.protocol import HEADER_SIZE, FrameType, dump_json
 
 #: Honest payloads of every control frame type (what the peers really send).
 HONEST: dict[int, dict[str, Any]] = {
-    FrameType.HELLO: {"versions": [1], "nonce": "11" * 32, "auth": ["blake2b", "hmac-sha256"],
-                      "peer": "fuzz", "software": "mapkit"},
-    FrameType.HELLO_ACK: {"version": 1, "nonce": "22" * 32, "auth": "blake2b", "peer": "robot",
-                          "software": "mapkit", "max_chunk": 1 << 20, "max_size": 1 << 30,
-                          "features": ["push", "pull", "list", "load"]},
+    FrameType.HELLO: {
+        "versions": [1],
+        "nonce": "11" * 32,
+        "auth": ["blake2b", "hmac-sha256"],
+        "peer": "fuzz",
+        "software": "mapkit",
+    },
+    FrameType.HELLO_ACK: {
+        "version": 1,
+        "nonce": "22" * 32,
+        "auth": "blake2b",
+        "peer": "robot",
+        "software": "mapkit",
+        "max_chunk": 1 << 20,
+        "max_size": 1 << 30,
+        "features": ["push", "pull", "list", "load"],
+    },
     FrameType.AUTH: {"proof": "33" * 32},
     FrameType.AUTH_OK: {"proof": "44" * 32},
     FrameType.REJECT: {"code": 4, "reason": "bad_name", "message": "bad name"},
     FrameType.CANCEL: {"code": 14, "reason": "cancelled", "message": "by the user"},
     FrameType.PING: {"t": 1},
     FrameType.BYE: {},
-    FrameType.OFFER: {"name": "office.map", "size": 40, "sha256": "ab" * 32, "chunk_size": 16,
-                      "chunks": 3, "kind": "map", "md5": "cd" * 16, "mtime": 1.5, "window": 16},
+    FrameType.OFFER: {
+        "name": "office.map",
+        "size": 40,
+        "sha256": "ab" * 32,
+        "chunk_size": 16,
+        "chunks": 3,
+        "kind": "map",
+        "md5": "cd" * 16,
+        "mtime": 1.5,
+        "window": 16,
+    },
     FrameType.ACCEPT: {"have": "", "window": 64},
     FrameType.ACK: {"next": 1, "sack": [[2, 3]], "nack": [1]},
     FrameType.DONE: {},
-    FrameType.VERIFIED: {"name": "office.map", "size": 40, "sha256": "ab" * 32, "md5": "cd" * 16,
-                         "kind": "map"},
+    FrameType.VERIFIED: {
+        "name": "office.map",
+        "size": 40,
+        "sha256": "ab" * 32,
+        "md5": "cd" * 16,
+        "kind": "map",
+    },
     FrameType.GET: {"name": "office.map", "chunk_size": 16, "if_md5": "cd" * 16},
-    FrameType.NOT_MODIFIED: {"name": "office.map", "size": 40, "sha256": "ab" * 32,
-                             "chunk_size": 16, "chunks": 3, "kind": "map", "md5": "cd" * 16},
+    FrameType.NOT_MODIFIED: {
+        "name": "office.map",
+        "size": 40,
+        "sha256": "ab" * 32,
+        "chunk_size": 16,
+        "chunks": 3,
+        "kind": "map",
+        "md5": "cd" * 16,
+    },
     FrameType.LIST: {},
-    FrameType.LISTING: {"maps": [{"name": "office.map", "size": 40, "md5": "cd" * 16,
-                                  "sha256": "ab" * 32, "mtime": 1.0, "kind": "map",
-                                  "active": True}],
-                        "active": "office.map", "active_md5": "cd" * 16, "previous": None},
+    FrameType.LISTING: {
+        "maps": [
+            {
+                "name": "office.map",
+                "size": 40,
+                "md5": "cd" * 16,
+                "sha256": "ab" * 32,
+                "mtime": 1.0,
+                "kind": "map",
+                "active": True,
+            }
+        ],
+        "active": "office.map",
+        "active_md5": "cd" * 16,
+        "previous": None,
+    },
     FrameType.LOAD: {"name": "office.map", "md5": "cd" * 16},
-    FrameType.LOADED: {"name": "office.map", "md5": "cd" * 16, "sha256": "ab" * 32, "size": 40,
-                       "loaded_at": 1.0, "previous": None},
+    FrameType.LOADED: {
+        "name": "office.map",
+        "md5": "cd" * 16,
+        "sha256": "ab" * 32,
+        "size": 40,
+        "loaded_at": 1.0,
+        "previous": None,
+    },
 }
 
 
@@ -58,12 +109,24 @@ def hostile_value(rng: random.Random) -> Any:
     if k == 1:
         return -rng.randrange(1 << 70)
     if k == 2:
-        return rng.choice([0, -1, 1 << 32, 1 << 63, (1 << 64) + 1, 10 ** 19])
+        return rng.choice([0, -1, 1 << 32, 1 << 63, (1 << 64) + 1, 10**19])
     if k == 3:
         return rng.choice([1e308, -1e308, 5e-324, 0.5, -0.0])
     if k == 4:
-        return rng.choice(["", "\ud800", "a\x00b", "../../etc/passwd.map", "CON.map", "é" * 150,
-                           "x" * rng.randrange(1, 5000), "\u202e.map", ".hidden.map", "-x.map"])
+        return rng.choice(
+            [
+                "",
+                "\ud800",
+                "a\x00b",
+                "../../etc/passwd.map",
+                "CON.map",
+                "é" * 150,
+                "x" * rng.randrange(1, 5000),
+                "\u202e.map",
+                ".hidden.map",
+                "-x.map",
+            ]
+        )
     if k == 5:
         return rng.choice([True, False, None])
     if k == 6:
@@ -71,8 +134,10 @@ def hostile_value(rng: random.Random) -> Any:
     if k == 7:
         return {str(rng.randrange(100)): hostile_value(rng) for _ in range(rng.randrange(3))}
     if k == 8:
-        return [[rng.randrange(-5, 1 << 33), rng.randrange(-5, 1 << 33)]
-                for _ in range(rng.randrange(40))]
+        return [
+            [rng.randrange(-5, 1 << 33), rng.randrange(-5, 1 << 33)]
+            for _ in range(rng.randrange(40))
+        ]
     if k == 9:
         n = rng.choice([0, 31, 32, 64, 65])
         return "".join(rng.choice("0123456789abcdefABCDEF") for _ in range(n))
@@ -104,7 +169,7 @@ _RAW_TEXTS = [
     lambda rng: b"[]",
     lambda rng: b'"just a string"',
     lambda rng: b"{" + b'"a":1,' * rng.randrange(1000) + b"}",
-    lambda rng: b'{"name":"' + b"\\\"" * rng.randrange(1, 20000),
+    lambda rng: b'{"name":"' + b'\\"' * rng.randrange(1, 20000),
     lambda rng: bytes(rng.randrange(256) for _ in range(rng.randrange(64))),
     lambda rng: b'{"x":"' + b"[" * 50_000 + b'"}',
 ]
@@ -144,7 +209,7 @@ def mutate_bytes(frame: bytes, rng: random.Random) -> bytes:
         for _ in range(rng.randrange(1, 4)):
             b[rng.randrange(len(b))] ^= 1 << rng.randrange(8)
     elif k == 1:
-        b = b[:rng.randrange(len(b) + 1)]
+        b = b[: rng.randrange(len(b) + 1)]
     elif k == 2:
         pos = rng.randrange(len(b) + 1)
         b[pos:pos] = bytes(rng.randrange(256) for _ in range(rng.randrange(1, 40)))

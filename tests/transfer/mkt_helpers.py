@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
 import socket
 import threading
@@ -44,9 +45,16 @@ class Proxy:
         record: Bytes the client sent on the last connection.
     """
 
-    def __init__(self, target: tuple[str, int], *, cut_c2s: int | None = None,
-                 cut_s2c: int | None = None, flip_c2s: tuple[int, ...] = (),
-                 flip_s2c: tuple[int, ...] = (), inject_c2s: tuple[int, bytes] | None = None) -> None:
+    def __init__(
+        self,
+        target: tuple[str, int],
+        *,
+        cut_c2s: int | None = None,
+        cut_s2c: int | None = None,
+        flip_c2s: tuple[int, ...] = (),
+        flip_s2c: tuple[int, ...] = (),
+        inject_c2s: tuple[int, bytes] | None = None,
+    ) -> None:
         self.target = target
         self.cut = {"c2s": cut_c2s, "s2c": cut_s2c}
         self.flips = {"c2s": set(flip_c2s), "s2c": set(flip_s2c)}
@@ -70,10 +78,19 @@ class Proxy:
             self.record = bytearray()
             state = {"c2s": 0, "s2c": 0, "closed": False}
             for src, dst, d in ((a, b, "c2s"), (b, a, "s2c")):
-                threading.Thread(target=self._pump, args=(src, dst, d, state, a, b), daemon=True).start()
+                threading.Thread(
+                    target=self._pump, args=(src, dst, d, state, a, b), daemon=True
+                ).start()
 
-    def _pump(self, src: socket.socket, dst: socket.socket, d: str, state: dict[str, Any],
-              a: socket.socket, b: socket.socket) -> None:
+    def _pump(
+        self,
+        src: socket.socket,
+        dst: socket.socket,
+        d: str,
+        state: dict[str, Any],
+        a: socket.socket,
+        b: socket.socket,
+    ) -> None:
         try:
             while True:
                 data = bytearray(src.recv(65536))
@@ -100,10 +117,8 @@ class Proxy:
         except OSError:
             pass
         for s in (a, b):
-            try:
+            with contextlib.suppress(OSError):
                 s.shutdown(socket.SHUT_RDWR)
-            except OSError:
-                pass
             s.close()
 
     def _count(self, d: str, n: int) -> None:
@@ -122,8 +137,10 @@ def make_map(points: int, seed: int = 0) -> bytes:
     import random
 
     rng = random.Random(seed)
-    rows = "".join(f"{rng.randrange(-50000, 50000)} {rng.randrange(-50000, 50000)}\n" for _ in range(points))
-    return ("2D-Map\nCairn: Goal 1000 2000 0 \"\" ICON \"Desk\"\nDATA\n" + rows).encode()
+    rows = "".join(
+        f"{rng.randrange(-50000, 50000)} {rng.randrange(-50000, 50000)}\n" for _ in range(points)
+    )
+    return ('2D-Map\nCairn: Goal 1000 2000 0 "" ICON "Desk"\nDATA\n' + rows).encode()
 
 
 def listing(folder: Path) -> list[str]:
@@ -151,9 +168,23 @@ class ServeProcess:
         env.pop("MAPKIT_SECRET", None)
         self.log_path = log_path
         self._log = open(log_path, "wb")  # noqa: SIM115 - closed in stop()
-        self.proc = subprocess.Popen([sys.executable, "-m", "mapkit", "serve", str(folder),
-                                      "--listen", "127.0.0.1:0", "--secret-file", str(secret_file),
-                                      *args], stderr=self._log, stdout=subprocess.DEVNULL, env=env)
+        self.proc = subprocess.Popen(
+            [
+                sys.executable,
+                "-m",
+                "mapkit",
+                "serve",
+                str(folder),
+                "--listen",
+                "127.0.0.1:0",
+                "--secret-file",
+                str(secret_file),
+                *args,
+            ],
+            stderr=self._log,
+            stdout=subprocess.DEVNULL,
+            env=env,
+        )
         end = time.monotonic() + 60
         while True:
             m = re.search(r"on 127\.0\.0\.1:(\d+) \(", self.log())
@@ -212,8 +243,9 @@ def closed_by_peer(sock: socket.socket, timeout: float) -> bool:
     return False
 
 
-def raw_session(address: tuple[str, int], secret: bytes | None = SECRET, *,
-                timeout: float = 5.0) -> Any:
+def raw_session(
+    address: tuple[str, int], secret: bytes | None = SECRET, *, timeout: float = 5.0
+) -> Any:
     """An authenticated MKT session over a plain socket: ``(FrameLink, next_ref)``; send any frame
     (numbered and tagged by the session's channel) with ``link.send([Out(...)])``."""
     import secrets as _secrets
@@ -266,7 +298,7 @@ class FreezeProxy:
                 if c2s:
                     room = self.freeze_after - self._c2s
                     if len(data) >= room:
-                        dst.sendall(data[:max(0, room)])
+                        dst.sendall(data[: max(0, room)])
                         self._c2s += max(0, room)
                         self.frozen.set()
                         return

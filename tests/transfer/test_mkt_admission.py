@@ -3,8 +3,7 @@
 from __future__ import annotations
 
 import pytest
-from hypothesis import given
-from hypothesis import strategies as st
+from hypothesis import given, strategies as st
 
 from mapkit.transfer.admission import Admission
 
@@ -59,9 +58,17 @@ def test_limits_must_be_positive() -> None:
         Admission(per_address=0)
 
 
-@given(st.lists(st.tuples(st.sampled_from(["admit", "progressed", "auth", "release", "expire"]),
-                          st.integers(0, 30), st.sampled_from("ABCD"), st.floats(0, 20)),
-                max_size=80))
+@given(
+    st.lists(
+        st.tuples(
+            st.sampled_from(["admit", "progressed", "auth", "release", "expire"]),
+            st.integers(0, 30),
+            st.sampled_from("ABCD"),
+            st.floats(0, 20),
+        ),
+        max_size=80,
+    )
+)
 def test_bounds_hold_whatever_happens(ops) -> None:
     a = Admission(max_sessions=5, max_pending=6, per_address=3, handshake_timeout=4)
     live: set[int] = set()

@@ -61,8 +61,14 @@ def serve(tmp_path: Path, robot_dir: Path, secret_file: Path):
     procs: list[ServeProcess] = []
 
     def start(*args: str, folder: Path | None = None) -> ServeProcess:
-        p = ServeProcess(folder or robot_dir, secret_file, "--handshake-timeout", HANDSHAKE, *args,
-                         log_path=tmp_path / f"serve-{len(procs)}.log")
+        p = ServeProcess(
+            folder or robot_dir,
+            secret_file,
+            "--handshake-timeout",
+            HANDSHAKE,
+            *args,
+            log_path=tmp_path / f"serve-{len(procs)}.log",
+        )
         procs.append(p)
         return p
 
@@ -146,8 +152,9 @@ def test_connections_from_many_addresses(tmp_path, serve) -> None:
 
 
 def hello_bytes(session: int = 77) -> bytes:
-    payload = dump_json({"versions": [1], "nonce": "ab" * 32, "auth": ["blake2b"],
-                         "peer": "loris", "software": "x"})
+    payload = dump_json(
+        {"versions": [1], "nonce": "ab" * 32, "auth": ["blake2b"], "peer": "loris", "software": "x"}
+    )
     return b"".join(encode_frame(FrameType.HELLO, payload, session=session, seq=1))
 
 
@@ -180,8 +187,15 @@ def test_repeating_hello_does_not_extend_the_handshake(serve) -> None:
     srv = serve()
     s = socket.create_connection(srv.address)
     channel = Channel(initiator=True, session=99)
-    payload = dump_json({"versions": [1], "nonce": "cd" * 32, "auth": ["blake2b"],
-                         "peer": "repeater", "software": "x"})
+    payload = dump_json(
+        {
+            "versions": [1],
+            "nonce": "cd" * 32,
+            "auth": ["blake2b"],
+            "peer": "repeater",
+            "software": "x",
+        }
+    )
     closed = False
     try:
         end = time.monotonic() + CLOSED_WITHIN
@@ -307,8 +321,7 @@ def test_interrupted_huge_offers_hold_only_what_arrived(tmp_path, serve, robot_d
     chunk = 1 << 20
     for k in range(3):
         link = raw_session(srv.address)
-        offer = Offer(f"huge{k}.2d", size, hashlib.sha256(b"%d" % k).hexdigest(), chunk,
-                      None, "2d")
+        offer = Offer(f"huge{k}.2d", size, hashlib.sha256(b"%d" % k).hexdigest(), chunk, None, "2d")
         link.send([Out(FrameType.OFFER, dump_json(offer.json()), ref=1)])
         ev = link.receive(10)
         assert ev is not None and ev.type == FrameType.ACCEPT, ev
@@ -346,8 +359,12 @@ def test_abandoned_partials_are_deleted_when_the_server_starts(serve, robot_dir)
     end = time.monotonic() + 10
     while time.monotonic() < end and (robot_dir / ".orphan.map.mkpart.json").exists():
         time.sleep(0.05)
-    assert sorted(os.listdir(robot_dir)) == [".notes.tmp", ".young.map.mkpart",
-                                             ".young.map.mkpart.json", "office.map"]
+    assert sorted(os.listdir(robot_dir)) == [
+        ".notes.tmp",
+        ".young.map.mkpart",
+        ".young.map.mkpart.json",
+        "office.map",
+    ]
     assert "deleted the abandoned partial file of old.map" in srv.log()
 
 
@@ -355,8 +372,9 @@ def test_partials_expire_while_serving_but_never_under_a_writer(make_server, rob
     from mapkit.transfer.store import PartialFile
 
     srv = make_server(partial_ttl=3600, sweep_interval=0.1)
-    held = PartialFile.open(str(robot_dir), "busy.2d",
-                            Offer("busy.2d", 10, "0" * 64, 4, None, "2d"))
+    held = PartialFile.open(
+        str(robot_dir), "busy.2d", Offer("busy.2d", 10, "0" * 64, 4, None, "2d")
+    )
     held.write(0, b"abcd")
     held.checkpoint()
     _partial(robot_dir, "gone.2d", 7200)
@@ -432,8 +450,13 @@ def test_listing_skips_files_whose_names_are_too_long(tmp_path, serve, robot_dir
     srv = serve()
     assert [m["name"] for m in list_maps(*srv.address, **client_options())["maps"]] == ["ok.map"]
     with pytest.raises(Rejected, match="bad_name"):
-        load_map(srv.address[0], "d" * 240 + ".map", port=srv.address[1], md5="0" * 32,
-                 **client_options())
+        load_map(
+            srv.address[0],
+            "d" * 240 + ".map",
+            port=srv.address[1],
+            md5="0" * 32,
+            **client_options(),
+        )
 
 
 def test_a_map_offer_must_carry_its_md5_and_kind(serve, robot_dir) -> None:
@@ -480,8 +503,9 @@ def test_a_slow_tls_handshake_is_cut_too(make_server, cert) -> None:
     assert closed
 
 
-def test_an_unexpected_error_in_a_request_ends_only_that_session(make_server, robot_dir,
-                                                                 tmp_path, caplog) -> None:
+def test_an_unexpected_error_in_a_request_ends_only_that_session(
+    make_server, robot_dir, tmp_path, caplog
+) -> None:
     """A bug met by one request (here: the listing raises RuntimeError) is logged, told to the
     client as `internal`, and the server goes on serving everyone else."""
     srv = make_server()

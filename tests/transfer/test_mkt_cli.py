@@ -59,15 +59,18 @@ def test_send_maps_load_fetch_json(tmp_path, runner, robot_dir, make_server, sec
     r = runner.invoke(cli, ["fetch", addr(srv), "office.map", "-o", str(out), *sf])
     assert r.exit_code == 0, r.output
     assert out.read_bytes() == m.read_bytes() and "SHA-256 verified" in r.stdout
-    r = runner.invoke(cli, ["fetch", addr(srv), "office.map", "-o", str(out), "--if-changed", "--json", *sf])
+    r = runner.invoke(
+        cli, ["fetch", addr(srv), "office.map", "-o", str(out), "--if-changed", "--json", *sf]
+    )
     assert json.loads(r.stdout)["modified"] is False
     (tmp_path / "into").mkdir()
     r = runner.invoke(cli, ["fetch", addr(srv), "office.map", "-o", str(tmp_path / "into"), *sf])
     assert r.exit_code == 0 and (tmp_path / "into" / "office.map").read_bytes() == m.read_bytes()
 
 
-def test_send_with_load_and_rollback_human_output(tmp_path, runner, robot_dir, make_server, secret_file,
-                                                   monkeypatch) -> None:
+def test_send_with_load_and_rollback_human_output(
+    tmp_path, runner, robot_dir, make_server, secret_file, monkeypatch
+) -> None:
     srv = make_server()
     monkeypatch.setenv("MAPKIT_SECRET", SECRET.decode())
     a, b = tmp_path / "a.map", tmp_path / "b.map"
@@ -137,8 +140,20 @@ def test_receive_once_gets_what_the_robot_sends(tmp_path, runner, secret_file) -
     result: dict = {}
 
     def terminal() -> None:
-        result["r"] = runner.invoke(cli, ["receive", "--listen", f"127.0.0.1:{port}", "-o", str(inbox),
-                                          "--once", "--json", "--secret-file", str(secret_file)])
+        result["r"] = runner.invoke(
+            cli,
+            [
+                "receive",
+                "--listen",
+                f"127.0.0.1:{port}",
+                "-o",
+                str(inbox),
+                "--once",
+                "--json",
+                "--secret-file",
+                str(secret_file),
+            ],
+        )
 
     t = threading.Thread(target=terminal)
     t.start()
@@ -151,20 +166,36 @@ def test_receive_once_gets_what_the_robot_sends(tmp_path, runner, secret_file) -
     t.join(10)
     r = result["r"]
     assert r.exit_code == 0, r.output
-    got = json.loads(r.stdout[r.stdout.index("{"):])
-    assert got["name"] == "scan.2d" and got["sha256"] == hashlib.sha256(log.read_bytes()).hexdigest()
+    got = json.loads(r.stdout[r.stdout.index("{") :])
+    assert (
+        got["name"] == "scan.2d" and got["sha256"] == hashlib.sha256(log.read_bytes()).hexdigest()
+    )
     assert (inbox / "scan.2d").read_bytes() == log.read_bytes()
 
 
-# -- a real `mapkit serve` process --------------------------------------------------------------------
+# -- a real `mapkit serve` process -----------------------------------------------------------------
 
 
 def start_serve(folder: Path, secret_file: Path) -> tuple[subprocess.Popen, int]:
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
     env.pop("MAPKIT_SECRET", None)
-    proc = subprocess.Popen([sys.executable, "-m", "mapkit", "serve", str(folder), "--listen",
-                             "127.0.0.1:0", "--secret-file", str(secret_file)],
-                            stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True, env=env)
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "mapkit",
+            "serve",
+            str(folder),
+            "--listen",
+            "127.0.0.1:0",
+            "--secret-file",
+            str(secret_file),
+        ],
+        stderr=subprocess.PIPE,
+        stdout=subprocess.DEVNULL,
+        text=True,
+        env=env,
+    )
     assert proc.stderr is not None
     line = proc.stderr.readline()
     m = re.search(r"on 127\.0\.0\.1:(\d+) \(auth blake2b\|hmac-sha256", line)
@@ -199,8 +230,15 @@ def test_serve_process_killed_mid_transfer_then_resumed(tmp_path, robot_dir, sec
 
     try:
         with pytest.raises(TransferError):
-            send_file(src, "127.0.0.1", port, chunk_size=chunk, window=4, progress=progress,
-                      **client_options(rto=2.0, progress_interval=0))
+            send_file(
+                src,
+                "127.0.0.1",
+                port,
+                chunk_size=chunk,
+                window=4,
+                progress=progress,
+                **client_options(rto=2.0, progress_interval=0),
+            )
         assert proc.wait(10) == -signal.SIGKILL
         # no partial file under the final name: the old map is intact
         assert (robot_dir / "site.map").read_bytes() == old
@@ -222,8 +260,18 @@ def test_cli_send_to_a_serve_process(tmp_path, runner, robot_dir, secret_file, s
     real_sample = shared_dir / "real" / "aria-office.map"
     proc, port = start_serve(robot_dir, secret_file)
     try:
-        r = runner.invoke(cli, ["send", str(real_sample), f"127.0.0.1:{port}", "--load",
-                                "--secret-file", str(secret_file), "--json"])
+        r = runner.invoke(
+            cli,
+            [
+                "send",
+                str(real_sample),
+                f"127.0.0.1:{port}",
+                "--load",
+                "--secret-file",
+                str(secret_file),
+                "--json",
+            ],
+        )
         assert r.exit_code == 0, r.output
         assert json.loads(r.stdout)["loaded"]["name"] == real_sample.name
         assert (robot_dir / "active.map").read_bytes() == real_sample.read_bytes()

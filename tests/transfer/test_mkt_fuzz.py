@@ -43,8 +43,9 @@ SEED = int(os.environ.get("MKT_FUZZ_SEED", "20261125"))
 OFFER = Offer("office.map", 40, "ab" * 32, 16, "cd" * 16, "map")
 
 
-def _encode(ch: Channel, ftype: int, payload: bytes, rng: random.Random,
-            ref: int | None = None) -> bytes:
+def _encode(
+    ch: Channel, ftype: int, payload: bytes, rng: random.Random, ref: int | None = None
+) -> bytes:
     flags = rng.choice([0, 0, int(Flag.ACKREQ), int(Flag.RETX), rng.randrange(1 << 16)])
     out = Out(ftype, payload, ref=rng.randrange(4) if ref is None else ref, flags=flags)  # type: ignore[arg-type]
     data = ch.encode(out)
@@ -92,8 +93,14 @@ def _pair(ordered: bool) -> tuple[Channel, Channel]:
     return c, s
 
 
-def _handshake_frames(rng: random.Random, ordered: bool, machine: Any, mine: Channel,
-                      theirs: Channel, first: FrameType) -> None:
+def _handshake_frames(
+    rng: random.Random,
+    ordered: bool,
+    machine: Any,
+    mine: Channel,
+    theirs: Channel,
+    first: FrameType,
+) -> None:
     """Feed a handshake machine 1-3 mutated frames (the first mostly of type ``first``)."""
     machine.start(0.0)
     for i in range(rng.randrange(1, 4)):
@@ -123,11 +130,15 @@ def _receiver(rng: random.Random, ordered: bool) -> None:
     rx = Receiver(OFFER, ref=1)
     rx.accept(0.0)
     for i in range(rng.randrange(1, 6)):
-        t = rng.choice([FrameType.DATA, FrameType.DATA, FrameType.DONE, FrameType.OFFER]) \
-            if rng.random() < 0.6 else frame_types(rng)
+        t = (
+            rng.choice([FrameType.DATA, FrameType.DATA, FrameType.DONE, FrameType.OFFER])
+            if rng.random() < 0.6
+            else frame_types(rng)
+        )
         ref = rng.choice([0, 1, 2, 3, 1 << 31]) if t == FrameType.DATA else rng.choice([1, 1, 2])
-        payload = bytes(rng.choice([16, 16, 8, 0, 17])) if t == FrameType.DATA \
-            else mutate_payload(t, rng)
+        payload = (
+            bytes(rng.choice([16, 16, 8, 0, 17])) if t == FrameType.DATA else mutate_payload(t, rng)
+        )
         for ev in _events(s, _encode(c, t, payload, rng, ref), ordered):
             _look(ev)
             rx.handle(ev, float(i))
@@ -140,8 +151,11 @@ def _sender(rng: random.Random, ordered: bool) -> None:
     tx = Sender(OFFER, lambda i: bytes(OFFER.chunk_len(i)), ref=1, window=2)
     tx.start(0.0)
     for i in range(rng.randrange(1, 6)):
-        t = rng.choice([FrameType.ACCEPT, FrameType.ACK, FrameType.VERIFIED, FrameType.REJECT]) \
-            if rng.random() < 0.7 else frame_types(rng)
+        t = (
+            rng.choice([FrameType.ACCEPT, FrameType.ACK, FrameType.VERIFIED, FrameType.REJECT])
+            if rng.random() < 0.7
+            else frame_types(rng)
+        )
         for ev in _events(c, _encode(s, t, mutate_payload(t, rng), rng, 1), ordered):
             _look(ev)
             tx.handle(ev, float(i))
@@ -150,10 +164,14 @@ def _sender(rng: random.Random, ordered: bool) -> None:
 
 def _request(rng: random.Random, ordered: bool) -> None:
     c, s = _pair(ordered)
-    kind, answers = rng.choice([(FrameType.LIST, [FrameType.LISTING]),
-                                (FrameType.GET, [FrameType.OFFER, FrameType.NOT_MODIFIED]),
-                                (FrameType.LOAD, [FrameType.LOADED]),
-                                (FrameType.PING, [FrameType.PONG])])
+    kind, answers = rng.choice(
+        [
+            (FrameType.LIST, [FrameType.LISTING]),
+            (FrameType.GET, [FrameType.OFFER, FrameType.NOT_MODIFIED]),
+            (FrameType.LOAD, [FrameType.LOADED]),
+            (FrameType.PING, [FrameType.PONG]),
+        ]
+    )
     req = Request(kind, HONEST.get(kind, {}), ref=1, answers=answers)
     req.start(0.0)
     for i in range(rng.randrange(1, 4)):
@@ -166,7 +184,12 @@ def _request(rng: random.Random, ordered: bool) -> None:
 
 
 TARGETS: list[Callable[[random.Random, bool], None]] = [
-    _server_handshake, _client_handshake, _receiver, _sender, _request]
+    _server_handshake,
+    _client_handshake,
+    _receiver,
+    _sender,
+    _request,
+]
 
 
 def test_fuzzed_frames_raise_nothing_but_mapkit_errors_in_the_core() -> None:
@@ -183,8 +206,10 @@ def test_fuzzed_frames_raise_nothing_but_mapkit_errors_in_the_core() -> None:
         except MapkitError:
             pass
         except BaseException as err:
-            raise AssertionError(f"{target.__name__} (seed {seed}, ordered={ordered}) raised "
-                                 f"{type(err).__name__}: {err}") from err
+            raise AssertionError(
+                f"{target.__name__} (seed {seed}, ordered={ordered}) raised "
+                f"{type(err).__name__}: {err}"
+            ) from err
         runs[target.__name__] += 1
         i += 1
     assert all(runs.values()), runs
@@ -229,8 +254,9 @@ def _drain(sock: socket.socket, seconds: float) -> None:
 
 @pytest.mark.network
 def test_fuzzed_frames_never_end_a_real_server(tmp_path, robot_dir, secret_file) -> None:
-    srv = ServeProcess(robot_dir, secret_file, "--handshake-timeout", "2",
-                       log_path=tmp_path / "serve.log")
+    srv = ServeProcess(
+        robot_dir, secret_file, "--handshake-timeout", "2", log_path=tmp_path / "serve.log"
+    )
     try:
         rng = random.Random(SEED)
         end = time.monotonic() + SECONDS

@@ -10,8 +10,7 @@ import zlib
 from dataclasses import dataclass, field
 
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
+from hypothesis import given, settings, strategies as st
 
 from mapkit.errors import TransferError
 from mapkit.transfer.protocol import (
@@ -47,13 +46,19 @@ from mapkit.transfer.protocol import (
 SECRET = b"0123456789abcdef-test-secret"
 
 
-# -- frames -----------------------------------------------------------------------------------------
+# -- frames ----------------------------------------------------------------------------------------
 
 
-@given(st.binary(max_size=3000), st.integers(0, 2**32 - 1), st.sampled_from(list(FrameType)),
-       st.booleans(), st.sampled_from(AUTH_METHODS))
-def test_frame_round_trip(payload: bytes, ref: int, ftype: FrameType, keyed: bool,
-                          auth: str) -> None:
+@given(
+    st.binary(max_size=3000),
+    st.integers(0, 2**32 - 1),
+    st.sampled_from(list(FrameType)),
+    st.booleans(),
+    st.sampled_from(AUTH_METHODS),
+)
+def test_frame_round_trip(
+    payload: bytes, ref: int, ftype: FrameType, keyed: bool, auth: str
+) -> None:
     tx, rx = Channel(initiator=True, session=0xABCDEF), Channel(initiator=False)
     if keyed:
         tx.install_keys(b"k" * 32, b"s" * 32, auth)
@@ -67,8 +72,11 @@ def test_frame_round_trip(payload: bytes, ref: int, ftype: FrameType, keyed: boo
     assert rx.next_event() is None
 
 
-@given(st.one_of(st.binary(min_size=1, max_size=600), st.binary(min_size=4096, max_size=5000)),
-       st.sampled_from(AUTH_METHODS), st.data())
+@given(
+    st.one_of(st.binary(min_size=1, max_size=600), st.binary(min_size=4096, max_size=5000)),
+    st.sampled_from(AUTH_METHODS),
+    st.data(),
+)
 def test_any_single_bit_flip_is_detected(payload: bytes, auth: str, data: st.DataObject) -> None:
     # small payloads: CRC first; from 4 KiB: the tag first, the CRC only when the tag fails
     tx, rx = Channel(initiator=True, session=5), Channel(initiator=False, ordered=True)
@@ -91,15 +99,17 @@ def test_stream_resyncs_after_garbage_and_split_reads() -> None:
     wire = b"junk" + frames[0] + b"MKT1garbage" + b"".join(frames[1:])
     got = []
     for i in range(0, len(wire), 7):
-        rx.receive_data(wire[i:i + 7])
+        rx.receive_data(wire[i : i + 7])
         while (ev := rx.next_event()) is not None:
             got.append(ev)
     assert [f.ref for f in got] == [1, 2, 3, 4, 5]
     assert rx.stats["garbage"] == len(b"junk") + len(b"MKT1garbage")
 
 
-@given(st.lists(st.tuples(st.binary(max_size=300), st.binary(max_size=20)), min_size=1, max_size=8),
-       st.lists(st.integers(1, 200), min_size=1, max_size=10))
+@given(
+    st.lists(st.tuples(st.binary(max_size=300), st.binary(max_size=20)), min_size=1, max_size=8),
+    st.lists(st.integers(1, 200), min_size=1, max_size=10),
+)
 def test_stream_decoder_any_split_any_garbage(frames, splits) -> None:
     tx, rx = Channel(initiator=True, session=3), Channel(initiator=False)
     tx.install_keys(b"k" * 32, b"s" * 32)
@@ -110,7 +120,7 @@ def test_stream_decoder_any_split_any_garbage(frames, splits) -> None:
     got, pos, k = [], 0, 0
     while pos < len(wire):
         step = splits[k % len(splits)]
-        rx.receive_data(wire[pos:pos + step])
+        rx.receive_data(wire[pos : pos + step])
         pos, k = pos + step, k + 1
         while (ev := rx.next_event()) is not None:
             got.append(ev)
@@ -118,10 +128,12 @@ def test_stream_decoder_any_split_any_garbage(frames, splits) -> None:
     assert rx.stats["garbage"] == sum(len(j) for _, j in frames)
 
 
-@given(st.lists(st.tuples(st.binary(max_size=2000), st.binary(max_size=20)), min_size=1,
-                max_size=6),
-       st.lists(st.integers(1, 3000), min_size=1, max_size=10), st.integers(1, 500),
-       st.sampled_from([None, *AUTH_METHODS]))
+@given(
+    st.lists(st.tuples(st.binary(max_size=2000), st.binary(max_size=20)), min_size=1, max_size=6),
+    st.lists(st.integers(1, 3000), min_size=1, max_size=10),
+    st.integers(1, 500),
+    st.sampled_from([None, *AUTH_METHODS]),
+)
 def test_payloads_received_in_place_any_split(frames, reads, threshold, auth) -> None:
     """Large payloads go straight into their own buffer (receive_into), whatever the reads."""
     tx = Channel(initiator=True, session=3)
@@ -136,7 +148,7 @@ def test_payloads_received_in_place_any_split(frames, reads, threshold, auth) ->
 
     def recv(view: memoryview) -> int:
         n = min(len(view), reads[k % len(reads)], len(wire) - pos)
-        view[:n] = wire[pos:pos + n]
+        view[:n] = wire[pos : pos + n]
         return n
 
     while pos < len(wire):
@@ -161,7 +173,7 @@ def test_damaged_large_payload_received_in_place_is_reported() -> None:
     pos = 0
     events = []
     while pos < len(wire):
-        piece = wire[pos:pos + 700]
+        piece = wire[pos : pos + 700]
         pos += rx.receive_into(lambda v, piece=piece: _fill(v, piece), 1024)
         while (ev := rx.next_event()) is not None:
             events.append(ev)
@@ -176,10 +188,16 @@ def _fill(view: memoryview, data: bytes) -> int:
     return n
 
 
-@given(st.binary(max_size=3000), st.sampled_from([None, *AUTH_METHODS]),
-       st.sampled_from([None, *AUTH_METHODS]), st.booleans(), st.integers(1, 2**32 - 1))
-def test_prepared_payloads_encode_exactly_like_plain_ones(payload, prep_auth, auth, same_key,
-                                                         seq) -> None:
+@given(
+    st.binary(max_size=3000),
+    st.sampled_from([None, *AUTH_METHODS]),
+    st.sampled_from([None, *AUTH_METHODS]),
+    st.booleans(),
+    st.integers(1, 2**32 - 1),
+)
+def test_prepared_payloads_encode_exactly_like_plain_ones(
+    payload, prep_auth, auth, same_key, seq
+) -> None:
     """Whatever was prepared (or for whichever key and algorithm), the frame is the same."""
     key = b"k" * 32 if auth else None
     p = prepare_payload(payload, b"k" * 32 if same_key else b"x" * 32, prep_auth or "none")
@@ -202,8 +220,9 @@ def test_spec_test_vectors_match_the_code_and_an_independent_tag() -> None:
     assert [r[0] for r in rows] == ["blake2b", "hmac-sha256"]
     key, payload = bytes(range(32)), b"MKT1 test"
     for auth, head_hex, tag_hex in rows:
-        head, body, tag = encode_frame(FrameType.DATA, payload, session=0x0102030405060708, seq=1,
-                                       key=key, auth=auth)
+        head, body, tag = encode_frame(
+            FrameType.DATA, payload, session=0x0102030405060708, seq=1, key=key, auth=auth
+        )
         assert (head.hex(), bytes(body), tag.hex()) == (head_hex, payload, tag_hex)
         if auth == "blake2b":
             mine = hashlib.blake2b(payload + head[:28], digest_size=16, key=key).digest()
@@ -335,7 +354,10 @@ class Link:
         if self.sent < len(self.faults):
             action, arg = self.faults[self.sent]
         elif self.rng.random() < self.rate:
-            action, arg = self.rng.choice(["drop", "flip", "dup", "late"]), self.rng.randrange(1 << 30)
+            action, arg = (
+                self.rng.choice(["drop", "flip", "dup", "late"]),
+                self.rng.randrange(1 << 30),
+            )
         else:
             action, arg = "ok", 0
         self.sent += 1
@@ -357,13 +379,22 @@ class Link:
         q.append(msg)
 
 
-faults_st = st.lists(st.tuples(st.sampled_from(["ok", "drop", "flip", "dup", "late"]),
-                               st.integers(0, 1 << 30)), max_size=40)
+faults_st = st.lists(
+    st.tuples(st.sampled_from(["ok", "drop", "flip", "dup", "late"]), st.integers(0, 1 << 30)),
+    max_size=40,
+)
 
 
-def run_push(data: bytes, chunk_size: int, link: Link, *, secret: bytes | None, window: int = 4,
-             have: bytearray | None = None, auth: tuple[str, ...] = AUTH_METHODS,
-             ) -> tuple[Sender, Receiver | None, bytes, list[Exception]]:
+def run_push(
+    data: bytes,
+    chunk_size: int,
+    link: Link,
+    *,
+    secret: bytes | None,
+    window: int = 4,
+    have: bytearray | None = None,
+    auth: tuple[str, ...] = AUTH_METHODS,
+) -> tuple[Sender, Receiver | None, bytes, list[Exception]]:
     """Handshake + push over ``link`` in simulated time. Returns the machines and the bytes."""
     session = 0x1234
     cch = Channel(initiator=True, session=session, ordered=link.ordered)
@@ -371,13 +402,22 @@ def run_push(data: bytes, chunk_size: int, link: Link, *, secret: bytes | None, 
     chs = ClientHandshake(cch, secret, rto=1.0, max_tries=8, idle_timeout=60, auth_methods=auth)
     shs = ServerHandshake(sch, secret, insecure=secret is None, idle_timeout=60)
     offer = Offer.for_bytes("f.map", data, chunk_size=chunk_size)
-    tx = Sender(offer, lambda i: data[i * chunk_size:(i + 1) * chunk_size], ref=1, window=window,
-                rto=1.0, max_tries=10, idle_timeout=60)
+    tx = Sender(
+        offer,
+        lambda i: data[i * chunk_size : (i + 1) * chunk_size],
+        ref=1,
+        window=window,
+        rto=1.0,
+        max_tries=10,
+        idle_timeout=60,
+    )
     rx: Receiver | None = None
     store = bytearray(len(data))
     for i in range(len(have or ())):
         if have[i]:  # the chunks a resumed receiver already holds
-            store[i * chunk_size:(i + 1) * chunk_size] = data[i * chunk_size:(i + 1) * chunk_size]
+            store[i * chunk_size : (i + 1) * chunk_size] = data[
+                i * chunk_size : (i + 1) * chunk_size
+            ]
     errors: list[Exception] = []
     now = 0.0
     client = [chs, tx]  # machines in turn
@@ -433,16 +473,17 @@ def run_push(data: bytes, chunk_size: int, link: Link, *, secret: bytes | None, 
                             s_send(shs.resend(ev))
                             continue
                         if rx is None and isinstance(ev, Frame) and ev.type == FrameType.OFFER:
-                            rx = Receiver(Offer.from_json(ev.json()), ref=ev.ref, have=have,
-                                          window=window)
+                            rx = Receiver(
+                                Offer.from_json(ev.json()), ref=ev.ref, have=have, window=window
+                            )
                             s_send(rx.accept(now))
                         elif rx is not None:
                             s_send(rx.handle(ev, now))
                         if rx is not None:
                             for e in rx.pop_events():
                                 if isinstance(e, ChunkReceived):
-                                    assert data[e.offset:e.offset + len(e.data)] == e.data
-                                    store[e.offset:e.offset + len(e.data)] = e.data
+                                    assert data[e.offset : e.offset + len(e.data)] == e.data
+                                    store[e.offset : e.offset + len(e.data)] = e.data
                                 elif isinstance(e, TransferComplete):
                                     got = hashlib.sha256(store).hexdigest()
                                     assert got == e.offer.sha256  # the core never assembles wrong
@@ -454,7 +495,9 @@ def run_push(data: bytes, chunk_size: int, link: Link, *, secret: bytes | None, 
                 errors.append(err)
                 return tx, rx, bytes(store), errors
         if not moved:
-            deadlines = [d for d in (cur.deadline(), rx.deadline() if rx else None) if d is not None]
+            deadlines = [
+                d for d in (cur.deadline(), rx.deadline() if rx else None) if d is not None
+            ]
             if not deadlines:
                 break
             now = max(now, min(deadlines))
@@ -469,16 +512,36 @@ def run_push(data: bytes, chunk_size: int, link: Link, *, secret: bytes | None, 
 
 
 @settings(max_examples=80)
-@given(data=st.binary(max_size=5000), chunk_size=st.integers(1, 700), faults=faults_st,
-       rate=st.sampled_from([0.0, 0.05, 0.2]), seed=st.integers(0, 1000), ordered=st.booleans(),
-       auth=st.sampled_from([None, *AUTH_METHODS]), window=st.integers(1, 8))
+@given(
+    data=st.binary(max_size=5000),
+    chunk_size=st.integers(1, 700),
+    faults=faults_st,
+    rate=st.sampled_from([0.0, 0.05, 0.2]),
+    seed=st.integers(0, 1000),
+    ordered=st.booleans(),
+    auth=st.sampled_from([None, *AUTH_METHODS]),
+    window=st.integers(1, 8),
+)
 def test_push_over_a_hostile_link_delivers_exactly_or_fails_cleanly(
-        data: bytes, chunk_size: int, faults: list[tuple[str, int]], rate: float, seed: int,
-        ordered: bool, auth: str | None, window: int) -> None:
+    data: bytes,
+    chunk_size: int,
+    faults: list[tuple[str, int]],
+    rate: float,
+    seed: int,
+    ordered: bool,
+    auth: str | None,
+    window: int,
+) -> None:
     chunk_size = max(chunk_size, len(data) // 200 + 1)  # keep the number of chunks bounded
     link = Link(faults, rate, seed, ordered)
-    tx, rx, got, errors = run_push(data, chunk_size, link, secret=SECRET if auth else None,
-                                   window=window, auth=(auth,) if auth else AUTH_METHODS)
+    tx, rx, got, errors = run_push(
+        data,
+        chunk_size,
+        link,
+        secret=SECRET if auth else None,
+        window=window,
+        auth=(auth,) if auth else AUTH_METHODS,
+    )
     if tx.finished and tx.error is None:
         assert rx is not None and rx.finished and rx.error is None
         assert got == data
@@ -491,19 +554,27 @@ def test_push_over_a_hostile_link_delivers_exactly_or_fails_cleanly(
             assert got == data
 
 
-@given(data=st.binary(min_size=1, max_size=4000), chunk_size=st.integers(1, 300), seed=st.integers(0, 99))
+@given(
+    data=st.binary(min_size=1, max_size=4000),
+    chunk_size=st.integers(1, 300),
+    seed=st.integers(0, 99),
+)
 def test_resume_sends_only_missing_chunks(data: bytes, chunk_size: int, seed: int) -> None:
     offer = Offer.for_bytes("f.2d", data, chunk_size=chunk_size)
     rng = random.Random(seed)
     have = bytearray(rng.random() < 0.5 for _ in range(offer.chunks))
-    tx, _, got, errors = run_push(data, chunk_size, Link([], 0.0, seed, True), secret=SECRET,
-                                   have=have)
+    tx, _, got, errors = run_push(
+        data, chunk_size, Link([], 0.0, seed, True), secret=SECRET, have=have
+    )
     assert not errors and tx.error is None
     # the receiver's store only got the chunks it lacked; they are exactly right
     assert tx.sent_indices == {i for i in range(offer.chunks) if not have[i]}
     assert tx.chunks_skipped == sum(have)
     for i in tx.sent_indices:
-        assert got[i * chunk_size:(i + 1) * chunk_size] == data[i * chunk_size:(i + 1) * chunk_size]
+        assert (
+            got[i * chunk_size : (i + 1) * chunk_size]
+            == data[i * chunk_size : (i + 1) * chunk_size]
+        )
 
 
 def test_wrong_secret_is_refused_with_a_reason() -> None:
@@ -517,10 +588,13 @@ def test_wrong_secret_is_refused_with_a_reason() -> None:
         sch.next_event()
 
 
-@pytest.mark.parametrize(("client_secret", "server_secret", "insecure", "match"), [
-    (None, SECRET, False, "auth_required: this server requires authentication"),
-    (SECRET, None, True, "auth_required: this server has no shared secret"),
-])
+@pytest.mark.parametrize(
+    ("client_secret", "server_secret", "insecure", "match"),
+    [
+        (None, SECRET, False, "auth_required: this server requires authentication"),
+        (SECRET, None, True, "auth_required: this server has no shared secret"),
+    ],
+)
 def test_auth_mode_mismatch(client_secret, server_secret, insecure, match) -> None:
     cch, sch = Channel(initiator=True, session=1), Channel(initiator=False)
     chs = ClientHandshake(cch, client_secret)
@@ -532,8 +606,9 @@ def test_auth_mode_mismatch(client_secret, server_secret, insecure, match) -> No
     assert match in str(chs.error)
 
 
-def _handshake(client: ClientHandshake, server: ServerHandshake, cch: Channel, sch: Channel,
-               tamper=None) -> None:
+def _handshake(
+    client: ClientHandshake, server: ServerHandshake, cch: Channel, sch: Channel, tamper=None
+) -> None:
     """Run a handshake to its end; ``tamper`` may rewrite the HELLO (a man in the middle)."""
     hello = b"".join(cch.encode(o) for o in client.start(0))
     sch.receive_data(tamper(hello) if tamper else hello)
@@ -545,12 +620,15 @@ def _handshake(client: ClientHandshake, server: ServerHandshake, cch: Channel, s
         sch.receive_data(b"".join(cch.encode(o) for o in out))
 
 
-@pytest.mark.parametrize(("offered", "accepted", "chosen"), [
-    (AUTH_METHODS, AUTH_METHODS, "blake2b"),
-    (("hmac-sha256", "blake2b"), AUTH_METHODS, "hmac-sha256"),  # the client's preference wins
-    (AUTH_METHODS, ("hmac-sha256",), "hmac-sha256"),
-    (("blake2b",), ("blake2b",), "blake2b"),
-])
+@pytest.mark.parametrize(
+    ("offered", "accepted", "chosen"),
+    [
+        (AUTH_METHODS, AUTH_METHODS, "blake2b"),
+        (("hmac-sha256", "blake2b"), AUTH_METHODS, "hmac-sha256"),  # the client's preference wins
+        (AUTH_METHODS, ("hmac-sha256",), "hmac-sha256"),
+        (("blake2b",), ("blake2b",), "blake2b"),
+    ],
+)
 def test_tag_algorithm_is_negotiated(offered, accepted, chosen) -> None:
     cch, sch = Channel(initiator=True, session=1), Channel(initiator=False)
     chs = ClientHandshake(cch, SECRET, auth_methods=offered)
@@ -570,16 +648,22 @@ def test_no_common_tag_algorithm_is_refused() -> None:
     shs = ServerHandshake(sch, SECRET, auth_methods=("hmac-sha256",))
     _handshake(chs, shs, cch, sch)
     assert isinstance(chs.error, Rejected) and chs.error.status == Status.AUTH_REQUIRED
-    assert ("no common auth method: the client offers ['blake2b'], this server accepts "
-            "['hmac-sha256']") in str(chs.error)
+    assert (
+        "no common auth method: the client offers ['blake2b'], this server accepts ['hmac-sha256']"
+    ) in str(chs.error)
 
 
 def test_a_single_string_auth_is_still_understood() -> None:
     """A HELLO with ``"auth": "hmac-sha256"`` (the first MKT/1 clients) gets HMAC-SHA256."""
     sch = Channel(initiator=False)
     shs = ServerHandshake(sch, SECRET)
-    hello = {"versions": [1], "nonce": "00" * 32, "auth": "hmac-sha256", "peer": "old",
-             "software": "x"}
+    hello = {
+        "versions": [1],
+        "nonce": "00" * 32,
+        "auth": "hmac-sha256",
+        "peer": "old",
+        "software": "x",
+    }
     old_client = Channel(initiator=True, session=4)
     sch.receive_data(old_client.encode(Out(FrameType.HELLO, dump_json(hello))))
     (ack,) = shs.handle(sch.next_event(), 0)
@@ -640,8 +724,12 @@ def test_receiver_protocol_violations() -> None:
 def test_offer_checks() -> None:
     good = Offer.for_bytes("x.map", b"2D-Map\n").json()
     assert Offer.from_json(good).md5 == hashlib.md5(b"2D-Map\n").hexdigest()
-    for key, value, match in [("size", -1, "not a byte count"), ("chunk_size", 0, "outside"),
-                              ("sha256", "zz", "sha256 must be 32 bytes"),
-                              ("chunks", 5, "says 5 chunks"), ("name", None, "no name")]:
+    for key, value, match in [
+        ("size", -1, "not a byte count"),
+        ("chunk_size", 0, "outside"),
+        ("sha256", "zz", "sha256 must be 32 bytes"),
+        ("chunks", 5, "says 5 chunks"),
+        ("name", None, "no name"),
+    ]:
         with pytest.raises(ProtocolError, match=match):
             Offer.from_json({**good, key: value})

@@ -29,7 +29,7 @@ def test_chunks_in_any_order_are_hashed_and_published(tmp_path, seed) -> None:
     pf.start_writer(min_size=0)
     assert len(pf._threads) == 3  # write, hash, checkpoint
     for i in order:
-        pf.write(i, data[i * cs:(i + 1) * cs])
+        pf.write(i, data[i * cs : (i + 1) * cs])
     info = pf.finalize()
     assert info["sha256"] == hashlib.sha256(data).hexdigest()
     assert (tmp_path / "f.2d").read_bytes() == data
@@ -83,7 +83,7 @@ def test_journal_never_claims_a_chunk_written_after_its_fsync(tmp_path, monkeypa
     pf = PartialFile.open(str(tmp_path), "j.2d", offer, checkpoint_interval=0.005)
     pf.start_writer(min_size=0)
     for i in range(offer.chunks - 1):  # all but the last: the transfer is then cut
-        pf.write(i, data[i * cs:(i + 1) * cs])
+        pf.write(i, data[i * cs : (i + 1) * cs])
     pf.close(keep=True)
     assert len(claims) >= 3  # checkpoints ran while chunks were arriving, and one at the end
     for claimed, durable in claims:

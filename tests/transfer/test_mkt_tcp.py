@@ -14,6 +14,7 @@ from concurrent.futures import ThreadPoolExecutor
 import pytest
 from mkt_helpers import client_options, listing, make_map, wait_idle
 
+import mapkit.transfer.reading as reading_mod
 import mapkit.transfer.store as store_mod
 from mapkit.errors import LocalTransferError, TransferError
 from mapkit.transfer import (
@@ -50,7 +51,9 @@ def test_push_and_pull_are_byte_identical(tmp_path, robot_dir, make_server, size
     assert r["sha256"] == sha(data) and r["chunks_sent"] == -(-size // 4096)
     assert r["verified"]["sha256"] == sha(data)
     out = tmp_path / "back.2d"
-    f = fetch_file(*srv.address[:1], "log.2d", out, port=srv.address[1], chunk_size=4096, **client_options())
+    f = fetch_file(
+        *srv.address[:1], "log.2d", out, port=srv.address[1], chunk_size=4096, **client_options()
+    )
     assert out.read_bytes() == data and f["modified"] is True
     assert listing(robot_dir) == ["log.2d"]  # no temp files, no journal left behind
 
@@ -63,7 +66,9 @@ def test_real_sample_map_push_load_fetch(tmp_path, real_sample, robot_dir, make_
     assert r["loaded"]["name"] == real_sample.name
     assert (robot_dir / "active.map").read_bytes() == real_sample.read_bytes()
     maps = list_maps(host, port, **client_options())["maps"]
-    assert [(m["name"], m["active"], m["md5"]) for m in maps] == [(real_sample.name, True, r["md5"])]
+    assert [(m["name"], m["active"], m["md5"]) for m in maps] == [
+        (real_sample.name, True, r["md5"])
+    ]
     out = tmp_path / "copy.map"
     fetch_file(host, "active.map", out, port=port, **client_options())
     assert out.read_bytes() == real_sample.read_bytes()
@@ -89,16 +94,17 @@ def test_one_session_many_requests(tmp_path, robot_dir, make_server) -> None:
     assert (robot_dir / "previous.map").read_bytes() == b.read_bytes()
 
 
-# -- cut connections and resume ---------------------------------------------------------------------
+# -- cut connections and resume --------------------------------------------------------------------
 
 
 @pytest.mark.parametrize("threads", [False, True], ids=["inline", "threads"])
 def test_push_cut_at_many_points_resumes_and_resends_only_missing(
-        tmp_path, robot_dir, make_server, proxy, monkeypatch, threads) -> None:
+    tmp_path, robot_dir, make_server, proxy, monkeypatch, threads
+) -> None:
     if threads:  # the robot writes, hashes and checkpoints in background threads even for this
         # file, and the terminal prepares each chunk's CRC and tag in a background pass
         monkeypatch.setattr(store_mod, "THREADS_FROM", 0)
-        monkeypatch.setattr(store_mod, "PREPARE_FROM", 0)
+        monkeypatch.setattr(reading_mod, "PREPARE_FROM", 0)
     chunk, n = 16 * 1024, 40
     data = os.urandom(chunk * n - 123)
     src = tmp_path / "big.2d"
@@ -128,14 +134,17 @@ def test_push_cut_at_many_points_resumes_and_resends_only_missing(
     assert r["chunks_skipped"] == held_before
     assert r["chunks_distinct"] == n - held_before  # no chunk the robot held crossed again
     # everything that crossed: the file once, plus at most what was in flight at each cut
-    assert crossed <= len(data) + len(cuts) * (4 + 1) * (chunk + 100) + (r["chunks_resent"] + 2) * chunk
+    assert (
+        crossed
+        <= len(data) + len(cuts) * (4 + 1) * (chunk + 100) + (r["chunks_resent"] + 2) * chunk
+    )
     assert listing(robot_dir) == ["big.2d"]
 
 
 @pytest.mark.parametrize("ahead", [False, True], ids=["plain", "prepared"])
 def test_pull_cut_then_resumed(tmp_path, robot_dir, make_server, proxy, monkeypatch, ahead) -> None:
     if ahead:  # the robot prepares CRCs and tags in a background pass (PreparedReader)
-        monkeypatch.setattr(store_mod, "PREPARE_FROM", 0)
+        monkeypatch.setattr(reading_mod, "PREPARE_FROM", 0)
     chunk, n = 8 * 1024, 30
     data = make_map(20_000)[: chunk * n]
     data = data[: data.rfind(b"\n") + 1]
@@ -145,21 +154,31 @@ def test_pull_cut_then_resumed(tmp_path, robot_dir, make_server, proxy, monkeypa
     for cut in (40_000, 120_000):
         p = proxy(srv.address, cut_s2c=cut)
         with pytest.raises(TransferError):
-            fetch_file(*p.address[:1], "site.map", out, port=p.address[1], chunk_size=chunk, window=2,
-                       **client_options())
+            fetch_file(
+                *p.address[:1],
+                "site.map",
+                out,
+                port=p.address[1],
+                chunk_size=chunk,
+                window=2,
+                **client_options(),
+            )
         assert not out.exists()
-    r = fetch_file(srv.address[0], "site.map", out, port=srv.address[1], chunk_size=chunk,
-                   **client_options())
+    r = fetch_file(
+        srv.address[0], "site.map", out, port=srv.address[1], chunk_size=chunk, **client_options()
+    )
     assert out.read_bytes() == data
     assert r["chunks_resumed"] > 0 and r["chunks_received"] + r["chunks_resumed"] == r["chunks"]
     assert sorted(os.listdir(tmp_path)) == ["robot", "site.map"]
 
 
-# -- bit flips ---------------------------------------------------------------------------------------------
+# -- bit flips -------------------------------------------------------------------------------------
 
 
 @pytest.mark.parametrize("direction", ["c2s", "s2c"])
-def test_bit_flips_are_detected_and_repaired(tmp_path, robot_dir, make_server, proxy, direction) -> None:
+def test_bit_flips_are_detected_and_repaired(
+    tmp_path, robot_dir, make_server, proxy, direction
+) -> None:
     chunk = 8192
     data = os.urandom(chunk * 12)
     src = tmp_path / "f.2d"
@@ -198,8 +217,9 @@ def test_tag_algorithm_is_negotiated_over_tcp(tmp_path, robot_dir, make_server) 
     assert listing(robot_dir) == ["a.2d", "b.2d"]
 
 
-def test_sender_reuses_digests_and_recovers_from_a_stale_one(tmp_path, robot_dir, make_server,
-                                                             monkeypatch) -> None:
+def test_sender_reuses_digests_and_recovers_from_a_stale_one(
+    tmp_path, robot_dir, make_server, monkeypatch
+) -> None:
     import mapkit.transfer.client as client_mod
 
     monkeypatch.setattr(client_mod, "_DIGESTS", {})
@@ -230,14 +250,16 @@ def test_sender_reuses_digests_and_recovers_from_a_stale_one(tmp_path, robot_dir
     assert (robot_dir / "f.2d").read_bytes() == data[::-1]
 
 
-# -- refusals -----------------------------------------------------------------------------------------------
+# -- refusals --------------------------------------------------------------------------------------
 
 
 def test_wrong_secret_and_no_secret_are_refused(tmp_path, robot_dir, make_server) -> None:
     src = tmp_path / "a.map"
     src.write_bytes(make_map(10))
     srv = make_server()
-    with pytest.raises(Rejected, match=r"auth_failed: the client's proof does not match|wrong tag") as e:
+    with pytest.raises(
+        Rejected, match=r"auth_failed: the client's proof does not match|wrong tag"
+    ) as e:
         send_file(src, *srv.address, **client_options(secret=b"another-secret-0123456789"))
     assert e.value.status == Status.AUTH_FAILED
     with pytest.raises(Rejected, match=r"auth_required: this server requires authentication"):
@@ -247,7 +269,9 @@ def test_wrong_secret_and_no_secret_are_refused(tmp_path, robot_dir, make_server
     assert listing(robot_dir) == []
 
 
-def test_insecure_server_refuses_secret_clients_and_vice_versa(tmp_path, robot_dir, make_server) -> None:
+def test_insecure_server_refuses_secret_clients_and_vice_versa(
+    tmp_path, robot_dir, make_server
+) -> None:
     src = tmp_path / "a.map"
     src.write_bytes(make_map(10))
     srv = make_server(secret=None, insecure=True)
@@ -271,7 +295,7 @@ def test_replayed_session_is_refused(tmp_path, robot_dir, make_server, proxy) ->
         s.sendall(recorded)  # a captured session, replayed verbatim
         s.settimeout(5)
         answer = b""
-        while (chunk := s.recv(65536)):
+        while chunk := s.recv(65536):
             answer += chunk
     assert b'"reason":"auth_failed"' in answer
     assert listing(robot_dir) == []
@@ -291,17 +315,20 @@ def test_replayed_frame_inside_a_session_is_refused(tmp_path, robot_dir, make_se
     c.link.close()
 
 
-@pytest.mark.parametrize(("name", "match"), [
-    ("../escape.map", "no folders allowed"),
-    ("/etc/passwd.map", "no folders allowed"),
-    ("a\\b.map", "no folders allowed"),
-    ("..map", "'..' is not allowed"),
-    (".hidden.map", "must not start with '.'"),
-    ("bell\x07.map", "control characters"),
-    ("x.exe", "only .map, .2d files"),
-    ("active.map", "reserved for the active map"),
-    ("nul.map", "a device name"),
-])
+@pytest.mark.parametrize(
+    ("name", "match"),
+    [
+        ("../escape.map", "no folders allowed"),
+        ("/etc/passwd.map", "no folders allowed"),
+        ("a\\b.map", "no folders allowed"),
+        ("..map", "'..' is not allowed"),
+        (".hidden.map", "must not start with '.'"),
+        ("bell\x07.map", "control characters"),
+        ("x.exe", "only .map, .2d files"),
+        ("active.map", "reserved for the active map"),
+        ("nul.map", "a device name"),
+    ],
+)
 def test_bad_names_are_refused(tmp_path, robot_dir, make_server, name, match) -> None:
     src = tmp_path / "ok.map"
     src.write_bytes(make_map(10))
@@ -330,7 +357,9 @@ def test_oversized_offer_is_refused(tmp_path, robot_dir, make_server) -> None:
     src = tmp_path / "big.2d"
     src.write_bytes(os.urandom(50_000))
     srv = make_server(MapFolder(robot_dir, max_size=40_000))
-    with pytest.raises(Rejected, match=r"too_large: big.2d has 50000 bytes, this robot accepts at most 40000"):
+    with pytest.raises(
+        Rejected, match=r"too_large: big.2d has 50000 bytes, this robot accepts at most 40000"
+    ):
         send_file(src, *srv.address, **client_options())
     assert listing(robot_dir) == []
 
@@ -355,19 +384,25 @@ def test_name_being_written_by_another_client_is_refused(tmp_path, robot_dir, ma
     assert not (robot_dir / "big.2d").exists()
 
 
-def test_map_that_does_not_parse_is_refused_and_old_file_stays(tmp_path, robot_dir, make_server) -> None:
+def test_map_that_does_not_parse_is_refused_and_old_file_stays(
+    tmp_path, robot_dir, make_server
+) -> None:
     good = make_map(30)
     (robot_dir / "site.map").write_bytes(good)
     bad = tmp_path / "site.map"
     bad.write_bytes(b"2D-Map\nMinPos: 1 2 3\nDATA\n")
     srv = make_server()
-    with pytest.raises(Rejected, match=r"parse_error: not a valid map: site.map:2: MinPos: expects exactly 2"):
+    with pytest.raises(
+        Rejected, match=r"parse_error: not a valid map: site.map:2: MinPos: expects exactly 2"
+    ):
         send_file(bad, *srv.address, **client_options())
     assert (robot_dir / "site.map").read_bytes() == good
     assert listing(robot_dir) == ["site.map"]
 
 
-def test_load_checks_md5_and_parse_and_keeps_the_active_map(tmp_path, robot_dir, make_server) -> None:
+def test_load_checks_md5_and_parse_and_keeps_the_active_map(
+    tmp_path, robot_dir, make_server
+) -> None:
     srv = make_server()
     host, port = srv.address
     (robot_dir / "good.map").write_bytes(make_map(20))
@@ -376,7 +411,9 @@ def test_load_checks_md5_and_parse_and_keeps_the_active_map(tmp_path, robot_dir,
     active = (robot_dir / "active.map").read_bytes()
     with pytest.raises(Rejected, match=r"md5_mismatch: good.map on the robot has MD5"):
         load_map(host, "good.map", port, md5="0" * 32, **client_options())
-    with pytest.raises(Rejected, match=r"parse_error: not a valid map: broken.map: not an ARIA map"):
+    with pytest.raises(
+        Rejected, match=r"parse_error: not a valid map: broken.map: not an ARIA map"
+    ):
         load_map(host, "broken.map", port, **client_options())
     with pytest.raises(Rejected, match=r"not_found: missing.map: no such map"):
         load_map(host, "missing.map", port, md5="0" * 32, **client_options())
@@ -388,10 +425,17 @@ def test_load_checks_md5_and_parse_and_keeps_the_active_map(tmp_path, robot_dir,
 def test_fetch_missing_and_bad_names(tmp_path, make_server) -> None:
     srv = make_server()
     with pytest.raises(Rejected, match=r"not_found: nope.map: no such map on this robot"):
-        fetch_file(srv.address[0], "nope.map", tmp_path / "x.map", port=srv.address[1], **client_options())
+        fetch_file(
+            srv.address[0], "nope.map", tmp_path / "x.map", port=srv.address[1], **client_options()
+        )
     with pytest.raises(Rejected, match=r"bad_name"):
-        fetch_file(srv.address[0], "../../etc/passwd.map", tmp_path / "x.map", port=srv.address[1],
-                   **client_options())
+        fetch_file(
+            srv.address[0],
+            "../../etc/passwd.map",
+            tmp_path / "x.map",
+            port=srv.address[1],
+            **client_options(),
+        )
     assert not (tmp_path / "x.map").exists()
 
 
@@ -401,7 +445,7 @@ def test_receive_only_server_refuses_pull_list_and_load(tmp_path, robot_dir, mak
         list_maps(*srv.address, **client_options())
 
 
-# -- full disk --------------------------------------------------------------------------------------------
+# -- full disk -------------------------------------------------------------------------------------
 
 
 @pytest.fixture
@@ -409,8 +453,12 @@ def tiny_tmpfs(tmp_path):
     mnt = tmp_path / "tiny"
     mnt.mkdir()
     try:
-        subprocess.run(["mount", "-t", "tmpfs", "-o", "size=256k", "tmpfs", str(mnt)], check=True,
-                       capture_output=True, timeout=10)
+        subprocess.run(
+            ["mount", "-t", "tmpfs", "-o", "size=256k", "tmpfs", str(mnt)],
+            check=True,
+            capture_output=True,
+            timeout=10,
+        )
     except (OSError, subprocess.SubprocessError):
         pytest.skip("cannot mount a tmpfs here (needs root); the fault-injection test covers it")
     yield mnt
@@ -453,7 +501,7 @@ def test_disk_filling_up_during_the_transfer(tmp_path, robot_dir, make_server, m
     assert (robot_dir / "site.map").read_bytes() == old
 
 
-# -- concurrency ----------------------------------------------------------------------------------------------
+# -- concurrency -----------------------------------------------------------------------------------
 
 
 def test_twenty_clients_push_and_pull_at_once(tmp_path, robot_dir, make_server) -> None:
@@ -478,7 +526,7 @@ def test_twenty_clients_push_and_pull_at_once(tmp_path, robot_dir, make_server) 
     assert len(list_maps(host, port, **client_options())["maps"]) == 21
 
 
-# -- TLS ---------------------------------------------------------------------------------------------------------
+# -- TLS -------------------------------------------------------------------------------------------
 
 
 def test_tls_push_and_pull(tmp_path, robot_dir, make_server, cert) -> None:
@@ -486,7 +534,9 @@ def test_tls_push_and_pull(tmp_path, robot_dir, make_server, cert) -> None:
     srv = make_server(tls=server_tls_context(str(crt), str(key)))
     src = tmp_path / "a.map"
     src.write_bytes(make_map(2000))
-    send_file(src, *srv.address, tls=client_tls_context(str(crt)), chunk_size=4096, **client_options())
+    send_file(
+        src, *srv.address, tls=client_tls_context(str(crt)), chunk_size=4096, **client_options()
+    )
     assert (robot_dir / "a.map").read_bytes() == src.read_bytes()
     big = tmp_path / "big.2d"  # 1 MiB frames: payloads read in place through TLS
     big.write_bytes(os.urandom(2_500_000))
@@ -529,18 +579,19 @@ def test_concurrent_threads_do_not_share_sessions(robot_dir, make_server) -> Non
     assert srv.sessions == 40
 
 
-def test_a_pushed_map_is_parsed_once_even_when_loaded(tmp_path, robot_dir, make_server,
-                                                      monkeypatch) -> None:
-    import mapkit.transfer.server as server_mod
+def test_a_pushed_map_is_parsed_once_even_when_loaded(
+    tmp_path, robot_dir, make_server, monkeypatch
+) -> None:
+    import mapkit.transfer.folder as folder_mod  # MapFolder parses the maps
 
     calls: list[str] = []
-    real = server_mod.parse_map
+    real = folder_mod.parse_map
 
     def counting(data, *, source="<string>"):
         calls.append(source)
         return real(data, source=source)
 
-    monkeypatch.setattr(server_mod, "parse_map", counting)
+    monkeypatch.setattr(folder_mod, "parse_map", counting)
     srv = make_server()
     src = tmp_path / "a.map"
     src.write_bytes(make_map(100))
@@ -551,8 +602,9 @@ def test_a_pushed_map_is_parsed_once_even_when_loaded(tmp_path, robot_dir, make_
     assert calls == ["a.map", "b.map"]
 
 
-def test_a_silent_writer_is_taken_over_and_its_partial_file_resumed(tmp_path, robot_dir,
-                                                                    make_server) -> None:
+def test_a_silent_writer_is_taken_over_and_its_partial_file_resumed(
+    tmp_path, robot_dir, make_server
+) -> None:
     """A terminal that lost its link and comes back need not wait for the stale session."""
     import time
 
@@ -566,7 +618,7 @@ def test_a_silent_writer_is_taken_over_and_its_partial_file_resumed(tmp_path, ro
     offer = Offer.for_bytes("big.2d", data, chunk_size=4096)
     stale.link.send([Out(FrameType.OFFER, json.dumps(offer.json()).encode(), ref=1)])
     assert stale.link.receive(5).type == FrameType.ACCEPT
-    stale.link.send([Out(FrameType.DATA, data[i * 4096:(i + 1) * 4096], ref=i) for i in range(5)])
+    stale.link.send([Out(FrameType.DATA, data[i * 4096 : (i + 1) * 4096], ref=i) for i in range(5)])
     other = tmp_path / "other" / "big.2d"
     other.parent.mkdir()
     other.write_bytes(os.urandom(64 * 1024))

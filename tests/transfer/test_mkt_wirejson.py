@@ -7,8 +7,7 @@ import json
 import sys
 
 import pytest
-from hypothesis import given
-from hypothesis import strategies as st
+from hypothesis import given, strategies as st
 
 from mapkit.transfer.protocol import Frame, FrameType, ProtocolError, parse_json
 from mapkit.transfer.wirejson import (
@@ -22,10 +21,18 @@ from mapkit.transfer.wirejson import (
 )
 
 # what protocol payloads are made of: objects of strings, 64-bit integers, finite floats, lists
-_scalars = (st.none() | st.booleans() | st.integers(-(1 << 63), 1 << 64)
-            | st.floats(allow_nan=False, allow_infinity=False) | st.text())
-_values = st.recursive(_scalars, lambda inner: st.lists(inner, max_size=4)
-                       | st.dictionaries(st.text(), inner, max_size=4), max_leaves=20)
+_scalars = (
+    st.none()
+    | st.booleans()
+    | st.integers(-(1 << 63), 1 << 64)
+    | st.floats(allow_nan=False, allow_infinity=False)
+    | st.text()
+)
+_values = st.recursive(
+    _scalars,
+    lambda inner: st.lists(inner, max_size=4) | st.dictionaries(st.text(), inner, max_size=4),
+    max_leaves=20,
+)
 _objects = st.dictionaries(st.text(), _values, max_size=6)
 
 
@@ -62,24 +69,27 @@ def test_depth_is_an_upper_bound_of_what_json_reaches(text) -> None:
         assert deeper_than(data, limit) == (depth(obj) > limit)
 
 
-@pytest.mark.parametrize("payload, why", [
-    (b"[" * 100_000, "nested deeper than 16 levels"),
-    (b'{"a":' * 100_000, "nested deeper than 16 levels"),
-    (b'{"a":' + b"[" * 16 + b"]" * 16 + b"}", "nested deeper than 16 levels"),
-    (b"[]" * 100_000 + b"[", "nested deeper than 16 levels"),
-    (b'{"size":' + b"9" * 50_000 + b"}", "an integer of 50000 digits"),
-    (b'{"size":' + b"9" * 21 + b"}", "an integer of 21 digits"),
-    (b'{"t":1e400}', "out of range"),
-    (b'{"t":-Infinity}', "-Infinity is not a JSON number"),
-    (b'{"t":NaN}', "NaN is not a JSON number"),
-    (b'{"t":0.' + b"1" * 50 + b"}", "a number of 52 characters"),
-    (b'{"name":"\\udc00.map"}', "lone UTF-16 surrogate"),
-    (b'{"\\ud800":1}', "lone UTF-16 surrogate"),
-    (b'\xc3\x28', "not UTF-8 JSON"),
-    (b"[1, 2]", "not a JSON object"),
-    (b'"x"', "not a JSON object"),
-    (b"{" + b" " * (1 << 20) + b"}", "bytes (at most 1048576)"),
-])
+@pytest.mark.parametrize(
+    "payload, why",
+    [
+        (b"[" * 100_000, "nested deeper than 16 levels"),
+        (b'{"a":' * 100_000, "nested deeper than 16 levels"),
+        (b'{"a":' + b"[" * 16 + b"]" * 16 + b"}", "nested deeper than 16 levels"),
+        (b"[]" * 100_000 + b"[", "nested deeper than 16 levels"),
+        (b'{"size":' + b"9" * 50_000 + b"}", "an integer of 50000 digits"),
+        (b'{"size":' + b"9" * 21 + b"}", "an integer of 21 digits"),
+        (b'{"t":1e400}', "out of range"),
+        (b'{"t":-Infinity}', "-Infinity is not a JSON number"),
+        (b'{"t":NaN}', "NaN is not a JSON number"),
+        (b'{"t":0.' + b"1" * 50 + b"}", "a number of 52 characters"),
+        (b'{"name":"\\udc00.map"}', "lone UTF-16 surrogate"),
+        (b'{"\\ud800":1}', "lone UTF-16 surrogate"),
+        (b"\xc3\x28", "not UTF-8 JSON"),
+        (b"[1, 2]", "not a JSON object"),
+        (b'"x"', "not a JSON object"),
+        (b"{" + b" " * (1 << 20) + b"}", "bytes (at most 1048576)"),
+    ],
+)
 def test_hostile_payloads_are_refused(payload, why) -> None:
     with pytest.raises(WireJSONError, match=why.replace("(", r"\(").replace(")", r"\)")):
         decode_object(payload)
@@ -89,7 +99,7 @@ def test_brackets_inside_strings_do_not_count_and_escapes_are_followed() -> None
     assert decode_object(b'{"s":"' + b"[" * 100_000 + b'"}')["s"] == "[" * 100_000
     assert decode_object(b'{"a":' + b"[" * 15 + b"]" * 15 + b"}")  # 16 deep: the limit
     assert json_depth(b'{"s":"\\"[[[[","t":[1]}') == 2
-    assert decode_object(b'{"pair":"\\ud83d\\ude00"}') == {"pair": "\U0001F600"}
+    assert decode_object(b'{"pair":"\\ud83d\\ude00"}') == {"pair": "\U0001f600"}
 
 
 def test_the_limits_leave_the_recursion_limit_far_away() -> None:
@@ -98,8 +108,14 @@ def test_the_limits_leave_the_recursion_limit_far_away() -> None:
 
 def test_schemas_check_the_types_of_known_fields_only() -> None:
     check_fields({"name": "a.map", "size": 3, "future": [1, {"x": None}]}, SCHEMAS[FrameType.OFFER])
-    for bad in ({"size": True}, {"size": 1.5}, {"name": 3}, {"md5": 5}, {"mtime": "x"},
-                {"window": None}):
+    for bad in (
+        {"size": True},
+        {"size": 1.5},
+        {"name": 3},
+        {"md5": 5},
+        {"mtime": "x"},
+        {"window": None},
+    ):
         with pytest.raises(WireJSONError, match="must be"):
             check_fields(bad, SCHEMAS[FrameType.OFFER], "OFFER")
     with pytest.raises(WireJSONError, match=r"ACK.sack\[1\]\[0\] must be an integer"):
@@ -112,8 +128,14 @@ def test_schemas_check_the_types_of_known_fields_only() -> None:
 
 def test_every_control_frame_has_a_schema_and_frames_use_it() -> None:
     for t in FrameType:
-        if t not in (FrameType.DATA, FrameType.PING, FrameType.PONG, FrameType.BYE,
-                     FrameType.DONE, FrameType.LIST):
+        if t not in (
+            FrameType.DATA,
+            FrameType.PING,
+            FrameType.PONG,
+            FrameType.BYE,
+            FrameType.DONE,
+            FrameType.LIST,
+        ):
             assert t in SCHEMAS, t.name
     with pytest.raises(ProtocolError, match=r"OFFER payload refused: OFFER\.size must be"):
         Frame(FrameType.OFFER, 1, 1, b'{"size":"12"}').json()
@@ -129,15 +151,26 @@ def test_the_spec_states_the_limits_the_code_applies() -> None:
     spec = (Path(__file__).resolve().parents[2] / "docs" / "transfer-protocol.md").read_text()
     assert f"at most **{MAX_DEPTH}** levels" in spec
     assert f"integers of at most **{MAX_INT_DIGITS}** digits" in spec
-    refused = [b"[" * 100_000, b'{"a":' * 100_000, b'{"size":' + b"9" * 50_000 + b"}",
-               b'{"t":1e400}', b'{"t":NaN}', b'{"name":"\\udc00.map"}', b"\xc3\x28", b"[1,2]"]
+    refused = [
+        b"[" * 100_000,
+        b'{"a":' * 100_000,
+        b'{"size":' + b"9" * 50_000 + b"}",
+        b'{"t":1e400}',
+        b'{"t":NaN}',
+        b'{"name":"\\udc00.map"}',
+        b"\xc3\x28",
+        b"[1,2]",
+    ]
     for vector in refused:
         with pytest.raises(WireJSONError):
             decode_object(vector)
     for vector in (b'{"size":"12"}', b'{"size":true}'):
         with pytest.raises(ProtocolError):
             Frame(FrameType.OFFER, 1, 1, vector).json()
-    accepted = [b'{"s":"' + b"[" * 1000 + b'"}', b'{"pair":"\\ud83d\\ude00"}',
-                b'{"unknown":[[[1]]],"x":{"y":true}}']
+    accepted = [
+        b'{"s":"' + b"[" * 1000 + b'"}',
+        b'{"pair":"\\ud83d\\ude00"}',
+        b'{"unknown":[[[1]]],"x":{"y":true}}',
+    ]
     for vector in accepted:
         decode_object(vector)

@@ -362,7 +362,8 @@ async function validate() {
       .bindPopup(textNode(`MK${f.code} ${f.name}: ${f.message}`)));
     li.onclick = () => map.panTo(ll(...f.xy));
   }
-  $('fcount').textContent = `${state.findings.length} finding(s)`;
+  const n = state.findings.length;
+  $('fcount').textContent = `${n} finding${n === 1 ? '' : 's'}`;
   status('');
 }
 

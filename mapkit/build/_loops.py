@@ -1,0 +1,209 @@
+"""Loop closure: revisits found along the path, matched, checked and added to the pose graph."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from mapkit.build._common import FloatArray, _thinned, _world
+from mapkit.build._graph import PoseGraph, between, sigma_info, wrap
+from mapkit.build._match import correlative, icp, transform, voxel_keep
+from mapkit.diagnostics import Issue, IssueCode
+from mapkit.model.scan import LaserLog, LaserScan
+
+
+def _loop_pairs(
+    log: LaserLog, scan_records: list[LaserScan], issues: list[Issue]
+) -> list[tuple[int, int, str]]:
+    """(start scan index, stop scan index, tag) for each ``loop: start``/``stop`` pair."""
+    position = {id(s): k for k, s in enumerate(scan_records)}
+    last_scan = -1
+    open_tags: dict[str, int] = {}
+    pairs = []
+    for rec in log.records:
+        if isinstance(rec, LaserScan):
+            if id(rec) in position:
+                last_scan = position[id(rec)]
+            continue
+        if rec.kind != "loop":
+            continue
+        where = max(last_scan, 0)
+        if rec.action == "start":
+            open_tags[rec.name] = where
+        elif rec.name in open_tags:
+            pairs.append((open_tags.pop(rec.name), where, rec.name))
+        else:
+            issues.append(
+                Issue.make(
+                    IssueCode.LOG_UNPAIRED_LOOP,
+                    f"loop: {rec.action} {rec.name} without a start",
+                    source=log.source,
+                    line=rec.line or None,
+                )
+            )
+    for tag in open_tags:
+        issues.append(
+            Issue.make(
+                IssueCode.LOG_UNPAIRED_LOOP, f"loop: start {tag} without a stop", source=log.source
+            )
+        )
+    return pairs
+
+
+_CAUCHY = 25.0
+
+#: What a scan match is worth, as if from this many independent points of this noise (mm).
+_MATCH_SIGMA = 10.0
+_MATCH_POINTS = 50.0
+
+#: Mahalanobis distance of a match from odometry at which its weight halves.
+_FUSE_ROBUST = 2.5
+
+
+def _fuse(
+    dv: FloatArray, scan_info: FloatArray, odo_info: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """How far to move the odometry prediction towards a scan match ``dv`` away from it, and what
+    the match is worth (its information, down-weighted when it is wild; the pose graph's edge).
+
+    The two are weighed by their information. A match that disagrees with odometry far beyond
+    both noises (a feature seen for the first time caught on the wrong wall, a person) is
+    down-weighted: Cauchy weights on the Mahalanobis distance, halved at ``_FUSE_ROBUST``.
+    """
+    both = np.linalg.inv(scan_info + np.eye(3) * 1e-9) + np.linalg.inv(odo_info)
+    m2 = float(dv @ np.linalg.solve(both, dv))
+    info = scan_info / (1.0 + m2 / _FUSE_ROBUST**2)
+    out = np.linalg.solve(info + odo_info + np.eye(3) * 1e-12, info @ dv)
+    return np.asarray(out, dtype=np.float64), info
+
+
+def _revisit_candidate(i: int, est: FloatArray, path: FloatArray) -> int | None:
+    """An old scan near the current pose (path-wise far away), or None."""
+    old = np.flatnonzero(path[:i] < path[i] - 10000.0)
+    if len(old) == 0:
+        return None
+    d = np.hypot(est[old, 0] - est[i, 0], est[old, 1] - est[i, 1])
+    gap = path[i] - path[old]
+    allow = np.minimum(1000.0 + 0.02 * gap, 4000.0)
+    near = d < allow
+    if not near.any():
+        return None
+    cand = old[near]
+    return int(cand[np.argmin(d[near])])
+
+
+def _local(
+    idx: range, est: FloatArray, pts: list[FloatArray], nrm: list[FloatArray]
+) -> tuple[FloatArray, FloatArray]:
+    parts = [_world(pts[k], nrm[k], est[k]) for k in idx]
+    return _thinned([a for a, _ in parts], [b for _, b in parts], 40.0)
+
+
+def _edge_info(world_info: FloatArray, pose_j: FloatArray) -> FloatArray:
+    """A world-frame pose information turned into the frame of an edge's error (pose j)."""
+    c, s = math.cos(pose_j[2]), math.sin(pose_j[2])
+    M = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    info: FloatArray = M.T @ world_info @ M + np.eye(3) * 1e-9
+    return info
+
+
+def _close(
+    i: int,
+    j: int,
+    est: FloatArray,
+    src: list[FloatArray],
+    pts: list[FloatArray],
+    nrm: list[FloatArray],
+    path: FloatArray,
+    graph: PoseGraph,
+    stats: dict[str, Any],
+    *,
+    tagged: bool,
+) -> bool:
+    """Match scan i (with its predecessors) against the map around old scan j; add an edge.
+
+    A ``loop:`` tag claims the robot is back where it was at the tag's start: the match then
+    starts there and the claim holds the directions the scans cannot fix. A detected revisit
+    starts from the current estimate, which also holds the unconstrained directions.
+    """
+    from scipy.spatial import cKDTree
+
+    n = len(est)
+    lo = j
+    while lo > 0 and path[j] - path[lo - 1] < 3000.0 and j - lo < 15:
+        lo -= 1
+    hi = j
+    while (
+        hi < n - 1
+        and hi < i
+        and path[hi + 1] - path[j] < 3000.0
+        and hi - j < 15
+        and path[i] - path[hi + 1] > 5000.0
+    ):
+        hi += 1
+    tgt, tn = _local(range(lo, hi + 1), est, pts, nrm)
+    if len(tgt) < 50:
+        return False
+    tree = cKDTree(tgt)
+    # Source: scan i and a few before it, in scan i's frame.
+    s_parts = [src[i]]
+    for k in range(max(0, i - 4), i):
+        s_parts.append(transform(src[k], between(est[i], est[k])))
+    source = np.concatenate(s_parts)
+    source = source[voxel_keep(source, 60.0)]
+    gap = path[i] - path[j]
+    if tagged:
+        guess = np.array([est[j][0], est[j][1], est[i][2]])
+        claim = sigma_info(400.0, 400.0, 10.0)
+        win, thw = 3000.0, math.radians(25.0)
+    else:
+        guess = est[i].copy()
+        allow = min(800.0 + 0.02 * gap, 3000.0)
+        claim = sigma_info(allow, allow, 10.0)
+        win, thw = allow, math.radians(min(5.0 + 0.2 * gap / 1000.0, 20.0))
+    sched = (400.0, 200.0, 100.0, 60.0)
+    r = icp(
+        source, tree, tgt, tn, guess, schedule=sched, max_iter=20, prior=guess, prior_info=claim
+    )
+    good = _good_closure(r, tagged)
+    if not good:
+        sub = source[:: max(1, len(source) // 150)]
+        cp, score = correlative(sub, tgt, guess, xy_window=win, th_window=thw, cell=50.0)
+        if score >= 0.25:
+            r = icp(
+                source,
+                tree,
+                tgt,
+                tn,
+                cp,
+                schedule=(200.0, 100.0, 60.0),
+                max_iter=20,
+                prior=guess,
+                prior_info=claim,
+            )
+            good = _good_closure(r, tagged)
+    if not good:
+        return False
+    weak = r.weak_direction()
+    if weak is not None:
+        # Along a corridor the match says nothing: keep the estimate there.
+        r.pose[:2] -= weak * float((r.pose[:2] - guess[:2]) @ weak)
+        if not tagged:
+            r.pose[:2] += weak * float((guess[:2] - est[i][:2]) @ weak)
+    corr = math.hypot(*(r.pose[:2] - est[i][:2]))
+    dth = abs(float(wrap(r.pose[2] - est[i][2])))
+    info = r.info() + (claim if tagged else 0.0)
+    graph.add(j, i, between(est[j], r.pose), _edge_info(info, r.pose), robust=True)
+    stats["corrections_mm"].append(corr)
+    stats["closures"].append((j, i))
+    stats["corrections_deg"].append(math.degrees(dth))
+    stats["_moved"] = corr > 80.0 or dth > math.radians(0.8)
+    return True
+
+
+def _good_closure(r: Any, tagged: bool) -> bool:
+    if tagged:
+        return bool(r.ok and r.inliers > 0.35 and r.n > 60 and r.rms < 35.0)
+    return bool(r.ok and r.inliers > 0.45 and r.n > 80 and r.rms < 35.0)

@@ -1,0 +1,246 @@
+"""Scan registration: each scan matched against the submap of those before it, in one or two
+passes."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from mapkit.build._common import FloatArray, Progress, _Submap
+from mapkit.build._graph import PoseGraph, between, sigma_info, wrap
+from mapkit.build._loops import (
+    _CAUCHY,
+    _MATCH_POINTS,
+    _MATCH_SIGMA,
+    _close,
+    _edge_info,
+    _fuse,
+    _loop_pairs,
+    _revisit_candidate,
+)
+from mapkit.build._match import icp, scan_normals
+from mapkit.build._odometry import _OdometryModel
+from mapkit.diagnostics import Issue, IssueCode
+from mapkit.model.scan import LaserLog, LaserScan
+
+
+def _register(
+    scans: list[LaserScan],
+    odo: FloatArray,
+    all_pts: list[FloatArray],
+    log: LaserLog,
+    issues: list[Issue],
+    stats: dict[str, Any],
+    loop_closure: bool,
+    progress: Progress | None,
+) -> FloatArray:
+    """The front end (scan-to-local-map ICP) with loop closures and pose-graph optimisation.
+
+    The odometry's worth is learnt from the first scans (a warm-up pass over them) so that the
+    first metres are not registered with a guess of it.
+    """
+    n = len(scans)
+    model = _OdometryModel()
+    warm_up = min(_WARM_UP, n // 2)
+    if warm_up >= 20:
+        for _ in range(2):  # twice: the second pass runs with the scale the first found
+            model = _OdometryModel(model.scale, model.calibration.fresh())
+            warm: dict[str, Any] = {
+                "registered": 0,
+                "odometry_only": 0,
+                "residuals": [],
+                "residual_per_scan": np.full(warm_up, np.nan),
+                "closures": [],
+            }
+            _register_pass(
+                scans[:warm_up], odo[:warm_up], all_pts[:warm_up], log, [], warm, False, None, model
+            )
+            model.settle()
+    start = model.calibration.fresh()
+    first = dict(
+        stats,
+        residuals=[],
+        closures=[],
+        corrections_mm=[],
+        corrections_deg=[],
+        residual_per_scan=stats["residual_per_scan"].copy(),
+    )
+    est = _register_pass(scans, odo, all_pts, log, issues, first, loop_closure, progress, model)
+    if not model.calibration.differs(start) or n > _SECOND_PASS_MAX:
+        stats.update(first)
+        return est
+    # The odometry's systematic errors were learnt on the way: the first metres were registered
+    # without them. Once more from the start, with the odometry as calibrated. (A long log comes
+    # back over its first metres many times: its loop closures correct them instead.)
+    model = _OdometryModel(model.scale, model.calibration.fresh())
+    model.frozen = True
+    est = _register_pass(scans, odo, all_pts, log, [], stats, loop_closure, None, model)
+    stats["passes"] = 2
+    return est
+
+
+#: Longest log (scans) registered a second time when the calibration was learnt on the way.
+_SECOND_PASS_MAX = 5000
+
+#: Scans of the warm-up pass that learns the odometry's noise.
+_WARM_UP = 150
+
+
+def _register_pass(
+    scans: list[LaserScan],
+    odo: FloatArray,
+    all_pts: list[FloatArray],
+    log: LaserLog,
+    issues: list[Issue],
+    stats: dict[str, Any],
+    loop_closure: bool,
+    progress: Progress | None,
+    model: _OdometryModel,
+) -> FloatArray:
+    n = len(scans)
+    est = odo.copy()
+    residuals = stats["residual_per_scan"]
+    graph = PoseGraph()
+    odo_edges: list[int] = []
+    raw_steps: list[FloatArray] = []
+    sub = _Submap(voxel=40.0)
+    src = [p[::3] if len(p) > 240 else (p[::2] if len(p) > 120 else p) for p in all_pts]
+    # The map side: every other point (the local map is thinned to 40 mm anyway), with normals
+    # from the beam order (the points are still in the laser's reading order).
+    pts = [p[::2] if len(p) > 240 else p for p in all_pts]
+    nrm = [scan_normals(p) for p in pts]
+    path = np.zeros(n)
+    pairs = _loop_pairs(log, scans, issues) if loop_closure else []
+    stats["tag_loops"] = len(pairs)
+    tag_at: dict[int, list[tuple[int, str]]] = {}
+    for s0, s1, tag in pairs:
+        tag_at.setdefault(s1, []).append((s0, tag))
+    window: list[int] = [0]
+    sub.rebuild(window, pts, nrm, est)
+    next_check = 0
+    last_sub = 0
+    report_every = max(1, n // 200)
+    weak_prior = sigma_info(300.0, 300.0, math.radians(10.0))
+    for i in range(1, n):
+        raw_step = between(odo[i - 1], odo[i])
+        step = model.calibration.correct(raw_step)
+        c, s = math.cos(est[i - 1][2]), math.sin(est[i - 1][2])
+        pred = np.array(
+            [
+                est[i - 1][0] + c * step[0] - s * step[1],
+                est[i - 1][1] + s * step[0] + c * step[1],
+                wrap(est[i - 1][2] + step[2]),
+            ]
+        )
+        trans = math.hypot(step[0], step[1])
+        path[i] = path[i - 1] + trans
+        # Odometry as the evidence it is: its noise grows with distance and turn, scaled to what
+        # this log's odometry turns out to be worth (see _OdometryModel).
+        odo_info = model.info(trans, float(step[2]))
+        # The scan's own view: matched with only a weak pull to the prediction (which holds the
+        # directions the scan cannot fix, a corridor's length), then fused with odometry.
+        r = (
+            icp(
+                src[i],
+                sub.tree,
+                sub.pts,
+                sub.nrm,
+                pred,
+                prior=pred,
+                prior_info=weak_prior,
+                schedule=(250.0, 100.0, 40.0),
+                max_iter=12,
+                cauchy=_CAUCHY,
+            )
+            if sub.tree is not None
+            else None
+        )
+        if (
+            r is not None
+            and r.ok
+            and r.inliers > 0.25
+            and r.rms < 60.0
+            and math.hypot(*(r.pose[:2] - pred[:2])) < 300.0 + 0.1 * trans
+            and abs(wrap(r.pose[2] - pred[2])) < math.radians(8.0)
+        ):
+            scan_info = r.info(sigma=_MATCH_SIGMA, points=_MATCH_POINTS)
+            dv = r.pose - pred
+            dv[2] = wrap(dv[2])
+            weak = r.weak_direction()
+            if weak is not None:
+                # Along a corridor the scan slid where nothing held it: that is no evidence.
+                dv[:2] -= weak * float(dv[:2] @ weak)
+            model.observe(dv, scan_info, trans, float(step[2]))
+            if not model.frozen:
+                model.calibration.observe(raw_step, step, dv, scan_info, float(est[i - 1][2]))
+            fused, scan_info = _fuse(dv, scan_info, odo_info)
+            est[i] = pred + fused
+            est[i, 2] = wrap(est[i, 2])
+            stats["registered"] += 1
+            stats["residuals"].append(r.rms)
+            residuals[i] = r.rms
+            # Two edges: the scan's (what it sees) and odometry's, so that odometry can be
+            # recalibrated at the end without redoing the scans.
+            seen = pred + dv
+            graph.add(i - 1, i, between(est[i - 1], seen), _edge_info(scan_info, seen))
+        else:
+            est[i] = pred
+            stats["odometry_only"] += 1
+        odo_edges.append(len(graph))
+        raw_steps.append(raw_step)
+        graph.add(i - 1, i, step, odo_info)
+        # Loop closures.
+        moved = False
+        for s0, _tag in tag_at.get(i, []):
+            if _close(i, s0, est, src, pts, nrm, path, graph, stats, tagged=True):
+                stats["tag_loops_matched"] += 1
+                moved = stats.pop("_moved", False) or moved
+            else:
+                graph.add(
+                    s0, i, np.zeros(3), sigma_info(500.0, 500.0, math.radians(10.0)), robust=True
+                )
+                issues.append(
+                    Issue.make(
+                        IssueCode.LOG_UNPAIRED_LOOP,
+                        f"loop tag {_tag}: the scans at its start and stop do "
+                        "not match; used as a weak hint only",
+                        source=log.source,
+                    )
+                )
+                moved = True
+        if loop_closure and i >= next_check:
+            j = _revisit_candidate(i, est, path)
+            if j is not None:
+                if _close(i, j, est, src, pts, nrm, path, graph, stats, tagged=False):
+                    stats["revisits"] += 1
+                    moved = stats.pop("_moved", False) or moved
+                    next_check = i + 20
+                else:
+                    next_check = i + 10
+            else:
+                next_check = i + 3
+        if moved:
+            est = graph.optimize(est, iterations=4)
+            stats["optimisations"] += 1
+            window = [k for k in window if k <= i]
+            last_sub = -1
+        # The local map: scans within the last 8 m of path (at most 40).
+        window.append(i)
+        while len(window) > 25 or (path[i] - path[window[0]] > 8000.0 and len(window) > 5):
+            window.pop(0)
+        if i - last_sub >= 3 or last_sub < 0:
+            sub.rebuild(window, pts, nrm, est)
+            last_sub = i
+        if progress and (i % report_every == 0 or i == n - 1):
+            progress(i + 1, n)
+    stats["odometry_scale"] = round(float(model.scale), 4)
+    stats["calibration"] = model.calibration.summary()
+    if loop_closure and (stats["revisits"] or stats["tag_loops"]):
+        est = graph.optimize(est, iterations=20)
+        stats["optimisations"] += 1
+    return est
+
+
+#: Scale of the robust (Cauchy) weights of scan points in registration (mm).

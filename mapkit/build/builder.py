@@ -1,0 +1,307 @@
+""":func:`build_map`: a map from a ``.2d`` laser log, scan registration, loop closure and the
+grid of hits, with its :class:`BuildResult` report."""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from mapkit._typing import PathLike
+from mapkit.build._common import FloatArray, Progress, _deg, _rad
+from mapkit.build._goals import _goals, _obj_pose
+from mapkit.build._lines import extract_lines
+from mapkit.build._mapping import pass_counts
+from mapkit.build._match import scan_normals, transform
+from mapkit.build._register import _register
+from mapkit.diagnostics import Issue
+from mapkit.errors import LogFormatError
+from mapkit.formats.laser2d import read_log, recover_log
+from mapkit.model import MapData, MapObject, Scan
+from mapkit.model.scan import LaserLog, LaserScan
+
+__all__ = ["BuildResult", "build_map"]
+
+
+@dataclass(frozen=True)
+class BuildResult:
+    """A built map and how it was made.
+
+    Attributes:
+        map: The map.
+        poses: ``(N, 3)`` final pose of each scan used (mm, mm, degrees).
+        odometry: ``(N, 3)`` the same scans' odometry poses.
+        scan_ids: ``(N,)`` their ``scanId``.
+        summary: Figures for people and ``--json`` (scans, registration, loops, timings).
+        issues: Problems met in the log (tolerant reading) and while building.
+        residuals: ``(N,)`` RMS point-to-wall residual of each scan's match (mm; NaN where the
+            scan was placed by odometry alone).
+        closures: ``(K, 2)`` scan indices ``(old, new)`` of every loop closed.
+    """
+
+    map: MapData
+    poses: FloatArray
+    odometry: FloatArray
+    scan_ids: np.ndarray[Any, Any]
+    summary: dict[str, Any] = field(default_factory=dict)
+    issues: tuple[Issue, ...] = ()
+    residuals: FloatArray = field(default_factory=lambda: np.zeros(0))
+    closures: np.ndarray[Any, Any] = field(default_factory=lambda: np.zeros((0, 2), dtype=np.int64))
+
+    @property
+    def moved(self) -> FloatArray:
+        """``(N,)`` how far each scan's final pose lies from its odometry pose (mm)."""
+        d: FloatArray = np.hypot(
+            self.poses[:, 0] - self.odometry[:, 0], self.poses[:, 1] - self.odometry[:, 1]
+        )
+        return d
+
+
+def _scan_arrays(
+    log: LaserLog, pose_source: str, max_range: float
+) -> tuple[list[LaserScan], FloatArray, list[FloatArray]]:
+    scans, odo, pts = [], [], []
+    for s in log.scans:
+        las = log.header.laser(s.laser)
+        p = s.robot_points(las, max_range=max_range)
+        if len(p) < 10:
+            continue
+        pose = (
+            s.robot_global
+            if pose_source == "robotGlobal" and s.robot_global is not None
+            else s.robot
+        )
+        scans.append(s)
+        odo.append(pose)
+        pts.append(p)
+    return scans, _rad(np.array(odo, dtype=np.float64).reshape(-1, 3)), pts
+
+
+def _quantise(
+    world: FloatArray,
+    res: float,
+    min_hits: int,
+    thin: float,
+    normals: FloatArray | None = None,
+    origins: FloatArray | None = None,
+    free_ratio: float = 0.0,
+) -> np.ndarray[Any, Any]:
+    """Lattice points hit often enough, with walls thinned to the cells hit most.
+
+    A cell is kept when hit at least ``min_hits`` times and at least ``thin`` x its most-hit
+    neighbour; where the hits have a clear wall direction (``normals``), only the cell hit most
+    across the wall (non-maximum suppression along the normal) is kept, so a wall is one cell thick
+    instead of the two or three that range noise spreads it over.
+
+    With ``origins`` (the laser's position for each hit), a cell is also dropped when other beams
+    passed through it more than ``free_ratio`` times as often as it was hit: a person walking by
+    or a spurious reading, not a wall (see :mod:`mapkit.build._mapping`).
+    """
+    cells = np.rint(world / res).astype(np.int64)
+    off = 1 << 24
+    key = ((cells[:, 0] + off) << 32) | (cells[:, 1] + off)
+    uk, inverse, counts = np.unique(key, return_inverse=True, return_counts=True)
+    cx = (uk >> 32) - off
+    cy = (uk & 0xFFFFFFFF) - off
+
+    def neighbour(dx: Any, dy: Any) -> np.ndarray[Any, Any]:
+        nk = ((cx + dx + off) << 32) | (cy + dy + off)
+        pos = np.minimum(np.searchsorted(uk, nk), len(uk) - 1)
+        return np.where(uk[pos] == nk, counts[pos], 0)
+
+    best = counts.copy()
+    for dx in (-1, 0, 1):
+        for dy in (-1, 0, 1):
+            if dx or dy:
+                best = np.maximum(best, neighbour(dx, dy))
+    keep = (counts >= min_hits) & (counts >= thin * best)
+    if origins is not None and free_ratio > 0 and keep.any():
+        cand = np.flatnonzero(keep)
+        passes = pass_counts(world, origins, res, np.stack([cx[cand], cy[cand]], axis=1))
+        keep[cand[passes > free_ratio * counts[cand]]] = False
+    if normals is not None and len(normals) == len(world):
+        ok = np.isfinite(normals[:, 0])
+        phi2 = 2.0 * np.arctan2(normals[ok, 1], normals[ok, 0])  # sign-free (doubled) angle
+        n_ok = np.bincount(inverse[ok], minlength=len(uk))
+        c2 = np.bincount(inverse[ok], weights=np.cos(phi2), minlength=len(uk))
+        s2 = np.bincount(inverse[ok], weights=np.sin(phi2), minlength=len(uk))
+        strength = np.hypot(c2, s2) / np.maximum(n_ok, 1)
+        ang = 0.5 * np.arctan2(s2, c2)
+        sector = np.rint(ang / (np.pi / 4)).astype(np.int64) % 4
+        steps = np.array([[1, 0], [1, 1], [0, 1], [-1, 1]])
+        sx, sy = steps[sector, 0], steps[sector, 1]
+        plus, minus = neighbour(sx, sy), neighbour(-sx, -sy)
+        walled = (strength > 0.7) & (n_ok >= min_hits)
+        keep &= ~walled | ((counts >= plus) & (counts >= minus))
+    return np.stack([cx[keep], cy[keep]], axis=1) * int(res)
+
+
+def build_map(
+    source: LaserLog | PathLike,
+    *,
+    resolution: int = 20,
+    register: bool = True,
+    loop_closure: bool = True,
+    pose_source: str = "robot",
+    max_range: float = 16000.0,
+    min_hits: int = 2,
+    thin: float = 0.3,
+    free_ratio: float = 4.0,
+    lines: bool = True,
+    min_line_length: float = 300.0,
+    strict: bool = True,
+    merge_goals: bool = True,
+    progress: Progress | None = None,
+) -> BuildResult:
+    """Turn a ``.2d`` laser log into a map (see the module's description of the pipeline).
+
+    Args:
+        source: A :class:`~mapkit.model.LaserLog` or the path of a ``.2d`` file.
+        resolution: Grid of the map's points in mm (ARIA maps: 20).
+        register: Register scans and close loops; ``False`` gives the raw odometry map.
+        loop_closure: Close loops (``loop:`` tags and detected revisits).
+        pose_source: ``"robot"`` (odometry, as Mapper3) or ``"robotGlobal"``.
+        max_range: Readings at or beyond this range (mm) are not used.
+        min_hits: A map point needs at least this many laser hits in its cell.
+        thin: A cell is kept only when hit at least this fraction of its most-hit neighbour
+            (thins walls to the cells the laser hit most, one cell across a wall; 0 keeps every
+            cell).
+        free_ratio: A cell is left out when beams passed through it more than this many times
+            as often as they hit it (people walking by, spurious readings); 0 keeps every cell.
+        lines: Fit line segments to the points (the map's ``LINES``).
+        min_line_length: Shortest line kept (mm).
+        strict: Read a file strictly (the first bad record raises); ``False`` skips bad records
+            and lists them in :attr:`BuildResult.issues`.
+        merge_goals: Goals of the same name (a tag repeated on every lap) become one object at
+            their mean pose; ``False`` keeps one object per ``cairn:`` event.
+        progress: Called as ``progress(done, total)`` while scans are registered.
+
+    Returns:
+        The map and the figures of how it was built.
+
+    Raises:
+        LogFormatError: When the log cannot be read, or has no usable scan.
+        ValueError: For a parameter out of range.
+        OSError: When the file cannot be read.
+    """
+    if resolution < 1:
+        raise ValueError("resolution must be at least 1 mm")
+    if pose_source not in ("robot", "robotGlobal"):
+        raise ValueError("pose_source is 'robot' or 'robotGlobal'")
+    t0 = time.perf_counter()
+    issues: list[Issue] = []
+    if isinstance(source, LaserLog):
+        log = source
+    elif strict:
+        log = read_log(source)
+    else:
+        log, found = recover_log(source)
+        issues.extend(found)
+    t_read = time.perf_counter() - t0
+    scans, odo, pts = _scan_arrays(log, pose_source, max_range)
+    n = len(scans)
+    if n == 0:
+        raise LogFormatError(
+            "the log has no scan with enough valid readings to build a map", source=log.source
+        )
+    est = odo.copy()
+    stats: dict[str, Any] = {
+        "registered": 0,
+        "odometry_only": 0,
+        "residuals": [],
+        "residual_per_scan": np.full(n, np.nan),
+        "closures": [],
+        "tag_loops": 0,
+        "tag_loops_matched": 0,
+        "revisits": 0,
+        "optimisations": 0,
+        "corrections_mm": [],
+        "corrections_deg": [],
+    }
+    t1 = time.perf_counter()
+    if register and n > 1:
+        est = _register(scans, odo, pts, log, issues, stats, loop_closure, progress)
+    elif progress:
+        progress(n, n)
+    t_reg = time.perf_counter() - t1
+    # The map.
+    t2 = time.perf_counter()
+    world = np.concatenate([transform(p, e) for p, e in zip(pts, est, strict=True)])
+    origins = None
+    if free_ratio > 0:
+        mounts = np.array([log.header.laser(s.laser).pose[:2] for s in scans], dtype=np.float64)
+        sensor = np.stack([transform(mounts[k : k + 1], est[k])[0] for k in range(n)])
+        origins = np.repeat(sensor, [len(p) for p in pts], axis=0)
+    normals = (
+        np.concatenate(
+            [
+                scan_normals(p)
+                @ np.array([[math.cos(e[2]), math.sin(e[2])], [-math.sin(e[2]), math.cos(e[2])]])
+                for p, e in zip(pts, est, strict=True)
+            ]
+        )
+        if thin > 0
+        else None
+    )
+    points = _quantise(world, float(resolution), min_hits, thin, normals, origins, free_ratio)
+    segs = (
+        extract_lines(points.astype(np.float64), resolution=resolution, min_length=min_line_length)
+        if lines and len(points)
+        else np.zeros((0, 4))
+    )
+    t_map = time.perf_counter() - t2
+    objects = [MapObject("RobotHome", *_obj_pose(est[0]), name="Home")]
+    objects.extend(_goals(log, scans, odo, est, pose_source, merge_goals))
+    scan = Scan.from_arrays(
+        points, np.rint(segs).astype(np.int64), resolution=resolution, sort=True
+    )
+    m = MapData(category="2D-Map", scans=(scan,), objects=tuple(objects))
+    poses = _deg(est)
+    odom = _deg(odo)
+    res = stats.pop("residuals")
+    per_scan = stats.pop("residual_per_scan")
+    closures = np.array(stats.pop("closures"), dtype=np.int64).reshape(-1, 2)
+    cm, cd = stats.pop("corrections_mm"), stats.pop("corrections_deg")
+    length = float(np.sum(np.hypot(*np.diff(odo[:, :2], axis=0).T))) if n > 1 else 0.0
+    summary = {
+        "source": log.source,
+        "version": log.header.version,
+        "scans_in_log": len(log.scans),
+        "scans_used": n,
+        "register": register,
+        "resolution": resolution,
+        "path_length_m": round(length / 1000.0, 2),
+        "registration": {
+            "registered": stats["registered"],
+            "odometry_only": stats["odometry_only"],
+            "median_residual_mm": round(float(np.median(res)), 2) if res else None,
+            "odometry_noise_scale": stats.get("odometry_scale"),
+            "odometry_calibration": stats.get("calibration"),
+        },
+        "loops": {
+            "tags": stats["tag_loops"],
+            "tags_matched": stats["tag_loops_matched"],
+            "revisits": stats["revisits"],
+            "optimisations": stats["optimisations"],
+            "max_correction_mm": round(max(cm), 1) if cm else 0.0,
+            "max_correction_deg": round(max(cd), 2) if cd else 0.0,
+        },
+        "end_shift_from_odometry_mm": round(float(np.hypot(*(est[-1, :2] - odo[-1, :2]))), 1),
+        "points": len(points),
+        "lines": len(segs),
+        "goals": len(objects) - 1,
+        "seconds": {"read": round(t_read, 2), "register": round(t_reg, 2), "map": round(t_map, 2)},
+    }
+    return BuildResult(
+        map=m,
+        poses=poses,
+        odometry=odom,
+        scan_ids=np.array([s.scan_id for s in scans]),
+        summary=summary,
+        issues=tuple(issues),
+        residuals=per_scan,
+        closures=closures,
+    )
