@@ -58,6 +58,26 @@ _CAUCHY = 25.0
 _MATCH_SIGMA = 10.0
 _MATCH_POINTS = 50.0
 
+#: Mahalanobis distance of a match from odometry at which its weight halves.
+_FUSE_ROBUST = 2.5
+
+
+def _fuse(
+    dv: FloatArray, scan_info: FloatArray, odo_info: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """How far to move the odometry prediction towards a scan match ``dv`` away from it, and what
+    the match is worth (its information, down-weighted when it is wild; the pose graph's edge).
+
+    The two are weighed by their information. A match that disagrees with odometry far beyond
+    both noises (a feature seen for the first time caught on the wrong wall, a person) is
+    down-weighted: Cauchy weights on the Mahalanobis distance, halved at ``_FUSE_ROBUST``.
+    """
+    both = np.linalg.inv(scan_info + np.eye(3) * 1e-9) + np.linalg.inv(odo_info)
+    m2 = float(dv @ np.linalg.solve(both, dv))
+    info = scan_info / (1.0 + m2 / _FUSE_ROBUST**2)
+    out = np.linalg.solve(info + odo_info + np.eye(3) * 1e-12, info @ dv)
+    return np.asarray(out, dtype=np.float64), info
+
 
 def _revisit_candidate(i: int, est: FloatArray, path: FloatArray) -> int | None:
     """An old scan near the current pose (path-wise far away), or None."""

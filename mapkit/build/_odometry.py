@@ -18,6 +18,9 @@ FloatArray = np.ndarray[Any, np.dtype[np.float64]]
 #: The noise scale is fitted on at most this many of the latest steps.
 _FIT_STEPS = 3000
 
+#: Least noise scale (log10): odometry is never trusted as exact, so scans keep a say.
+_MIN_LOG_SCALE = -2.0
+
 
 class _OdometryModel:
     """Odometry noise per step: distance- and turn-dependent, scaled to the log.
@@ -30,7 +33,9 @@ class _OdometryModel:
     noise from its information), and the scale is chosen so that the median normalised
     disagreement is what chance gives (the median of chi-square with 3 degrees of freedom). Odometry
     that agrees with the scans better than the scans' own noise explains gets its scale lowered, so
-    the scans cannot walk away from it; drifting odometry gets it raised.
+    the scans cannot walk away from it; drifting odometry gets it raised. The scale never falls
+    below a floor (``10 ** _MIN_LOG_SCALE``): odometry that is good but not perfect (a few tenths of
+    a percent) is otherwise taken as exact and drifts unchecked between loop closures.
     """
 
     #: The 80th percentile of chi-square with 3 degrees of freedom (the fit uses the upper part
@@ -80,7 +85,7 @@ class _OdometryModel:
             x = np.linalg.solve(C, D[..., None])[..., 0]
             return float(np.percentile(np.einsum("ni,ni->n", D, x), 80))
 
-        lo, hi = -4.0, 2.0  # log10 of the scale
+        lo, hi = _MIN_LOG_SCALE, 2.0  # log10 of the scale, never below the floor
         if median_chi(10**lo) <= self._CHI2_3_MEDIAN:
             self.scale = 10**lo
             return

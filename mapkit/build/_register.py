@@ -16,6 +16,7 @@ from mapkit.build._loops import (
     _MATCH_SIGMA,
     _close,
     _edge_info,
+    _fuse,
     _loop_pairs,
     _revisit_candidate,
 )
@@ -174,7 +175,7 @@ def _register_pass(
             model.observe(dv, scan_info, trans, float(step[2]))
             if not model.frozen:
                 model.calibration.observe(raw_step, step, dv, scan_info, float(est[i - 1][2]))
-            fused = np.linalg.solve(scan_info + odo_info + np.eye(3) * 1e-12, scan_info @ dv)
+            fused, scan_info = _fuse(dv, scan_info, odo_info)
             est[i] = pred + fused
             est[i, 2] = wrap(est[i, 2])
             stats["registered"] += 1

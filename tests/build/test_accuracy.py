@@ -107,3 +107,44 @@ def test_outliers_and_people_stay_out_of_the_map() -> None:
     )
     med, p90, rms = figures(build_map(sim.log, lines=False), sim)
     assert med < 15.0 and p90 < 60.0 and rms < 40.0, (med, p90, rms)
+
+
+def test_odometry_noise_scale_has_a_floor() -> None:
+    """Steps that agree with their scans better than the scans' noise explains still leave
+    odometry a noise: the scale stops at its floor, so good-but-not-perfect odometry cannot
+    overrule the scans."""
+    from mapkit.build import _odometry
+
+    model = _odometry._OdometryModel()
+    strong = np.diag([1.0, 1.0, 1e4])  # scan matches of 1 mm and 0.6 degrees
+    for _ in range(200):
+        model.observe(np.zeros(3), strong, 150.0, 0.0)
+    model.settle()
+    assert model.scale == pytest.approx(10**_odometry._MIN_LOG_SCALE)
+    assert 0 < model.scale < 0.05
+    # Steps that disagree with their scans raise it again.
+    rng = np.random.default_rng(1)
+    for _ in range(200):
+        model.observe(np.array([*rng.normal(0, 20.0, 2), rng.normal(0, 0.01)]), strong, 150.0, 0.0)
+    model.settle()
+    assert model.scale > 0.05
+
+
+def test_fusion_weighs_scan_and_odometry_and_distrusts_a_wild_match() -> None:
+    from mapkit.build._loops import _fuse
+
+    scan = np.diag([1 / 4.0**2, 1 / 4.0**2, 1 / np.radians(0.2) ** 2])
+    odo = np.diag([1 / 4.0**2, 1 / 4.0**2, 1 / np.radians(0.2) ** 2])
+    # Within the noises: the information-weighted mean (here halfway).
+    near, near_info = _fuse(np.array([4.0, -2.0, np.radians(0.1)]), scan, odo)
+    assert np.allclose(near, [1.9, -0.95, np.radians(0.0475)], rtol=0.1)
+    # 50 mm off where both claim 4 mm: the match barely moves the pose.
+    wild, wild_info = _fuse(np.array([50.0, 0.0, 0.0]), scan, odo)
+    assert 0 < wild[0] < 5.0
+    # ... and counts for little in the pose graph too.
+    assert wild_info[0, 0] < 0.15 * near_info[0, 0]
+    # A corridor: the match says nothing along x, odometry holds it.
+    corridor = scan.copy()
+    corridor[0, 0] = 0.0
+    along, _ = _fuse(np.array([30.0, 3.0, 0.0]), corridor, odo)
+    assert abs(along[0]) < 1e-3 and 1.0 < along[1] < 2.0
