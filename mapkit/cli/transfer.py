@@ -416,6 +416,12 @@ def send(
         )
 
 
+def _shown(path: str) -> str:
+    """A written file as the user names it: relative to the current folder when inside it."""
+    rel = os.path.relpath(path)
+    return path if rel.startswith(os.pardir) else rel
+
+
 @click.command()
 @click.argument("address", metavar="HOST[:PORT]")
 @click.argument("name")
@@ -453,7 +459,8 @@ def fetch(
         echo_json(result)
     elif not result["modified"]:
         click.echo(
-            f"{result['path']} is up to date (MD5 {result.get('md5') or '-'}), nothing fetched"
+            f"{_shown(result['path'])} is up to date (MD5 {result.get('md5') or '-'}), "
+            "nothing fetched"
         )
     else:
         resumed = (
@@ -462,7 +469,8 @@ def fetch(
             else ""
         )
         click.echo(
-            f"fetched {name} from {address} into {result['path']}: {_size(result['size'])} in "
+            f"fetched {name} from {address} into {_shown(result['path'])}: "
+            f"{_size(result['size'])} in "
             f"{result['seconds']:.2f} s, SHA-256 verified{resumed}"
         )
 

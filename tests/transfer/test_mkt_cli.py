@@ -33,7 +33,9 @@ def addr(srv) -> str:
     return f"{srv.address[0]}:{srv.address[1]}"
 
 
-def test_send_maps_load_fetch_json(tmp_path, runner, robot_dir, make_server, secret_file) -> None:
+def test_send_maps_load_fetch_json(
+    tmp_path, runner, robot_dir, make_server, secret_file, monkeypatch
+) -> None:
     srv = make_server()
     m = tmp_path / "office.map"
     m.write_bytes(make_map(300))
@@ -66,6 +68,14 @@ def test_send_maps_load_fetch_json(tmp_path, runner, robot_dir, make_server, sec
     (tmp_path / "into").mkdir()
     r = runner.invoke(cli, ["fetch", addr(srv), "office.map", "-o", str(tmp_path / "into"), *sf])
     assert r.exit_code == 0 and (tmp_path / "into" / "office.map").read_bytes() == m.read_bytes()
+    # the file is named as the user knows it: relative to where they are, when inside it
+    monkeypatch.chdir(tmp_path)
+    r = runner.invoke(cli, ["fetch", addr(srv), "office.map", "-o", "here.map", *sf])
+    assert r.exit_code == 0 and " into here.map: " in r.stdout, r.stdout
+    r = runner.invoke(
+        cli, ["fetch", addr(srv), "office.map", "-o", "here.map", "--if-changed", *sf]
+    )
+    assert r.stdout.startswith("here.map is up to date"), r.stdout
 
 
 def test_send_with_load_and_rollback_human_output(
