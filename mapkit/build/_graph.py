@@ -32,6 +32,10 @@ def between(a: FloatArray, b: FloatArray) -> FloatArray:
     return np.stack([c * dx + s * dy, -s * dx + c * dy, wrap(b[..., 2] - a[..., 2])], axis=-1)
 
 
+#: Rounds of the consistency check (each switches off the worst edges and optimises again).
+_REJECT_ROUNDS = 4
+
+
 class PoseGraph:
     """Edges collected while mapping; :meth:`optimize` moves the nodes."""
 
@@ -41,6 +45,8 @@ class PoseGraph:
         self.z: list[FloatArray] = []
         self.info: list[FloatArray] = []
         self.robust: list[bool] = []
+        #: Indices of the edges the consistency check switched off.
+        self.rejected: set[int] = set()
 
     def add(self, i: int, j: int, z: FloatArray, info: FloatArray, *, robust: bool = False) -> None:
         """Add an edge with a 3x3 information matrix (see :func:`sigma_info`)."""
@@ -53,31 +59,87 @@ class PoseGraph:
     def __len__(self) -> int:
         return len(self.i)
 
-    def optimize(self, x: FloatArray, *, iterations: int = 10, huber: float = 3.0) -> FloatArray:
-        """Gauss-Newton on all nodes but node 0; returns the new ``(N, 3)`` poses."""
-        from scipy.sparse import coo_matrix
+    def optimize(
+        self,
+        x: FloatArray,
+        *,
+        iterations: int = 10,
+        huber: float = 3.0,
+        reject: float | None = None,
+    ) -> FloatArray:
+        """Gauss-Newton on all nodes but node 0; returns the new ``(N, 3)`` poses.
+
+        With ``reject``, the graph is also checked for consistency: a robust edge (a loop
+        closure) that the optimised poses still miss by more than ``reject`` standard deviations
+        disagrees with the rest of the evidence (a closure caught on the wrong wall, a wrong
+        revisit). The worst such edges are switched off and the graph optimised again, for a few
+        rounds; switched-off edges stay off (:attr:`rejected`).
+        """
+        x = np.array(x, dtype=np.float64)
+        if len(x) < 2 or not self.i:
+            return x
+        edges = self._arrays()
+        x = self._gauss_newton(x, edges, iterations, huber)
+        if reject is None:
+            return x
+        for _ in range(_REJECT_ROUNDS):
+            chi = self._chi(x, edges)
+            bad = edges[4] & self._active(len(chi)) & (chi > reject)
+            if not bad.any():
+                break
+            worst = float(chi[bad].max())
+            # The worst first: a wrong closure drags good ones near it off too.
+            for k in np.flatnonzero(bad & (chi > 0.5 * worst)):
+                self.rejected.add(int(k))
+            x = self._gauss_newton(x, edges, iterations, huber)
+        return x
+
+    def _active(self, m: int) -> np.ndarray[Any, Any]:
+        act = np.ones(m, dtype=bool)
+        if self.rejected:
+            act[list(self.rejected)] = False
+        return act
+
+    def _arrays(self) -> tuple[Any, ...]:
+        return (
+            np.array(self.i),
+            np.array(self.j),
+            np.array(self.z),
+            np.array(self.info),
+            np.array(self.robust),
+        )
+
+    @staticmethod
+    def _errors(x: FloatArray, edges: tuple[Any, ...]) -> tuple[FloatArray, ...]:
+        I, J, Z = edges[0], edges[1], edges[2]  # noqa: E741
+        cz, sz = np.cos(Z[:, 2]), np.sin(Z[:, 2])
+        xi, xj = x[I], x[J]
+        ci, si = np.cos(xi[:, 2]), np.sin(xi[:, 2])
+        dx, dy = xj[:, 0] - xi[:, 0], xj[:, 1] - xi[:, 1]
+        # e = Rz^T (Ri^T (tj - ti) - tz), theta_j - theta_i - theta_z
+        ux = ci * dx + si * dy - Z[:, 0]
+        uy = -si * dx + ci * dy - Z[:, 1]
+        e = np.stack(
+            [cz * ux + sz * uy, -sz * ux + cz * uy, wrap(xj[:, 2] - xi[:, 2] - Z[:, 2])], axis=1
+        )
+        return e, ci, si, cz, sz, dx, dy
+
+    def _chi(self, x: FloatArray, edges: tuple[Any, ...]) -> FloatArray:
+        e = self._errors(x, edges)[0]
+        chi: FloatArray = np.sqrt(np.maximum(np.einsum("ea,eab,eb->e", e, edges[3], e), 0.0))
+        return chi
+
+    def _gauss_newton(
+        self, x: FloatArray, edges: tuple[Any, ...], iterations: int, huber: float
+    ) -> FloatArray:
+        from scipy.sparse import coo_matrix, identity
         from scipy.sparse.linalg import spsolve
 
-        x = np.array(x, dtype=np.float64)
         n = len(x)
-        if n < 2 or not self.i:
-            return x
-        I = np.array(self.i)  # noqa: E741 (I, J: the edges' node indices, as in the maths)
-        J = np.array(self.j)
-        Z = np.array(self.z)
-        OM = np.array(self.info)
-        RB = np.array(self.robust)
-        cz, sz = np.cos(Z[:, 2]), np.sin(Z[:, 2])
+        I, J, _, OM, RB = edges  # noqa: E741 (I, J: the edges' node indices, as in the maths)
+        active = self._active(len(I)).astype(np.float64)
         for _ in range(iterations):
-            xi, xj = x[I], x[J]
-            ci, si = np.cos(xi[:, 2]), np.sin(xi[:, 2])
-            dx, dy = xj[:, 0] - xi[:, 0], xj[:, 1] - xi[:, 1]
-            # e = Rz^T (Ri^T (tj - ti) - tz), theta_j - theta_i - theta_z
-            ux = ci * dx + si * dy - Z[:, 0]
-            uy = -si * dx + ci * dy - Z[:, 1]
-            e = np.stack(
-                [cz * ux + sz * uy, -sz * ux + cz * uy, wrap(xj[:, 2] - xi[:, 2] - Z[:, 2])], axis=1
-            )
+            e, ci, si, cz, sz, dx, dy = self._errors(x, edges)
             # Jacobians (E, 3, 3)
             A = np.zeros((len(I), 3, 3))
             B = np.zeros((len(I), 3, 3))
@@ -93,7 +155,7 @@ class PoseGraph:
             B[:, :2, :2] = M
             B[:, 2, 2] = 1.0
             chi = np.sqrt(np.maximum(np.einsum("ea,eab,eb->e", e, OM, e), 0.0))
-            scale = np.where(RB & (chi > huber), huber / np.maximum(chi, 1e-12), 1.0)
+            scale = np.where(RB & (chi > huber), huber / np.maximum(chi, 1e-12), 1.0) * active
             om = OM * scale[:, None, None]
             Ao = np.einsum("ekl,elb->ekb", om, A)  # Omega A
             Bo = np.einsum("ekl,elb->ekb", om, B)
@@ -124,8 +186,6 @@ class PoseGraph:
             np.add.at(b, (3 * J[:, None] + r3).ravel(), bj.ravel())
             H = H[3:, 3:]
             # A tiny damping keeps disconnected pieces solvable.
-            from scipy.sparse import identity
-
             H = H + identity(H.shape[0], format="csr") * 1e-9
             delta = spsolve(H.tocsc(), -b[3:])
             if not np.all(np.isfinite(delta)):

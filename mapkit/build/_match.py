@@ -35,13 +35,28 @@ def scan_normals(pts: FloatArray, window: int = 3) -> FloatArray:
     NaN where the neighbourhood is not a straight, continuous piece of wall. Window sums come from
     cumulative sums, so the cost is a few passes over the points.
     """
-    n = len(pts)
-    out = np.full((n, 2), np.nan)
+    return scan_normals_many([pts], window)[0]
+
+
+def scan_normals_many(scans: list[FloatArray], window: int = 3) -> list[FloatArray]:
+    """:func:`scan_normals` of many scans at once (one pass over all their points together)."""
+    if not scans:
+        return []
     w = 2 * window + 1
-    if n < w:
-        return out
-    x = pts[:, 0] - pts[:, 0].mean()
-    y = pts[:, 1] - pts[:, 1].mean()
+    sizes = np.array([len(p) for p in scans], dtype=np.int64)
+    total = int(sizes.sum())
+    out = np.full((total, 2), np.nan)
+    if total < w:
+        return np.split(out, np.cumsum(sizes)[:-1])
+    pts = np.concatenate(scans).astype(np.float64, copy=False)
+    starts = np.concatenate(([0], np.cumsum(sizes)[:-1]))
+    # Each scan centred on its own mean (the sums of squares stay precise).
+    sums = np.add.reduceat(pts, starts[sizes > 0], axis=0) if total else np.zeros((0, 2))
+    means = np.zeros((len(scans), 2))
+    means[sizes > 0] = sums / sizes[sizes > 0, None]
+    mean_at = np.repeat(means, sizes, axis=0)
+    x = pts[:, 0] - mean_at[:, 0]
+    y = pts[:, 1] - mean_at[:, 1]
 
     def wsum(v: FloatArray) -> FloatArray:
         c = np.concatenate(([0.0], np.cumsum(v)))
@@ -57,14 +72,24 @@ def scan_normals(pts: FloatArray, window: int = 3) -> FloatArray:
     disc = np.sqrt(np.maximum((cxx - cyy) ** 2 / 4 + cxy * cxy, 0))
     l1, l2 = tr / 2 + disc, tr / 2 - disc
     step = np.hypot(np.diff(pts[:, 0]), np.diff(pts[:, 1]))
-    gaps = np.lib.stride_tricks.sliding_window_view(step, w - 1).max(axis=1)
-    span = np.hypot(pts[w - 1 :, 0] - pts[: n - w + 1, 0], pts[w - 1 :, 1] - pts[: n - w + 1, 1])
-    rng = np.hypot(mx + pts[:, 0].mean(), my + pts[:, 1].mean())
-    good = (l2 < 0.05 * np.maximum(l1, 1e-9)) & (gaps < 0.08 * rng + 60.0) & (span > 20.0)
-    nrm = np.stack([-np.sin(ang), np.cos(ang)], axis=1)
-    nrm[~good] = np.nan
-    out[window : n - window] = nrm
-    return out
+    m = len(step) - (w - 2)  # windows of w - 1 steps
+    gaps = step[:m].copy()
+    for k in range(1, w - 1):
+        np.maximum(gaps, step[k : k + m], out=gaps)
+    span = np.hypot(
+        pts[w - 1 :, 0] - pts[: total - w + 1, 0], pts[w - 1 :, 1] - pts[: total - w + 1, 1]
+    )
+    first = mean_at[: total - w + 1]
+    rng = np.hypot(mx + first[:, 0], my + first[:, 1])
+    # A window that runs over the end of a scan into the next is no neighbourhood.
+    scan_of = np.repeat(np.arange(len(scans)), sizes)
+    same = scan_of[: total - w + 1] == scan_of[w - 1 :]
+    good = same & (l2 < 0.05 * np.maximum(l1, 1e-9)) & (gaps < 0.08 * rng + 60.0) & (span > 20.0)
+    body = out[window : total - window]
+    body[:, 0] = -np.sin(ang)
+    body[:, 1] = np.cos(ang)
+    body[~good] = np.nan
+    return np.split(out, np.cumsum(sizes)[:-1])
 
 
 @dataclass

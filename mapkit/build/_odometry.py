@@ -105,11 +105,16 @@ class _Calibration:
     """Systematic odometry errors learnt from the scan matches: distance scale, turn scale, drift.
 
     A wrong wheel diameter makes every distance too long or short, a wrong wheel base every turn,
-    unequal wheels a steady heading drift per metre. Where a scan match pins the motion down (the
-    walls in view fix the direction of travel, or the heading), the matched motion is compared
-    with the raw odometry; the median ratio (or drift per metre) is applied to the odometry of later
-    steps when it differs from none by more than three times its standard error, so that good
-    odometry is left alone.
+    unequal wheels a steady heading drift per metre. Where two scan matches pin the motion between
+    them down (the walls in view fix the direction of travel, or the heading), the motion they saw
+    is compared with the raw odometry over the same steps: over a metre or more of path for the
+    distance scale and the drift, over one step for a turn on the spot. The median ratio (or drift
+    per metre) is applied to the odometry of later steps when it differs from none by more than
+    three times its standard error, so that good odometry is left alone.
+
+    The motion is taken between matches, not between the estimate and a match: the estimate is
+    odometry and scans fused, so it lags behind the scans, and the lag would be counted again in
+    every step's disagreement (and the correction overshoot).
     """
 
     _MIN = 50
@@ -152,32 +157,51 @@ class _Calibration:
         out[2] = wrap(raw[2] * self.turn + self.drift * trans)
         return out
 
-    def observe(
+    @staticmethod
+    def _motion_var(info_a: FloatArray, info_b: FloatArray) -> FloatArray:
+        eps = np.diag([1e-8, 1e-8, 1e-4])
+        var: FloatArray = np.linalg.inv(info_a + eps) + np.linalg.inv(info_b + eps)
+        return var
+
+    def observe_run(
         self,
         raw: FloatArray,
-        step: FloatArray,
-        dv: FloatArray,
-        scan_info: FloatArray,
-        heading: float,
+        motion: FloatArray,
+        info_a: FloatArray,
+        info_b: FloatArray,
+        pose_b: FloatArray,
     ) -> None:
+        """A run of a metre or so: its raw odometry, and the motion two scan matches saw.
+
+        ``motion`` is match b's pose in match a's frame; ``info_a`` and ``info_b`` are the
+        matches' information (world frame) and ``pose_b`` match b's pose. A direction a match
+        does not fix (a corridor's axis) has no information and gives no sample.
+        """
         trans_raw = math.hypot(raw[0], raw[1])
-        trans = math.hypot(step[0], step[1])
-        var = np.diag(np.linalg.inv(scan_info + np.diag([1e-8, 1e-8, 1e-4])))
-        if trans > 150.0:
-            u = np.array([step[0], step[1]]) / trans
-            c, s = math.cos(heading), math.sin(heading)
-            u = np.array([c * u[0] - s * u[1], s * u[0] + c * u[1]])
-            sig_u = 1.0 / math.sqrt(max(float(u @ scan_info[:2, :2] @ u), 1e-12))
-            if sig_u < 0.01 * trans:
-                self._dist.append((trans + float(dv[:2] @ u)) / trans_raw)
-            if abs(raw[2]) < math.radians(2.0) and math.sqrt(var[2]) < math.radians(0.2):
-                self._drift.append((float(step[2] + dv[2]) - raw[2] * self.turn) / trans_raw)
-        elif (
-            trans < 50.0
-            and abs(raw[2]) > math.radians(5.0)
-            and math.sqrt(var[2]) < 0.05 * abs(raw[2])
-        ):
-            self._turn.append(float(step[2] + dv[2]) / raw[2])
+        if trans_raw < 1.0 or abs(raw[2]) > math.radians(3.0):
+            return
+        var = self._motion_var(info_a, info_b)
+        u = np.array([raw[0], raw[1]]) / trans_raw
+        c, s = math.cos(pose_b[2]), math.sin(pose_b[2])
+        u_world = np.array([c * u[0] - s * u[1], s * u[0] + c * u[1]])
+        sig_u = math.sqrt(max(float(u_world @ var[:2, :2] @ u_world), 0.0))
+        if sig_u < 0.01 * trans_raw:
+            self._dist.append(float(motion[:2] @ u) / trans_raw)
+        if math.sqrt(var[2, 2]) < math.radians(0.3):
+            self._drift.append((float(motion[2]) - raw[2] * self.turn) / trans_raw)
+        self._count()
+
+    def observe_turn(
+        self, raw: FloatArray, motion: FloatArray, info_a: FloatArray, info_b: FloatArray
+    ) -> None:
+        """One step (see :meth:`observe_run`): a turn on the spot gives a turn scale sample."""
+        if math.hypot(raw[0], raw[1]) >= 50.0 or abs(raw[2]) <= math.radians(5.0):
+            return
+        if math.sqrt(self._motion_var(info_a, info_b)[2, 2]) < 0.05 * abs(raw[2]):
+            self._turn.append(float(motion[2]) / raw[2])
+        self._count()
+
+    def _count(self) -> None:
         self._seen += 1
         if self._seen % (25 if self._seen < 1000 else 250) == 0:
             self.dist = self._fit(self._dist, 1.0)

@@ -20,7 +20,7 @@ from mapkit.build._loops import (
     _loop_pairs,
     _revisit_candidate,
 )
-from mapkit.build._match import icp, scan_normals
+from mapkit.build._match import icp, scan_normals_many
 from mapkit.build._odometry import _OdometryModel
 from mapkit.diagnostics import Issue, IssueCode
 from mapkit.model.scan import LaserLog, LaserScan
@@ -106,11 +106,12 @@ def _register_pass(
     odo_edges: list[int] = []
     raw_steps: list[FloatArray] = []
     sub = _Submap(voxel=40.0)
-    src = [p[::3] if len(p) > 240 else (p[::2] if len(p) > 120 else p) for p in all_pts]
+    # The scan side: about 120 points (a sparse laser's all; fewer leave too few to match).
+    src = [p[:: max(1, len(p) // 120)] for p in all_pts]
     # The map side: every other point (the local map is thinned to 40 mm anyway), with normals
     # from the beam order (the points are still in the laser's reading order).
     pts = [p[::2] if len(p) > 240 else p for p in all_pts]
-    nrm = [scan_normals(p) for p in pts]
+    nrm = scan_normals_many(pts)
     path = np.zeros(n)
     pairs = _loop_pairs(log, scans, issues) if loop_closure else []
     stats["tag_loops"] = len(pairs)
@@ -123,6 +124,8 @@ def _register_pass(
     last_sub = 0
     report_every = max(1, n // 200)
     weak_prior = sigma_info(300.0, 300.0, math.radians(10.0))
+    # Recent scan matches (index, pose, information) for the odometry calibration.
+    matches: list[tuple[int, FloatArray, FloatArray]] = []
     for i in range(1, n):
         raw_step = between(odo[i - 1], odo[i])
         step = model.calibration.correct(raw_step)
@@ -174,7 +177,7 @@ def _register_pass(
                 dv[:2] -= weak * float(dv[:2] @ weak)
             model.observe(dv, scan_info, trans, float(step[2]))
             if not model.frozen:
-                model.calibration.observe(raw_step, step, dv, scan_info, float(est[i - 1][2]))
+                _calibrate(model, matches, i, r.pose, scan_info, odo, path)
             fused, scan_info = _fuse(dv, scan_info, odo_info)
             est[i] = pred + fused
             est[i, 2] = wrap(est[i, 2])
@@ -222,6 +225,7 @@ def _register_pass(
             else:
                 next_check = i + 3
         if moved:
+            matches.clear()  # the local map moves: older matches are in another frame
             est = graph.optimize(est, iterations=4)
             stats["optimisations"] += 1
             window = [k for k in window if k <= i]
@@ -230,7 +234,8 @@ def _register_pass(
         window.append(i)
         while len(window) > 25 or (path[i] - path[window[0]] > 8000.0 and len(window) > 5):
             window.pop(0)
-        if i - last_sub >= 3 or last_sub < 0:
+        # Every third scan; every scan while turning, when each scan brings a new view.
+        if i - last_sub >= 3 or last_sub < 0 or abs(step[2]) > _TURNING:
             sub.rebuild(window, pts, nrm, est)
             last_sub = i
         if progress and (i % report_every == 0 or i == n - 1):
@@ -238,9 +243,55 @@ def _register_pass(
     stats["odometry_scale"] = round(float(model.scale), 4)
     stats["calibration"] = model.calibration.summary()
     if loop_closure and (stats["revisits"] or stats["tag_loops"]):
-        est = graph.optimize(est, iterations=20)
+        est = graph.optimize(est, iterations=20, reject=_REJECT)
         stats["optimisations"] += 1
+        # Closures the consistency check switched off are no closures.
+        off = {(graph.i[k], graph.j[k]) for k in graph.rejected}
+        stats["closures"] = [c for c in stats["closures"] if tuple(c) not in off]
+        stats["closures_rejected"] = len(off)
     return est
+
+
+def _calibrate(
+    model: _OdometryModel,
+    matches: list[tuple[int, FloatArray, FloatArray]],
+    i: int,
+    pose: FloatArray,
+    info: FloatArray,
+    odo: FloatArray,
+    path: FloatArray,
+) -> None:
+    """Give the odometry calibration the motion the scans saw, against the raw odometry.
+
+    The motion is measured between two scan matches (both against the local map, so how far the
+    estimate lags behind the scans does not enter): the last one for a turn on the spot, one a
+    metre or more back along the path for distance and heading drift (over a metre a match's few
+    mm of noise are a small part of the motion).
+    """
+    if matches and matches[-1][0] == i - 1:
+        k, pk, ik = matches[-1]
+        model.calibration.observe_turn(between(odo[k], odo[i]), between(pk, pose), ik, info)
+    for k, pk, ik in reversed(matches):
+        if path[i] - path[k] >= _CALIBRATION_BASE:
+            if path[i] - path[k] < 3.0 * _CALIBRATION_BASE:
+                model.calibration.observe_run(
+                    between(odo[k], odo[i]), between(pk, pose), ik, info, pose
+                )
+            break
+    matches.append((i, pose.copy(), info))
+    while matches and path[i] - path[matches[0][0]] > 3.0 * _CALIBRATION_BASE:
+        matches.pop(0)
+
+
+#: A step turning more than this (radians) rebuilds the local map at once.
+_TURNING = math.radians(10.0)
+
+#: Path (mm) over which the odometry's distance scale and heading drift are measured.
+_CALIBRATION_BASE = 1000.0
+
+
+#: A loop closure the optimised graph still misses by this many standard deviations is wrong.
+_REJECT = 5.0
 
 
 #: Scale of the robust (Cauchy) weights of scan points in registration (mm).

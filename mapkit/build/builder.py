@@ -15,7 +15,7 @@ from mapkit.build._common import FloatArray, Progress, _deg, _rad
 from mapkit.build._goals import _goals, _obj_pose
 from mapkit.build._lines import extract_lines
 from mapkit.build._mapping import pass_counts
-from mapkit.build._match import scan_normals, transform
+from mapkit.build._match import scan_normals_many, transform
 from mapkit.build._register import _register
 from mapkit.diagnostics import Issue
 from mapkit.errors import LogFormatError
@@ -238,9 +238,8 @@ def build_map(
     normals = (
         np.concatenate(
             [
-                scan_normals(p)
-                @ np.array([[math.cos(e[2]), math.sin(e[2])], [-math.sin(e[2]), math.cos(e[2])]])
-                for p, e in zip(pts, est, strict=True)
+                n @ np.array([[math.cos(e[2]), math.sin(e[2])], [-math.sin(e[2]), math.cos(e[2])]])
+                for n, e in zip(scan_normals_many(pts), est, strict=True)
             ]
         )
         if thin > 0
@@ -285,6 +284,7 @@ def build_map(
             "tags": stats["tag_loops"],
             "tags_matched": stats["tag_loops_matched"],
             "revisits": stats["revisits"],
+            "rejected": stats.get("closures_rejected", 0),
             "optimisations": stats["optimisations"],
             "max_correction_mm": round(max(cm), 1) if cm else 0.0,
             "max_correction_deg": round(max(cd), 2) if cd else 0.0,
