@@ -18,6 +18,9 @@ FloatArray = np.ndarray[Any, np.dtype[np.float64]]
 #: The noise scale is fitted on at most this many of the latest steps.
 _FIT_STEPS = 3000
 
+#: Path (mm) over which :meth:`_Calibration.refine` compares trajectory and odometry.
+_REFINE_BASE = 1000.0
+
 #: Least noise scale (log10): odometry is never trusted as exact, so scans keep a say.
 _MIN_LOG_SCALE = -2.0
 
@@ -207,6 +210,36 @@ class _Calibration:
             self.dist = self._fit(self._dist, 1.0)
             self.turn = self._fit(self._turn, 1.0)
             self.drift = self._fit(self._drift, 0.0)
+
+    def refine(self, est: FloatArray, odo: FloatArray, path: FloatArray) -> bool:
+        """Recalibrate the heading drift from a loop-closed trajectory; True if it changed.
+
+        The scan matches the factors were first learnt from are made against a local map that
+        was itself laid out with the odometry being calibrated, so they lean towards it (a drift
+        comes out too small). After loop closing the trajectory also holds what the closures
+        say: over every metre or so of straight path, its turn is compared with the odometry's,
+        and the median per metre is the drift. (Not the distance scale: along a corridor the
+        trajectory is odometry's own.)
+        """
+        from mapkit.build._graph import between
+
+        n = len(est)
+        k = np.searchsorted(path, path - _REFINE_BASE, side="right") - 1
+        ok = (k >= 0) & (path - path[np.maximum(k, 0)] < 3.0 * _REFINE_BASE)
+        i = np.flatnonzero(ok)
+        k = k[ok]
+        if len(i) < 50 or n < 2:
+            return False
+        raw = between(odo[k], odo[i])
+        seen = between(est[k], est[i])
+        length = np.hypot(raw[:, 0], raw[:, 1])
+        straight = (np.abs(raw[:, 2]) < math.radians(3.0)) & (length > 0.5 * _REFINE_BASE)
+        if np.count_nonzero(straight) < 50:
+            return False
+        raw, seen, length = raw[straight], seen[straight], length[straight]
+        rate = float(np.median((wrap(seen[:, 2] - raw[:, 2] * self.turn)) / length))
+        before, self.drift = self.drift, rate
+        return abs(self.drift - before) > math.radians(0.005) / 1000.0
 
     def _fit(self, obs: list[float], none: float) -> float:
         if len(obs) < self._MIN:

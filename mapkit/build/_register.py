@@ -245,6 +245,13 @@ def _register_pass(
     if loop_closure and (stats["revisits"] or stats["tag_loops"]):
         est = graph.optimize(est, iterations=20, reject=_REJECT)
         stats["optimisations"] += 1
+        if not model.frozen and model.calibration.refine(est, odo, path):
+            # The odometry as recalibrated by the closed loops, in the graph.
+            for k, raw in zip(odo_edges, raw_steps, strict=True):
+                graph.z[k] = model.calibration.correct(raw)
+            est = graph.optimize(est, iterations=20, reject=_REJECT)
+            stats["optimisations"] += 1
+            stats["calibration"] = model.calibration.summary()
         # Closures the consistency check switched off are no closures.
         off = {(graph.i[k], graph.j[k]) for k in graph.rejected}
         stats["closures"] = [c for c in stats["closures"] if tuple(c) not in off]

@@ -6,11 +6,13 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import mapkit
 from mapkit.build import build_map, extract_lines
 from mapkit.build._graph import PoseGraph, between, sigma_info, wrap
-from mapkit.build._match import icp, scan_normals, transform
+from mapkit.build._match import icp, scan_normals, scan_normals_many, transform
 from mapkit.build.quality import distance_to_segments, trajectory_rms
 from mapkit.errors import LogFormatError
 from mapkit.formats.laser2d import write_log
@@ -123,6 +125,103 @@ def test_scan_normals_of_a_wall() -> None:
     n = scan_normals(np.stack([x, np.full_like(x, 1500.0)], 1))
     good = np.isfinite(n[:, 0])
     assert good.sum() >= 70 and np.allclose(np.abs(n[good, 1]), 1.0)
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    st.lists(st.integers(min_value=0, max_value=60), min_size=1, max_size=6),
+    st.integers(min_value=0, max_value=2**31),
+)
+def test_scan_normals_of_many_scans_equal_one_by_one(sizes: list[int], seed: int) -> None:
+    """The batched normals (all scans in one pass) are each scan's own, scan borders included."""
+    rng = np.random.default_rng(seed)
+    scans = []
+    for n in sizes:
+        # Pieces of walls with noise, gaps and an occasional far point: every case of the test.
+        t = np.sort(rng.uniform(-3000, 3000, n))
+        p = np.stack([t, 2000.0 + rng.normal(0, 5, n)], 1) @ np.array(
+            [[math.cos(seed), math.sin(seed)], [-math.sin(seed), math.cos(seed)]]
+        )
+        if n and rng.random() < 0.5:
+            p[rng.integers(0, n)] += 800.0
+        scans.append(p)
+    many = scan_normals_many(scans)
+    assert len(many) == len(scans)
+    for p, got in zip(scans, many, strict=True):
+        want = scan_normals_one(p)
+        assert got.shape == want.shape
+        assert np.array_equal(np.isnan(got), np.isnan(want))
+        ok = np.isfinite(got[:, 0])
+        # A normal's sign is arbitrary: compare up to it.
+        assert np.allclose(np.abs(np.sum(got[ok] * want[ok], axis=1)), 1.0, atol=1e-6)
+
+
+def scan_normals_one(pts: np.ndarray, window: int = 3) -> np.ndarray:
+    """The normals of one scan, written out plainly (the reference for the batched version)."""
+    n = len(pts)
+    out = np.full((n, 2), np.nan)
+    for c in range(window, n - window):
+        nb = pts[c - window : c + window + 1]
+        mean = nb.mean(axis=0)
+        w, v = np.linalg.eigh(np.cov((nb - mean).T, bias=True))
+        gaps = np.hypot(*np.diff(nb, axis=0).T).max()
+        span = float(np.hypot(*(nb[-1] - nb[0])))
+        rng_ = float(np.hypot(*mean))
+        if w[0] < 0.05 * max(w[1], 1e-9) and gaps < 0.08 * rng_ + 60.0 and span > 20.0:
+            d = v[:, 1]
+            ang = math.atan2(d[1], d[0])
+            out[c] = [-math.sin(ang), math.cos(ang)]
+    return out
+
+
+def test_pose_graph_rejects_a_wrong_closure() -> None:
+    """A closure that disagrees with everything else (caught on the wrong wall) is switched off
+    by the consistency check; the right one stays and the square closes."""
+    true, est, g = _square_graph(np.random.default_rng(3), turn_sigma=0.002)
+    n = len(true)
+    g.add(0, n - 1, between(true[0], true[-1]), sigma_info(5, 5, 0.005), robust=True)
+    wrong = true[n // 2].copy()
+    wrong[:2] += [1500.0, -900.0]
+    g.add(5, n // 2, between(true[5], wrong), sigma_info(5, 5, 0.005), robust=True)
+    plain = g.optimize(est)  # the Huber weight alone lets the wrong closure bend the square
+    checked = g.optimize(est, reject=5.0)
+    assert g.rejected == {len(g) - 1}
+    err = lambda x: float(np.sqrt(np.mean(np.sum((x[:, :2] - true[:, :2]) ** 2, 1))))  # noqa: E731
+    assert err(checked) < 0.5 * err(plain), (err(checked), err(plain))
+    assert err(checked) < 40.0
+
+
+def _square_graph(
+    rng: np.random.Generator, turn_sigma: float
+) -> tuple[np.ndarray, np.ndarray, PoseGraph]:
+    true = [np.zeros(3)]
+    for k in range(1, 40):
+        step = np.array([0.0, 0.0, math.pi / 2]) if k % 10 == 0 else np.array([500.0, 0.0, 0.0])
+        p = true[-1]
+        c, s = math.cos(p[2]), math.sin(p[2])
+        true.append(
+            np.array(
+                [
+                    p[0] + c * step[0] - s * step[1],
+                    p[1] + s * step[0] + c * step[1],
+                    wrap(p[2] + step[2]),
+                ]
+            )
+        )
+    T = np.array(true)
+    g = PoseGraph()
+    est = [T[0]]
+    for k in range(1, len(T)):
+        z = between(T[k - 1], T[k]) + np.array(
+            [rng.normal(0, 10), rng.normal(0, 10), rng.normal(0, turn_sigma)]
+        )
+        g.add(k - 1, k, z, sigma_info(10, 10, turn_sigma))
+        p = est[-1]
+        c, s = math.cos(p[2]), math.sin(p[2])
+        est.append(
+            np.array([p[0] + c * z[0] - s * z[1], p[1] + s * z[0] + c * z[1], wrap(p[2] + z[2])])
+        )
+    return T, np.array(est), g
 
 
 def test_pose_graph_closes_a_square() -> None:
