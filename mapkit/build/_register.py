@@ -22,6 +22,7 @@ from mapkit.build._loops import (
 )
 from mapkit.build._match import icp, scan_normals_many
 from mapkit.build._odometry import _OdometryModel
+from mapkit.build._refine import refine
 from mapkit.diagnostics import Issue, IssueCode
 from mapkit.model.scan import LaserLog, LaserScan
 
@@ -70,7 +71,7 @@ def _register(
     est = _register_pass(scans, odo, all_pts, log, issues, first, loop_closure, progress, model)
     if not model.calibration.differs(start) or n > _SECOND_PASS_MAX:
         stats.update(first)
-        return est
+        return _refined(est, odo, all_pts, stats, loop_closure)
     # The odometry's systematic errors were learnt on the way: the first metres were registered
     # without them. Once more from the start, with the odometry as calibrated. (A long log comes
     # back over its first metres many times: its loop closures correct them instead.)
@@ -78,7 +79,31 @@ def _register(
     model.frozen = True
     est = _register_pass(scans, odo, all_pts, log, [], stats, loop_closure, None, model)
     stats["passes"] = 2
-    return est
+    return _refined(est, odo, all_pts, stats, loop_closure)
+
+
+def _refined(
+    est: FloatArray,
+    odo: FloatArray,
+    all_pts: list[FloatArray],
+    stats: dict[str, Any],
+    loop_closure: bool,
+) -> FloatArray:
+    """The poses after the global refinement (:mod:`mapkit.build._refine`) where a place was
+    seen more than once (loops closed), on logs of up to ``_REFINE_MAX`` scans."""
+    closed = stats.get("revisits", 0) or stats.get("tag_loops_matched", 0)
+    if not loop_closure or not closed or len(est) > _REFINE_MAX:
+        return est
+    src = [p[:: max(1, len(p) // 120)] for p in all_pts]
+    pts = [p[::2] if len(p) > 240 else p for p in all_pts]
+    path = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(odo[:, :2], axis=0).T))))
+    out, matched = refine(est, path, src, pts, scan_normals_many(pts))
+    stats["refined"] = matched
+    return out
+
+
+#: Longest log (scans) refined against the map of all its scans.
+_REFINE_MAX = 5000
 
 
 #: Longest log (scans) registered a second time when the calibration was learnt on the way.

@@ -1,0 +1,112 @@
+"""Global refinement: every scan matched once more against the map of all scans.
+
+After loop closing the trajectory is right in the large, but where the robot passed a place
+more than once each pass still sits a few mm to a few cm from the others (each was registered
+against its own local map, and the closures only pinned a few scans of it): the walls come out
+doubled or blurred. Here every scan is matched against the scans of the *other* passes (the
+scans more than a few metres of path away), and a pose graph holds each scan to its match (in
+the directions the match fixes) and to its neighbours by the relative poses the registration
+found. The passes meet half way; where a place was seen once there is nothing to match, and
+nothing moves.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from mapkit.build._common import FloatArray, _world
+from mapkit.build._graph import PoseGraph, between, sigma_info
+from mapkit.build._loops import _CAUCHY, _MATCH_POINTS, _MATCH_SIGMA, _edge_info
+from mapkit.build._match import icp
+
+#: Scans within this much path (mm) of a scan are its own pass: not matched against.
+_OWN_PASS = 5000.0
+
+#: What the registration's relative pose of neighbouring scans is worth (mm, mm, radians).
+_STEP_SIGMA = (3.0, 3.0, math.radians(0.07))
+
+#: Neighbours looked at per point to find one of another pass.
+_K = 8
+
+
+class _OtherPasses:
+    """A KD-tree of all scans' points that answers, for scan i, only with points of other passes
+    (scans more than ``_OWN_PASS`` of path away): the interface of ``cKDTree.query`` that
+    :func:`~mapkit.build._match.icp` uses."""
+
+    def __init__(self, pts: FloatArray, owner: np.ndarray[Any, Any], path: FloatArray) -> None:
+        from scipy.spatial import cKDTree
+
+        self.tree = cKDTree(pts, balanced_tree=False, compact_nodes=False)
+        self.owner_path = path[owner]
+        self.n = len(pts)
+        self.at = 0.0
+
+    def query(
+        self, p: FloatArray, k: int = 1, distance_upper_bound: float = np.inf, eps: float = 0.0
+    ) -> tuple[FloatArray, np.ndarray[Any, Any]]:
+        del k
+        d, idx = self.tree.query(p, k=_K, distance_upper_bound=distance_upper_bound, eps=eps)
+        found = idx < self.n
+        other = found.copy()
+        other[found] = np.abs(self.owner_path[idx[found]] - self.at) > _OWN_PASS
+        first = np.argmax(other, axis=1)
+        rows = np.arange(len(p))
+        has = other[rows, first]
+        d_out = np.where(has, d[rows, first], np.inf)
+        i_out = np.where(has, idx[rows, first], self.n)
+        return d_out, i_out
+
+
+def refine(
+    est: FloatArray,
+    path: FloatArray,
+    src: list[FloatArray],
+    pts: list[FloatArray],
+    nrm: list[FloatArray],
+    *,
+    rounds: int = 1,
+) -> tuple[FloatArray, int]:
+    """The poses after ``rounds`` of matching every scan against the other passes' scans.
+
+    Returns:
+        The new ``(N, 3)`` poses (radians) and how many scans matched in the last round.
+    """
+    n = len(est)
+    x = est.copy()
+    matched = 0
+    step_info = sigma_info(*_STEP_SIGMA)
+    sizes = None
+    for _ in range(rounds):
+        parts = [_world(p, q, e) for p, q, e in zip(pts, nrm, x, strict=True)]
+        sizes = np.array([len(a) for a, _ in parts])
+        tgt = np.concatenate([a for a, _ in parts])
+        tn = np.concatenate([b for _, b in parts])
+        if len(tgt) < 50:
+            break
+        owner = np.repeat(np.arange(n), sizes)
+        others = _OtherPasses(tgt, owner, path)
+        graph = PoseGraph()
+        for i in range(1, n):
+            graph.add(i - 1, i, between(x[i - 1], x[i]), step_info)
+        matched = 0
+        for i in range(1, n):
+            others.at = float(path[i])
+            r = icp(
+                src[i], others, tgt, tn, x[i], schedule=(80.0, 40.0), max_iter=8, cauchy=_CAUCHY
+            )
+            if not (r.ok and r.inliers > 0.3 and r.rms < 30.0):
+                continue
+            if math.hypot(*(r.pose[:2] - x[i, :2])) > 150.0:
+                continue
+            info = r.info(sigma=_MATCH_SIGMA, points=_MATCH_POINTS)
+            # Node 0 is held fixed: an edge from it is the scan's place in the map.
+            graph.add(0, i, between(x[0], r.pose), _edge_info(info, r.pose), robust=True)
+            matched += 1
+        if not matched:
+            break
+        x = graph.optimize(x, iterations=5)
+    return x, matched
