@@ -18,8 +18,8 @@ FloatArray = np.ndarray[Any, np.dtype[np.float64]]
 #: The noise scale is fitted on at most this many of the latest steps.
 _FIT_STEPS = 3000
 
-#: Path (mm) over which :meth:`_Calibration.refine` compares trajectory and odometry.
-_REFINE_BASE = 1000.0
+#: Fewest drift samples fitted (each is a scan-to-scan match over metres of path: fewer needed).
+_MIN_DRIFT = 25
 
 #: Least noise scale (log10): odometry is never trusted as exact, so scans keep a say.
 _MIN_LOG_SCALE = -2.0
@@ -166,33 +166,31 @@ class _Calibration:
         var: FloatArray = np.linalg.inv(info_a + eps) + np.linalg.inv(info_b + eps)
         return var
 
-    def observe_run(
-        self,
-        raw: FloatArray,
-        motion: FloatArray,
-        info_a: FloatArray,
-        info_b: FloatArray,
-        pose_b: FloatArray,
-    ) -> None:
-        """A run of a metre or so: its raw odometry, and the motion two scan matches saw.
+    def observe_run(self, raw: FloatArray, motion: FloatArray, var: FloatArray) -> None:
+        """A run of a metre or more: its raw odometry, and the motion the scans saw over it.
 
-        ``motion`` is match b's pose in match a's frame; ``info_a`` and ``info_b`` are the
-        matches' information (world frame) and ``pose_b`` match b's pose. A direction a match
-        does not fix (a corridor's axis) has no information and gives no sample.
+        ``motion`` is the later scan's pose in the earlier one's frame and ``var`` its 3x3
+        covariance (in the frame ``motion`` is given in). A direction the scans do not fix (a
+        corridor's axis) has a large variance and gives no sample.
         """
         trans_raw = math.hypot(raw[0], raw[1])
         if trans_raw < 1.0 or abs(raw[2]) > math.radians(3.0):
             return
-        var = self._motion_var(info_a, info_b)
         u = np.array([raw[0], raw[1]]) / trans_raw
-        c, s = math.cos(pose_b[2]), math.sin(pose_b[2])
-        u_world = np.array([c * u[0] - s * u[1], s * u[0] + c * u[1]])
-        sig_u = math.sqrt(max(float(u_world @ var[:2, :2] @ u_world), 0.0))
+        c, s = math.cos(motion[2]), math.sin(motion[2])
+        u_frame = np.array([c * u[0] - s * u[1], s * u[0] + c * u[1]])
+        sig_u = math.sqrt(max(float(u_frame @ var[:2, :2] @ u_frame), 0.0))
         if sig_u < 0.01 * trans_raw:
             self._dist.append(float(motion[:2] @ u) / trans_raw)
-        if math.sqrt(var[2, 2]) < math.radians(0.3):
-            self._drift.append((float(motion[2]) - raw[2] * self.turn) / trans_raw)
         self._count()
+
+    def observe_drift(self, raw: FloatArray, turn: float, var: float) -> None:
+        """A straight run: its raw odometry, the turn the scans saw over it and that turn's
+        variance (radians squared)."""
+        trans_raw = math.hypot(raw[0], raw[1])
+        if trans_raw < 1.0 or math.sqrt(var) > math.radians(0.3):
+            return
+        self._drift.append((turn - raw[2] * self.turn) / trans_raw)
 
     def observe_turn(
         self, raw: FloatArray, motion: FloatArray, info_a: FloatArray, info_b: FloatArray
@@ -209,40 +207,15 @@ class _Calibration:
         if self._seen % (25 if self._seen < 1000 else 250) == 0:
             self.dist = self._fit(self._dist, 1.0)
             self.turn = self._fit(self._turn, 1.0)
-            self.drift = self._fit(self._drift, 0.0)
+            self.drift = self._fit(self._drift, 0.0, least=_MIN_DRIFT)
 
-    def refine(self, est: FloatArray, odo: FloatArray, path: FloatArray) -> bool:
-        """Recalibrate the heading drift from a loop-closed trajectory; True if it changed.
+    @property
+    def drift_samples(self) -> list[float]:
+        """The drift samples so far (radians per mm)."""
+        return self._drift
 
-        The scan matches the factors were first learnt from are made against a local map that
-        was itself laid out with the odometry being calibrated, so they lean towards it (a drift
-        comes out too small). After loop closing the trajectory also holds what the closures
-        say: over every metre or so of straight path, its turn is compared with the odometry's,
-        and the median per metre is the drift. (Not the distance scale: along a corridor the
-        trajectory is odometry's own.)
-        """
-        from mapkit.build._graph import between
-
-        n = len(est)
-        k = np.searchsorted(path, path - _REFINE_BASE, side="right") - 1
-        ok = (k >= 0) & (path - path[np.maximum(k, 0)] < 3.0 * _REFINE_BASE)
-        i = np.flatnonzero(ok)
-        k = k[ok]
-        if len(i) < 50 or n < 2:
-            return False
-        raw = between(odo[k], odo[i])
-        seen = between(est[k], est[i])
-        length = np.hypot(raw[:, 0], raw[:, 1])
-        straight = (np.abs(raw[:, 2]) < math.radians(3.0)) & (length > 0.5 * _REFINE_BASE)
-        if np.count_nonzero(straight) < 50:
-            return False
-        raw, seen, length = raw[straight], seen[straight], length[straight]
-        rate = float(np.median((wrap(seen[:, 2] - raw[:, 2] * self.turn)) / length))
-        before, self.drift = self.drift, rate
-        return abs(self.drift - before) > math.radians(0.005) / 1000.0
-
-    def _fit(self, obs: list[float], none: float) -> float:
-        if len(obs) < self._MIN:
+    def _fit(self, obs: list[float], none: float, least: int = 0) -> float:
+        if len(obs) < (least or self._MIN):
             return none
         a = np.array(obs)
         med = float(np.median(a))

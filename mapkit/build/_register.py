@@ -8,6 +8,7 @@ from typing import Any
 
 import numpy as np
 
+from mapkit.build._calibrate import CalibrationFeed
 from mapkit.build._common import FloatArray, Progress, _Submap
 from mapkit.build._graph import PoseGraph, between, sigma_info, wrap
 from mapkit.build._loops import (
@@ -128,8 +129,6 @@ def _register_pass(
     est = odo.copy()
     residuals = stats["residual_per_scan"]
     graph = PoseGraph()
-    odo_edges: list[int] = []
-    raw_steps: list[FloatArray] = []
     sub = _Submap(voxel=40.0)
     # The scan side: about 120 points (a sparse laser's all; fewer leave too few to match).
     src = [p[:: max(1, len(p) // 120)] for p in all_pts]
@@ -149,8 +148,7 @@ def _register_pass(
     last_sub = 0
     report_every = max(1, n // 200)
     weak_prior = sigma_info(300.0, 300.0, math.radians(10.0))
-    # Recent scan matches (index, pose, information) for the odometry calibration.
-    matches: list[tuple[int, FloatArray, FloatArray]] = []
+    feed = CalibrationFeed(model.calibration, odo, path, src, all_pts)
     for i in range(1, n):
         raw_step = between(odo[i - 1], odo[i])
         step = model.calibration.correct(raw_step)
@@ -202,22 +200,19 @@ def _register_pass(
                 dv[:2] -= weak * float(dv[:2] @ weak)
             model.observe(dv, scan_info, trans, float(step[2]))
             if not model.frozen:
-                _calibrate(model, matches, i, r.pose, scan_info, odo, path)
+                feed.step(i, r.pose, scan_info)
             fused, scan_info = _fuse(dv, scan_info, odo_info)
             est[i] = pred + fused
             est[i, 2] = wrap(est[i, 2])
             stats["registered"] += 1
             stats["residuals"].append(r.rms)
             residuals[i] = r.rms
-            # Two edges: the scan's (what it sees) and odometry's, so that odometry can be
-            # recalibrated at the end without redoing the scans.
+            # Two edges: the scan's (what it sees) and odometry's.
             seen = pred + dv
             graph.add(i - 1, i, between(est[i - 1], seen), _edge_info(scan_info, seen))
         else:
             est[i] = pred
             stats["odometry_only"] += 1
-        odo_edges.append(len(graph))
-        raw_steps.append(raw_step)
         graph.add(i - 1, i, step, odo_info)
         # Loop closures.
         moved = False
@@ -250,7 +245,7 @@ def _register_pass(
             else:
                 next_check = i + 3
         if moved:
-            matches.clear()  # the local map moves: older matches are in another frame
+            feed.moved()  # the local map moves: older matches are in another frame
             est = graph.optimize(est, iterations=4)
             stats["optimisations"] += 1
             window = [k for k in window if k <= i]
@@ -270,13 +265,6 @@ def _register_pass(
     if loop_closure and (stats["revisits"] or stats["tag_loops"]):
         est = graph.optimize(est, iterations=20, reject=_REJECT)
         stats["optimisations"] += 1
-        if not model.frozen and model.calibration.refine(est, odo, path):
-            # The odometry as recalibrated by the closed loops, in the graph.
-            for k, raw in zip(odo_edges, raw_steps, strict=True):
-                graph.z[k] = model.calibration.correct(raw)
-            est = graph.optimize(est, iterations=20, reject=_REJECT)
-            stats["optimisations"] += 1
-            stats["calibration"] = model.calibration.summary()
         # Closures the consistency check switched off are no closures.
         off = {(graph.i[k], graph.j[k]) for k in graph.rejected}
         stats["closures"] = [c for c in stats["closures"] if tuple(c) not in off]
@@ -284,43 +272,8 @@ def _register_pass(
     return est
 
 
-def _calibrate(
-    model: _OdometryModel,
-    matches: list[tuple[int, FloatArray, FloatArray]],
-    i: int,
-    pose: FloatArray,
-    info: FloatArray,
-    odo: FloatArray,
-    path: FloatArray,
-) -> None:
-    """Give the odometry calibration the motion the scans saw, against the raw odometry.
-
-    The motion is measured between two scan matches (both against the local map, so how far the
-    estimate lags behind the scans does not enter): the last one for a turn on the spot, one a
-    metre or more back along the path for distance and heading drift (over a metre a match's few
-    mm of noise are a small part of the motion).
-    """
-    if matches and matches[-1][0] == i - 1:
-        k, pk, ik = matches[-1]
-        model.calibration.observe_turn(between(odo[k], odo[i]), between(pk, pose), ik, info)
-    for k, pk, ik in reversed(matches):
-        if path[i] - path[k] >= _CALIBRATION_BASE:
-            if path[i] - path[k] < 3.0 * _CALIBRATION_BASE:
-                model.calibration.observe_run(
-                    between(odo[k], odo[i]), between(pk, pose), ik, info, pose
-                )
-            break
-    matches.append((i, pose.copy(), info))
-    while matches and path[i] - path[matches[0][0]] > 3.0 * _CALIBRATION_BASE:
-        matches.pop(0)
-
-
 #: A step turning more than this (radians) rebuilds the local map at once.
 _TURNING = math.radians(10.0)
-
-#: Path (mm) over which the odometry's distance scale and heading drift are measured.
-_CALIBRATION_BASE = 1000.0
-
 
 #: A loop closure the optimised graph still misses by this many standard deviations is wrong.
 _REJECT = 5.0

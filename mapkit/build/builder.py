@@ -279,6 +279,7 @@ def build_map(
             "median_residual_mm": round(float(np.median(res)), 2) if res else None,
             "odometry_noise_scale": stats.get("odometry_scale"),
             "odometry_calibration": stats.get("calibration"),
+            "refined": stats.get("refined", 0),
         },
         "loops": {
             "tags": stats["tag_loops"],

@@ -425,11 +425,13 @@ def build(
             f"  registration: {plural(reg['registered'], 'scan')} matched, "
             f"{reg['odometry_only']} on "
             f"odometry alone, median residual {reg['median_residual_mm']} mm"
+            + (f"; {reg['refined']} refined against the other passes" if reg.get("refined") else "")
         )
         click.echo(
             f"  loops: {plural(loops['tags'], 'loop tag')} ({loops['tags_matched']} matched), "
             f"{plural(loops['revisits'], 'revisit')} closed, "
-            f"{plural(loops['optimisations'], 'optimisation')}, "
+            + (f"{loops['rejected']} rejected as inconsistent, " if loops.get("rejected") else "")
+            + f"{plural(loops['optimisations'], 'optimisation')}, "
             f"largest correction {loops['max_correction_mm']} mm / "
             f"{loops['max_correction_deg']} deg; the end moved "
             f"{s['end_shift_from_odometry_mm']} mm from odometry"
