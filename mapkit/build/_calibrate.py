@@ -24,9 +24,9 @@ DRIFT_BASE = 2000.0
 
 #: A drift sample is taken at every scan until there are ``DRIFT_PLENTY``, then every
 #: ``DRIFT_EVERY`` scans (each costs a scan-to-scan match), up to ``DRIFT_ENOUGH``.
-DRIFT_EVERY = 10
+DRIFT_EVERY = 3
 DRIFT_PLENTY = 300
-DRIFT_ENOUGH = 1500
+DRIFT_ENOUGH = 1000
 
 
 class CalibrationFeed:
@@ -65,19 +65,22 @@ class CalibrationFeed:
         """Scan ``i`` matched the local map at ``pose`` with ``info`` (world frame)."""
         odo, path = self.odo, self.path
         matches = self._matches
+        cov = np.asarray(np.linalg.inv(info + _EPS), dtype=np.float64)
         if matches and matches[-1][0] == i - 1:
-            k, pk, ik = matches[-1]
-            self.cal.observe_turn(between(odo[k], odo[i]), between(pk, pose), ik, info)
-        for k, pk, ik in reversed(matches):
+            k, pk, ck = matches[-1]
+            raw = between(odo[k], odo[i])
+            if math.hypot(raw[0], raw[1]) < 50.0 and abs(raw[2]) > math.radians(5.0):
+                self.cal.observe_turn(raw, between(pk, pose), ck + cov)
+        for k, pk, ck in reversed(matches):
             if path[i] - path[k] >= BASE:
                 if path[i] - path[k] < 3.0 * BASE:
                     # The motion's covariance (two matches'), turned into match k's frame.
-                    var = np.linalg.inv(ik + _EPS) + np.linalg.inv(info + _EPS)
                     c, s = math.cos(pk[2]), math.sin(pk[2])
                     R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-                    self.cal.observe_run(between(odo[k], odo[i]), between(pk, pose), R.T @ var @ R)
+                    var = R.T @ (ck + cov) @ R
+                    self.cal.observe_run(between(odo[k], odo[i]), between(pk, pose), var)
                 break
-        matches.append((i, pose.copy(), info))
+        matches.append((i, pose.copy(), cov))
         while matches and path[i] - path[matches[0][0]] > 3.0 * BASE:
             matches.pop(0)
         self._drift(i, pose)

@@ -160,12 +160,6 @@ class _Calibration:
         out[2] = wrap(raw[2] * self.turn + self.drift * trans)
         return out
 
-    @staticmethod
-    def _motion_var(info_a: FloatArray, info_b: FloatArray) -> FloatArray:
-        eps = np.diag([1e-8, 1e-8, 1e-4])
-        var: FloatArray = np.linalg.inv(info_a + eps) + np.linalg.inv(info_b + eps)
-        return var
-
     def observe_run(self, raw: FloatArray, motion: FloatArray, var: FloatArray) -> None:
         """A run of a metre or more: its raw odometry, and the motion the scans saw over it.
 
@@ -192,13 +186,11 @@ class _Calibration:
             return
         self._drift.append((turn - raw[2] * self.turn) / trans_raw)
 
-    def observe_turn(
-        self, raw: FloatArray, motion: FloatArray, info_a: FloatArray, info_b: FloatArray
-    ) -> None:
+    def observe_turn(self, raw: FloatArray, motion: FloatArray, var: FloatArray) -> None:
         """One step (see :meth:`observe_run`): a turn on the spot gives a turn scale sample."""
         if math.hypot(raw[0], raw[1]) >= 50.0 or abs(raw[2]) <= math.radians(5.0):
             return
-        if math.sqrt(self._motion_var(info_a, info_b)[2, 2]) < 0.05 * abs(raw[2]):
+        if math.sqrt(var[2, 2]) < 0.05 * abs(raw[2]):
             self._turn.append(float(motion[2]) / raw[2])
         self._count()
 

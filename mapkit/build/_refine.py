@@ -79,7 +79,6 @@ def refine(
     x = est.copy()
     matched = 0
     step_info = sigma_info(*_STEP_SIGMA)
-    sizes = None
     for _ in range(rounds):
         parts = [_world(p, q, e) for p, q, e in zip(pts, nrm, x, strict=True)]
         sizes = np.array([len(a) for a, _ in parts])

@@ -3,7 +3,6 @@ grid of hits, with its :class:`BuildResult` report."""
 
 from __future__ import annotations
 
-import math
 import time
 from dataclasses import dataclass, field
 from typing import Any
@@ -15,7 +14,7 @@ from mapkit.build._common import FloatArray, Progress, _deg, _rad
 from mapkit.build._goals import _goals, _obj_pose
 from mapkit.build._lines import extract_lines
 from mapkit.build._mapping import pass_counts
-from mapkit.build._match import scan_normals_many, transform
+from mapkit.build._match import scan_normals_many
 from mapkit.build._register import _register
 from mapkit.diagnostics import Issue
 from mapkit.errors import LogFormatError
@@ -78,6 +77,20 @@ def _scan_arrays(
         odo.append(pose)
         pts.append(p)
     return scans, _rad(np.array(odo, dtype=np.float64).reshape(-1, 3)), pts
+
+
+def _through(local: FloatArray, poses: FloatArray, sizes: list[int], *, shift: bool) -> FloatArray:
+    """Points (or, without ``shift``, directions) of consecutive scans, ``sizes[k]`` of them
+    through ``poses[k]`` (radians): :func:`transform` of all scans at once."""
+    th = np.repeat(poses[:, 2], sizes)
+    c, s = np.cos(th), np.sin(th)
+    out = np.empty_like(local)
+    out[:, 0] = local[:, 0] * c - local[:, 1] * s
+    out[:, 1] = local[:, 0] * s + local[:, 1] * c
+    if shift:
+        out[:, 0] += np.repeat(poses[:, 0], sizes)
+        out[:, 1] += np.repeat(poses[:, 1], sizes)
+    return out
 
 
 def _quantise(
@@ -229,19 +242,14 @@ def build_map(
     t_reg = time.perf_counter() - t1
     # The map.
     t2 = time.perf_counter()
-    world = np.concatenate([transform(p, e) for p, e in zip(pts, est, strict=True)])
+    sizes = [len(p) for p in pts]
+    world = _through(np.concatenate(pts), est, sizes, shift=True)
     origins = None
     if free_ratio > 0:
         mounts = np.array([log.header.laser(s.laser).pose[:2] for s in scans], dtype=np.float64)
-        sensor = np.stack([transform(mounts[k : k + 1], est[k])[0] for k in range(n)])
-        origins = np.repeat(sensor, [len(p) for p in pts], axis=0)
+        origins = np.repeat(_through(mounts, est, [1] * n, shift=True), sizes, axis=0)
     normals = (
-        np.concatenate(
-            [
-                n @ np.array([[math.cos(e[2]), math.sin(e[2])], [-math.sin(e[2]), math.cos(e[2])]])
-                for n, e in zip(scan_normals_many(pts), est, strict=True)
-            ]
-        )
+        _through(np.concatenate(scan_normals_many(pts)), est, sizes, shift=False)
         if thin > 0
         else None
     )
