@@ -26,7 +26,7 @@ DRIFT_BASE = 2000.0
 #: ``DRIFT_EVERY`` scans (each costs a scan-to-scan match), up to ``DRIFT_ENOUGH``.
 DRIFT_EVERY = 3
 DRIFT_PLENTY = 300
-DRIFT_ENOUGH = 1000
+DRIFT_ENOUGH = 1500
 
 
 class CalibrationFeed:

@@ -91,8 +91,7 @@ class PoseGraph:
             # The worst first: a wrong closure drags good ones near it off too.
             for k in np.flatnonzero(bad & (chi > 0.5 * worst)):
                 self.rejected.add(int(k))
-            # From poses already near the optimum: fewer iterations do.
-            x = self._gauss_newton(x, edges, max(5, iterations // 2), huber)
+            x = self._gauss_newton(x, edges, iterations, huber)
         return x
 
     def _active(self, m: int) -> np.ndarray[Any, Any]:

@@ -224,35 +224,7 @@ def _square_graph(
 
 
 def test_pose_graph_closes_a_square() -> None:
-    rng = np.random.default_rng(0)
-    true = [np.zeros(3)]
-    for k in range(1, 40):
-        step = np.array([0.0, 0.0, math.pi / 2]) if k % 10 == 0 else np.array([500.0, 0.0, 0.0])
-        p = true[-1]
-        c, s = math.cos(p[2]), math.sin(p[2])
-        true.append(
-            np.array(
-                [
-                    p[0] + c * step[0] - s * step[1],
-                    p[1] + s * step[0] + c * step[1],
-                    wrap(p[2] + step[2]),
-                ]
-            )
-        )
-    T = np.array(true)
-    g = PoseGraph()
-    est = [T[0]]
-    for k in range(1, len(T)):
-        z = between(T[k - 1], T[k]) + np.array(
-            [rng.normal(0, 10), rng.normal(0, 10), rng.normal(0, 0.02)]
-        )
-        g.add(k - 1, k, z, sigma_info(10, 10, 0.02))
-        p = est[-1]
-        c, s = math.cos(p[2]), math.sin(p[2])
-        est.append(
-            np.array([p[0] + c * z[0] - s * z[1], p[1] + s * z[0] + c * z[1], wrap(p[2] + z[2])])
-        )
-    E = np.array(est)
+    T, E, g = _square_graph(np.random.default_rng(0), turn_sigma=0.02)
     g.add(0, len(T) - 1, between(T[0], T[-1]), sigma_info(5, 5, 0.005), robust=True)
     before = np.sqrt(np.mean(np.sum((E[:, :2] - T[:, :2]) ** 2, 1)))
     after_x = g.optimize(E)
