@@ -131,5 +131,5 @@ class CalibrationFeed:
         if not (r.ok and r.inliers > 0.3 and r.rms < 30.0):
             return None
         info = r.info(sigma=_MATCH_SIGMA, points=_MATCH_POINTS)
-        var = np.asarray(np.linalg.inv(info + np.diag([1e-8, 1e-8, 1e-4])), dtype=np.float64)
+        var = np.asarray(np.linalg.inv(info + _EPS), dtype=np.float64)
         return r.pose, var

@@ -36,6 +36,12 @@ def between(a: FloatArray, b: FloatArray) -> FloatArray:
 _REJECT_ROUNDS = 4
 
 
+def _chi_of(e: FloatArray, info: FloatArray) -> FloatArray:
+    """Each edge's error in standard deviations: ``sqrt(e^T info e)``."""
+    chi: FloatArray = np.sqrt(np.maximum(np.einsum("ea,eab,eb->e", e, info, e), 0.0))
+    return chi
+
+
 class PoseGraph:
     """Edges collected while mapping; :meth:`optimize` moves the nodes."""
 
@@ -125,9 +131,7 @@ class PoseGraph:
         return e, ci, si, cz, sz, dx, dy
 
     def _chi(self, x: FloatArray, edges: tuple[Any, ...]) -> FloatArray:
-        e = self._errors(x, edges)[0]
-        chi: FloatArray = np.sqrt(np.maximum(np.einsum("ea,eab,eb->e", e, edges[3], e), 0.0))
-        return chi
+        return _chi_of(self._errors(x, edges)[0], edges[3])
 
     def _gauss_newton(
         self, x: FloatArray, edges: tuple[Any, ...], iterations: int, huber: float
@@ -154,7 +158,7 @@ class PoseGraph:
             A[:, 2, 2] = -1.0
             B[:, :2, :2] = M
             B[:, 2, 2] = 1.0
-            chi = np.sqrt(np.maximum(np.einsum("ea,eab,eb->e", e, OM, e), 0.0))
+            chi = _chi_of(e, OM)
             scale = np.where(RB & (chi > huber), huber / np.maximum(chi, 1e-12), 1.0) * active
             om = OM * scale[:, None, None]
             Ao = np.einsum("ekl,elb->ekb", om, A)  # Omega A

@@ -51,7 +51,7 @@ def scan_normals_many(scans: list[FloatArray], window: int = 3) -> list[FloatArr
     pts = np.concatenate(scans).astype(np.float64, copy=False)
     starts = np.concatenate(([0], np.cumsum(sizes)[:-1]))
     # Each scan centred on its own mean (the sums of squares stay precise).
-    sums = np.add.reduceat(pts, starts[sizes > 0], axis=0) if total else np.zeros((0, 2))
+    sums = np.add.reduceat(pts, starts[sizes > 0], axis=0)
     means = np.zeros((len(scans), 2))
     means[sizes > 0] = sums / sizes[sizes > 0, None]
     mean_at = np.repeat(means, sizes, axis=0)

@@ -47,6 +47,7 @@ def _register(
     model = _OdometryModel()
     warm_up = min(_WARM_UP, n // 2)
     if warm_up >= 20:
+        warm_sides = _sides(all_pts[:warm_up])
         for _ in range(2):  # twice: the second pass runs with the scale the first found
             model = _OdometryModel(model.scale, model.calibration.fresh())
             warm: dict[str, Any] = {
@@ -57,7 +58,16 @@ def _register(
                 "closures": [],
             }
             _register_pass(
-                scans[:warm_up], odo[:warm_up], all_pts[:warm_up], log, [], warm, False, None, model
+                scans[:warm_up],
+                odo[:warm_up],
+                all_pts[:warm_up],
+                warm_sides,
+                log,
+                [],
+                warm,
+                False,
+                None,
+                model,
             )
             model.settle()
     start = model.calibration.fresh()
@@ -69,36 +79,47 @@ def _register(
         corrections_deg=[],
         residual_per_scan=stats["residual_per_scan"].copy(),
     )
-    est = _register_pass(scans, odo, all_pts, log, issues, first, loop_closure, progress, model)
+    sides = _sides(all_pts)
+    est = _register_pass(
+        scans, odo, all_pts, sides, log, issues, first, loop_closure, progress, model
+    )
     if not model.calibration.differs(start) or n > _SECOND_PASS_MAX:
         stats.update(first)
-        return _refined(est, odo, all_pts, stats, loop_closure)
+        return _refined(est, odo, sides, stats, loop_closure)
     # The odometry's systematic errors were learnt on the way: the first metres were registered
     # without them. Once more from the start, with the odometry as calibrated. (A long log comes
     # back over its first metres many times: its loop closures correct them instead.)
     model = _OdometryModel(model.scale, model.calibration.fresh())
     model.frozen = True
-    est = _register_pass(scans, odo, all_pts, log, [], stats, loop_closure, None, model)
+    est = _register_pass(scans, odo, all_pts, sides, log, [], stats, loop_closure, None, model)
     stats["passes"] = 2
-    return _refined(est, odo, all_pts, stats, loop_closure)
+    return _refined(est, odo, sides, stats, loop_closure)
+
+
+#: A scan's points as registration uses them: the scan side, the map side and its normals.
+_Sides = tuple[list[FloatArray], list[FloatArray], list[FloatArray]]
+
+
+def _sides(all_pts: list[FloatArray]) -> _Sides:
+    """The points each scan is matched with (the scan side: about 120 points, a sparse
+    laser's all, fewer leave too few to match) and matched against (the map side: every other
+    point, the local map is thinned to 40 mm anyway), with the map side's normals from the beam
+    order (the points are still in the laser's reading order)."""
+    src = [p[:: max(1, len(p) // 120)] for p in all_pts]
+    pts = [p[::2] if len(p) > 240 else p for p in all_pts]
+    return src, pts, scan_normals_many(pts)
 
 
 def _refined(
-    est: FloatArray,
-    odo: FloatArray,
-    all_pts: list[FloatArray],
-    stats: dict[str, Any],
-    loop_closure: bool,
+    est: FloatArray, odo: FloatArray, sides: _Sides, stats: dict[str, Any], loop_closure: bool
 ) -> FloatArray:
     """The poses after the global refinement (:mod:`mapkit.build._refine`) where a place was
     seen more than once (loops closed), on logs of up to ``_REFINE_MAX`` scans."""
     closed = stats.get("revisits", 0) or stats.get("tag_loops_matched", 0)
     if not loop_closure or not closed or len(est) > _REFINE_MAX:
         return est
-    src = [p[:: max(1, len(p) // 120)] for p in all_pts]
-    pts = [p[::2] if len(p) > 240 else p for p in all_pts]
     path = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(odo[:, :2], axis=0).T))))
-    out, matched = refine(est, path, src, pts, scan_normals_many(pts))
+    out, matched = refine(est, path, *sides)
     stats["refined"] = matched
     return out
 
@@ -118,6 +139,7 @@ def _register_pass(
     scans: list[LaserScan],
     odo: FloatArray,
     all_pts: list[FloatArray],
+    sides: _Sides,
     log: LaserLog,
     issues: list[Issue],
     stats: dict[str, Any],
@@ -130,12 +152,7 @@ def _register_pass(
     residuals = stats["residual_per_scan"]
     graph = PoseGraph()
     sub = _Submap(voxel=40.0)
-    # The scan side: about 120 points (a sparse laser's all; fewer leave too few to match).
-    src = [p[:: max(1, len(p) // 120)] for p in all_pts]
-    # The map side: every other point (the local map is thinned to 40 mm anyway), with normals
-    # from the beam order (the points are still in the laser's reading order).
-    pts = [p[::2] if len(p) > 240 else p for p in all_pts]
-    nrm = scan_normals_many(pts)
+    src, pts, nrm = sides
     path = np.zeros(n)
     pairs = _loop_pairs(log, scans, issues) if loop_closure else []
     stats["tag_loops"] = len(pairs)
