@@ -21,7 +21,7 @@ from mapkit.build._loops import (
     _loop_pairs,
     _revisit_candidate,
 )
-from mapkit.build._match import icp, scan_normals_many
+from mapkit.build._match import MatchResult, icp, scan_normals_many
 from mapkit.build._odometry import _OdometryModel
 from mapkit.build._refine import refine
 from mapkit.diagnostics import Issue, IssueCode
@@ -49,7 +49,7 @@ def _register(
     if warm_up >= 20:
         warm_sides = _sides(all_pts[:warm_up])
         for _ in range(2):  # twice: the second pass runs with the scale the first found
-            model = _OdometryModel(model.scale, model.calibration.fresh())
+            model = model.fresh()
             warm: dict[str, Any] = {
                 "registered": 0,
                 "odometry_only": 0,
@@ -89,7 +89,7 @@ def _register(
     # The odometry's systematic errors were learnt on the way: the first metres were registered
     # without them. Once more from the start, with the odometry as calibrated. (A long log comes
     # back over its first metres many times: its loop closures correct them instead.)
-    model = _OdometryModel(model.scale, model.calibration.fresh())
+    model = model.fresh()
     model.frozen = True
     est = _register_pass(scans, odo, all_pts, sides, log, [], stats, loop_closure, None, model)
     stats["passes"] = 2
@@ -200,21 +200,9 @@ def _register_pass(
             if sub.tree is not None
             else None
         )
-        if (
-            r is not None
-            and r.ok
-            and r.inliers > 0.25
-            and r.rms < 60.0
-            and math.hypot(*(r.pose[:2] - pred[:2])) < 300.0 + 0.1 * trans
-            and abs(wrap(r.pose[2] - pred[2])) < math.radians(8.0)
-        ):
+        dv = _seen(r, pred, trans)
+        if r is not None and dv is not None:
             scan_info = r.info(sigma=_MATCH_SIGMA, points=_MATCH_POINTS)
-            dv = r.pose - pred
-            dv[2] = wrap(dv[2])
-            weak = r.weak_direction()
-            if weak is not None:
-                # Along a corridor the scan slid where nothing held it: that is no evidence.
-                dv[:2] -= weak * float(dv[:2] @ weak)
             model.observe(dv, scan_info, trans, float(step[2]))
             if not model.frozen:
                 feed.step(i, r.pose, scan_info)
@@ -287,6 +275,25 @@ def _register_pass(
         stats["closures"] = [c for c in stats["closures"] if tuple(c) not in off]
         stats["closures_rejected"] = len(off)
     return est
+
+
+def _seen(r: MatchResult | None, pred: FloatArray, trans: float) -> FloatArray | None:
+    """How far the scan match ``r`` moved the prediction, or None for no usable match.
+
+    Along a corridor the scan slides where nothing holds it: that part is no evidence and is
+    taken out, and only the rest is checked against how far odometry can be off (a scan that
+    slid half a metre along a corridor still fixes its heading and the corridor's width).
+    """
+    if r is None or not (r.ok and r.inliers > 0.25 and r.rms < 60.0):
+        return None
+    dv = r.pose - pred
+    dv[2] = wrap(dv[2])
+    weak = r.weak_direction()
+    if weak is not None:
+        dv[:2] -= weak * float(dv[:2] @ weak)
+    if math.hypot(dv[0], dv[1]) >= 300.0 + 0.1 * trans or abs(dv[2]) >= math.radians(8.0):
+        return None
+    return dv
 
 
 #: A step turning more than this (radians) rebuilds the local map at once.
