@@ -12,12 +12,10 @@ from mapkit.build._common import FloatArray
 from mapkit.build._graph import between
 from mapkit.build._loops import _CAUCHY, _MATCH_POINTS, _MATCH_SIGMA
 from mapkit.build._match import icp, scan_normals
-from mapkit.build._odometry import _Calibration
+from mapkit.build._odometry import _EPS, _Calibration
 
 #: Path (mm) over which the distance scale is measured (between two local-map matches).
 BASE = 1000.0
-
-_EPS = np.diag([1e-8, 1e-8, 1e-4])
 
 #: Path (mm) over which the heading drift is measured (scan to scan).
 DRIFT_BASE = 2000.0

@@ -25,6 +25,9 @@ _MIN_DRIFT = 25
 _MIN_LOG_SCALE = -2.0
 
 
+#: Added to a scan match's information before it is inverted (a corridor leaves it singular).
+_EPS = np.diag([1e-8, 1e-8, 1e-4])
+
 #: A step turning more than this (radians) is a turning step (its own noise scale).
 _TURN = math.radians(5.0)
 
@@ -123,7 +126,7 @@ class _OdometryModel:
 
     def observe(self, d: FloatArray, scan_info: FloatArray, trans: float, turn: float) -> None:
         self._d.append(d.copy())
-        cov: FloatArray = np.linalg.inv(scan_info + np.diag([1e-8, 1e-8, 1e-4])).astype(np.float64)
+        cov: FloatArray = np.linalg.inv(scan_info + _EPS).astype(np.float64)
         self._scan_cov.append(cov)
         self._odo_var.append(self.variances(trans, turn))
         self._turning.append(abs(turn) > _TURN)

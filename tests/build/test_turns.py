@@ -77,9 +77,7 @@ def test_turns_get_their_own_noise_scale() -> None:
 
 
 def _match(pose: list[float], normals: np.ndarray) -> MatchResult:
-    return MatchResult(
-        np.array(pose), True, 0.9, 10.0, 100, 0.0, np.eye(3), normals
-    )
+    return MatchResult(np.array(pose), True, 0.9, 10.0, 100, 0.0, np.eye(3), normals)
 
 
 def test_a_scan_sliding_along_a_corridor_still_counts() -> None:
