@@ -187,11 +187,15 @@ class _Calibration:
         self._turn: list[float] = []
         self._drift: list[float] = []
         self._seen = 0
+        #: The factors kept until there are samples enough for new ones (see :meth:`fresh`).
+        self._prior = (1.0, 1.0, 0.0)
 
     def fresh(self) -> _Calibration:
-        """A calibration that starts from this one's factors but forgets its observations."""
+        """A calibration that starts from this one's factors but forgets its observations; it
+        keeps them until it has samples enough of its own."""
         c = _Calibration()
         c.dist, c.turn, c.drift = self.dist, self.turn, self.drift
+        c._prior = (self.dist, self.turn, self.drift)
         return c
 
     def differs(self, other: _Calibration) -> bool:
@@ -254,18 +258,21 @@ class _Calibration:
     def _count(self) -> None:
         self._seen += 1
         if self._seen % (25 if self._seen < 1000 else 250) == 0:
-            self.dist = self._fit(self._dist, 1.0)
-            self.turn = self._fit(self._turn, 1.0)
-            self.drift = self._fit(self._drift, 0.0, least=_MIN_DRIFT)
+            dist, turn, drift = self._prior
+            self.dist = self._fit(self._dist, 1.0, dist)
+            self.turn = self._fit(self._turn, 1.0, turn)
+            self.drift = self._fit(self._drift, 0.0, drift, least=_MIN_DRIFT)
 
     @property
     def drift_samples(self) -> list[float]:
         """The drift samples so far (radians per mm)."""
         return self._drift
 
-    def _fit(self, obs: list[float], none: float, least: int = 0) -> float:
+    def _fit(self, obs: list[float], none: float, prior: float, least: int = 0) -> float:
+        """The median of ``obs`` where it differs from ``none`` (no error) by more than three
+        standard errors, else ``none``; ``prior`` while there are too few samples."""
         if len(obs) < (least or self._MIN):
-            return none
+            return prior
         a = np.array(obs)
         med = float(np.median(a))
         err = 1.4826 * float(np.median(np.abs(a - med))) * 1.25 / math.sqrt(len(a))

@@ -6,9 +6,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import pytest
 
-from mapkit.build import _odometry, build_map
+from mapkit.build import build_map
 from mapkit.build._match import MatchResult
 from mapkit.build._register import _seen
 from mapkit.build.quality import distance_to_segments, trajectory_rms
@@ -45,35 +44,6 @@ def test_u_turn_in_a_dead_end_follows_the_scans() -> None:
     d = distance_to_segments(res.map.points, np.array(walls, dtype=float))
     rms, _ = trajectory_rms(res.poses, sim.truth[np.searchsorted(sim.truth_ids, res.scan_ids)])
     assert rms < 30.0 and np.percentile(d, 90) < 40.0, (rms, np.percentile(d, 90))
-
-
-def test_turns_get_their_own_noise_scale() -> None:
-    """Straight steps that agree with their scans and turns that slip: each gets its own noise
-    scale, and the next pass keeps the turns' until it has seen turns enough itself."""
-    model = _odometry._OdometryModel()
-    strong = np.diag([1.0, 1.0, 1e6])  # scan matches of 1 mm and 0.06 degrees
-    turn = math.radians(25.0)
-    # Before any turn is seen, a turn is trusted to the model's shape (a few percent).
-    assert 1.0 / math.sqrt(model.info(0.0, turn)[2, 2]) > 0.02 * turn
-    rng = np.random.default_rng(3)
-    for k in range(300):
-        if k % 10 == 0:  # a turn on the spot slipping 2 %
-            model.observe(np.array([0.0, 0.0, rng.normal(0.0, 0.02 * turn)]), strong, 0.0, turn)
-        else:
-            model.observe(np.zeros(3), strong, 300.0, 0.0)
-    model.settle()
-    assert model.turn_scale is not None and model.turn_scale > 10 * model.scale
-    sigma_turn = 1.0 / math.sqrt(model.info(0.0, turn)[2, 2])
-    assert 0.01 * turn < sigma_turn < 0.05 * turn, math.degrees(sigma_turn)
-    # Straight steps keep the straight scale.
-    assert model.info(300.0, 0.0)[2, 2] == pytest.approx(
-        1.0 / (model.scale * model.variances(300.0, 0.0)[2])
-    )
-    # The next pass starts with both scales, and a few straight steps do not lose the turns'.
-    nxt = model.fresh()
-    for _ in range(40):
-        nxt.observe(np.zeros(3), strong, 300.0, 0.0)
-    assert nxt.turn_scale == model.turn_scale
 
 
 def _match(pose: list[float], normals: np.ndarray) -> MatchResult:

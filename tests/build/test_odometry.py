@@ -1,0 +1,57 @@
+"""The odometry model (mapkit/build/_odometry.py): noise scales fitted to the log, systematic
+errors calibrated."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from mapkit.build import _odometry
+
+
+def test_turns_get_their_own_noise_scale() -> None:
+    """Straight steps that agree with their scans and turns that slip: each gets its own noise
+    scale, and the next pass keeps the turns' until it has seen turns enough itself."""
+    model = _odometry._OdometryModel()
+    strong = np.diag([1.0, 1.0, 1e6])  # scan matches of 1 mm and 0.06 degrees
+    turn = math.radians(25.0)
+    # Before any turn is seen, a turn is trusted to the model's shape (a few percent).
+    assert 1.0 / math.sqrt(model.info(0.0, turn)[2, 2]) > 0.02 * turn
+    rng = np.random.default_rng(3)
+    for k in range(300):
+        if k % 10 == 0:  # a turn on the spot slipping 2 %
+            model.observe(np.array([0.0, 0.0, rng.normal(0.0, 0.02 * turn)]), strong, 0.0, turn)
+        else:
+            model.observe(np.zeros(3), strong, 300.0, 0.0)
+    model.settle()
+    assert model.turn_scale is not None and model.turn_scale > 10 * model.scale
+    sigma_turn = 1.0 / math.sqrt(model.info(0.0, turn)[2, 2])
+    assert 0.01 * turn < sigma_turn < 0.05 * turn, math.degrees(sigma_turn)
+    # Straight steps keep the straight scale.
+    assert model.info(300.0, 0.0)[2, 2] == pytest.approx(
+        1.0 / (model.scale * model.variances(300.0, 0.0)[2])
+    )
+    # The next pass starts with both scales, and a few straight steps do not lose the turns'.
+    nxt = model.fresh()
+    for _ in range(40):
+        nxt.observe(np.zeros(3), strong, 300.0, 0.0)
+    assert nxt.turn_scale == model.turn_scale
+
+
+def test_calibration_keeps_what_an_earlier_pass_learnt_until_it_has_samples() -> None:
+    """A pass starts from the factors the pass before learnt (the warm-up's, say), and keeps them
+    until it has samples enough of its own; it used to fall back to no correction at its first
+    refit and register metres of log with uncorrected odometry."""
+    first = _odometry._Calibration()
+    first.dist, first.drift = 0.995, math.radians(-0.05) / 1000.0
+    cal = first.fresh()
+    straight = np.array([1000.0, 0.0, 0.0])
+    for _ in range(30):  # refits at 25 observations, with no sample (a corridor: no direction)
+        cal.observe_run(straight, straight, np.diag([1e8, 1.0, 1e-6]))
+    assert cal.dist == 0.995 and cal.drift == first.drift
+    # Samples enough of its own: they win (here: odometry that needs no correction).
+    for _ in range(80):
+        cal.observe_run(straight, straight, np.diag([1.0, 1.0, 1e-6]))
+    assert cal.dist == pytest.approx(1.0)
