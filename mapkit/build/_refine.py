@@ -79,6 +79,11 @@ def refine(
     x = est.copy()
     matched = 0
     step_info = sigma_info(*_STEP_SIGMA)
+    # Node n is the map's frame: the matches place the scans in it. It is free, and the first
+    # scan (node 0, held fixed: the map's origin is where the robot started) is matched into it
+    # like every other scan, so that where the map sits around the start is the first scan's
+    # own view too, not only the chain of matches that led away from it.
+    frame = n
     for _ in range(rounds):
         parts = [_world(p, q, e) for p, q, e in zip(pts, nrm, x, strict=True)]
         sizes = np.array([len(a) for a, _ in parts])
@@ -92,7 +97,7 @@ def refine(
         for i in range(1, n):
             graph.add(i - 1, i, between(x[i - 1], x[i]), step_info)
         matched = 0
-        for i in range(1, n):
+        for i in range(n):
             others.at = float(path[i])
             r = icp(
                 src[i], others, tgt, tn, x[i], schedule=(80.0, 40.0), max_iter=8, cauchy=_CAUCHY
@@ -102,10 +107,10 @@ def refine(
             if math.hypot(*(r.pose[:2] - x[i, :2])) > 150.0:
                 continue
             info = r.info(sigma=_MATCH_SIGMA, points=_MATCH_POINTS)
-            # Node 0 is held fixed: an edge from it is the scan's place in the map.
-            graph.add(0, i, between(x[0], r.pose), _edge_info(info, r.pose), robust=True)
+            # The scan's place in the map (whose frame is that of x, node 0's estimate).
+            graph.add(frame, i, between(x[0], r.pose), _edge_info(info, r.pose), robust=True)
             matched += 1
         if not matched:
             break
-        x = graph.optimize(x, iterations=5)
+        x = graph.optimize(np.vstack([x, x[:1]]), iterations=5)[:n]
     return x, matched
