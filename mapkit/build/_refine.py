@@ -99,8 +99,16 @@ def refine(
         matched = 0
         for i in range(n):
             others.at = float(path[i])
+            # The first scan alone places the map around the start: all its points.
             r = icp(
-                src[i], others, tgt, tn, x[i], schedule=(80.0, 40.0), max_iter=8, cauchy=_CAUCHY
+                src[i] if i else pts[0],
+                others,
+                tgt,
+                tn,
+                x[i],
+                schedule=(80.0, 40.0),
+                max_iter=8,
+                cauchy=_CAUCHY,
             )
             if not (r.ok and r.inliers > 0.3 and r.rms < 30.0):
                 continue
