@@ -68,9 +68,13 @@ def refine(
     pts: list[FloatArray],
     nrm: list[FloatArray],
     *,
+    first: FloatArray | None = None,
     rounds: int = 1,
 ) -> tuple[FloatArray, int]:
     """The poses after ``rounds`` of matching every scan against the other passes' scans.
+
+    ``first``: the first scan's points to match (default ``pts[0]``): it alone places the map
+    around the start, so it is matched with all it has.
 
     Returns:
         The new ``(N, 3)`` poses (radians) and how many scans matched in the last round.
@@ -84,6 +88,7 @@ def refine(
     # like every other scan, so that where the map sits around the start is the first scan's
     # own view too, not only the chain of matches that led away from it.
     frame = n
+    anchor = pts[0] if first is None else first
     for _ in range(rounds):
         parts = [_world(p, q, e) for p, q, e in zip(pts, nrm, x, strict=True)]
         sizes = np.array([len(a) for a, _ in parts])
@@ -99,9 +104,8 @@ def refine(
         matched = 0
         for i in range(n):
             others.at = float(path[i])
-            # The first scan alone places the map around the start: all its points.
             r = icp(
-                src[i] if i else pts[0],
+                src[i] if i else anchor,
                 others,
                 tgt,
                 tn,

@@ -85,7 +85,7 @@ def _register(
     )
     if not model.calibration.differs(start) or n > _SECOND_PASS_MAX:
         stats.update(first)
-        return _refined(est, odo, sides, stats, loop_closure)
+        return _refined(est, odo, sides, all_pts[0], stats, loop_closure)
     # The odometry's systematic errors were learnt on the way: the first metres were registered
     # without them. Once more from the start, with the odometry as calibrated. (A long log comes
     # back over its first metres many times: its loop closures correct them instead.)
@@ -93,7 +93,7 @@ def _register(
     model.frozen = True
     est = _register_pass(scans, odo, all_pts, sides, log, [], stats, loop_closure, None, model)
     stats["passes"] = 2
-    return _refined(est, odo, sides, stats, loop_closure)
+    return _refined(est, odo, sides, all_pts[0], stats, loop_closure)
 
 
 #: A scan's points as registration uses them: the scan side, the map side and its normals.
@@ -111,7 +111,12 @@ def _sides(all_pts: list[FloatArray]) -> _Sides:
 
 
 def _refined(
-    est: FloatArray, odo: FloatArray, sides: _Sides, stats: dict[str, Any], loop_closure: bool
+    est: FloatArray,
+    odo: FloatArray,
+    sides: _Sides,
+    first: FloatArray,
+    stats: dict[str, Any],
+    loop_closure: bool,
 ) -> FloatArray:
     """The poses after the global refinement (:mod:`mapkit.build._refine`) where a place was
     seen more than once (loops closed), on logs of up to ``_REFINE_MAX`` scans."""
@@ -119,13 +124,16 @@ def _refined(
     if not loop_closure or not closed or len(est) > _REFINE_MAX:
         return est
     path = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(odo[:, :2], axis=0).T))))
-    out, matched = refine(est, path, *sides)
+    out, matched = refine(est, path, *sides, first=first, rounds=_REFINE_ROUNDS)
     stats["refined"] = matched
     return out
 
 
 #: Longest log (scans) refined against the map of all its scans.
 _REFINE_MAX = 5000
+
+#: Rounds of the refinement (the second starts from the first's map, where the passes met).
+_REFINE_ROUNDS = 2
 
 
 #: Longest log (scans) registered a second time when the calibration was learnt on the way.
