@@ -129,13 +129,15 @@ class MatchResult:
         return info
 
 
-def _solve3(H: FloatArray, g: FloatArray) -> FloatArray | None:
-    """``-H^-1 g`` for a symmetric 3x3 H (Cramer's rule; None when singular)."""
-    (a, b, c), (_, d, e), (_, _, f) = H.tolist()
+def _solve3(
+    h: tuple[tuple[float, ...], ...], g0: float, g1: float, g2: float
+) -> tuple[float, float, float] | None:
+    """``-H^-1 g`` for a symmetric 3x3 H (upper triangle given; Cramer's rule; None when
+    singular). Plain floats: for a 3x3 system numpy's per-call overhead is most of the cost."""
+    (a, b, c), (_, d, e), (_, _, f) = h
     a += 1e-9
     d += 1e-9
     f += 1e-6
-    g0, g1, g2 = g.tolist()
     A = d * f - e * e
     B = c * e - b * f
     C = b * e - c * d
@@ -145,12 +147,10 @@ def _solve3(H: FloatArray, g: FloatArray) -> FloatArray | None:
     D = a * f - c * c
     E = b * c - a * e
     F = a * d - b * b
-    return np.array(
-        [
-            -(A * g0 + B * g1 + C * g2) / det,
-            -(B * g0 + D * g1 + E * g2) / det,
-            -(C * g0 + E * g1 + F * g2) / det,
-        ]
+    return (
+        -(A * g0 + B * g1 + C * g2) / det,
+        -(B * g0 + D * g1 + E * g2) / det,
+        -(C * g0 + E * g1 + F * g2) / det,
     )
 
 
@@ -197,62 +197,86 @@ def icp(
     n_src = len(src)
     if n_src < min_points or len(tgt_pts) < min_points:
         return MatchResult(pose, False, 0.0, math.inf, 0, 0.0)
-    sx = np.ascontiguousarray(src[:, 0])
-    sy = np.ascontiguousarray(src[:, 1])
+    src = np.asarray(src, dtype=np.float64)
+    x, y, th = pose.tolist()
     inv_s2 = 1.0 / (sigma * sigma)
-    use_prior = prior is not None and prior_info is not None
-    nn = r = vx = vy = None
+    P = None
+    if prior is not None and prior_info is not None:
+        px, py, pth = np.asarray(prior, dtype=np.float64).tolist()
+        P = np.asarray(prior_info, dtype=np.float64).tolist()
+    R = np.empty((2, 2))
+    t = np.empty(2)
+    K = None
     cnt = 0
     last = len(schedule) - 1
+    query = tree.query
     for it in range(max_iter):
         dmax = schedule[min(it, last)]
-        c, s = math.cos(pose[2]), math.sin(pose[2])
-        vx = sx * c - sy * s  # point minus robot position
-        vy = sx * s + sy * c
-        p = np.empty((n_src, 2))
-        p[:, 0] = vx + pose[0]
-        p[:, 1] = vy + pose[1]
-        d, idx = tree.query(p, k=1, distance_upper_bound=dmax, eps=0.2)
+        c, s = math.cos(th), math.sin(th)
+        R[0, 0] = c
+        R[0, 1] = s
+        R[1, 0] = -s
+        R[1, 1] = c
+        v = src @ R  # point minus robot position
+        t[0] = x
+        t[1] = y
+        p = v + t
+        d, idx = query(p, k=1, distance_upper_bound=dmax, eps=0.2)
         ok = d < dmax
         cnt = int(np.count_nonzero(ok))
         if cnt < min_points:
+            pose[:] = (x, y, th)
             return MatchResult(pose, False, cnt / n_src, math.inf, cnt, 0.0)
-        ti = idx[ok]
-        nn = tgt_nrm[ti]
-        q = tgt_pts[ti]
-        vx, vy = vx[ok], vy[ok]
+        if cnt < n_src:
+            idx = idx[ok]
+            v = v[ok]
+            p = p[ok]
+        nn = tgt_nrm[idx]
+        p -= tgt_pts[idx]
+        K = np.empty((cnt, 4))
+        K[:, :2] = nn
         nx, ny = nn[:, 0], nn[:, 1]
-        r = (p[ok, 0] - q[:, 0]) * nx + (p[ok, 1] - q[:, 1]) * ny
-        jt = ny * vx - nx * vy
-        a = np.abs(r)
+        # K = [nx, ny, ny vx - nx vy, r]: the Jacobian and the residual of each point.
+        np.multiply(ny, v[:, 0], out=K[:, 2])
+        K[:, 2] -= nx * v[:, 1]
+        r = K[:, 3]
+        np.multiply(p[:, 0], nx, out=r)
+        r += p[:, 1] * ny
         if cauchy is not None:
-            w = inv_s2 / (1.0 + (a / cauchy) ** 2)
+            w = r / cauchy
+            w *= w
+            w += 1.0
+            w = inv_s2 / w
         else:
-            w = np.minimum(1.0, huber / np.maximum(a, 1e-9)) * inv_s2
-        J = np.empty((cnt, 3))
-        J[:, 0] = nx
-        J[:, 1] = ny
-        J[:, 2] = jt
-        Jw = J * w[:, None]
-        H = Jw.T @ J
-        g = Jw.T @ r
-        if use_prior:
-            dp = pose - prior  # type: ignore[operator]
-            dp[2] = (dp[2] + math.pi) % (2 * math.pi) - math.pi
-            H = H + prior_info
-            g = g + prior_info @ dp  # type: ignore[operator]
-        delta = _solve3(H, g)
+            w = np.minimum(1.0, huber / np.maximum(np.abs(r), 1e-9)) * inv_s2
+        M = (K.T * w) @ K
+        (h0, h1, h2, g0), (_, h4, h5, g1), (_, _, h8, g2), _ = M.tolist()
+        if P is not None:
+            dx, dy = x - px, y - py
+            dth = (th - pth + math.pi) % (2 * math.pi) - math.pi
+            (a, b, cc), (d_, e, f), (gg, hh, ii) = P
+            H = ((h0 + a, h1 + b, h2 + cc), (0, h4 + e, h5 + f), (0, 0, h8 + ii))
+            g0 += a * dx + b * dy + cc * dth
+            g1 += d_ * dx + e * dy + f * dth
+            g2 += gg * dx + hh * dy + ii * dth
+        else:
+            H = ((h0, h1, h2), (0, h4, h5), (0, 0, h8))
+        delta = _solve3(H, g0, g1, g2)
         if delta is None:
+            pose[:] = (x, y, th)
             return MatchResult(pose, False, cnt / n_src, math.inf, cnt, 0.0)
-        pose += delta
+        x += delta[0]
+        y += delta[1]
+        th += delta[2]
         if it >= last and abs(delta[0]) + abs(delta[1]) < 0.5 and abs(delta[2]) < 5e-5:
             break
-    assert nn is not None and r is not None and vx is not None and vy is not None
-    info = nn.T @ nn / cnt
+    assert K is not None
+    pose[:] = (x, y, th)
+    M = K.T @ K
+    info = M[:2, :2] / cnt
     weakest = float(np.linalg.eigvalsh(info)[0])
-    J = np.stack([nn[:, 0], nn[:, 1], nn[:, 1] * vx - nn[:, 0] * vy], axis=1)
     return MatchResult(
-        pose, True, cnt / n_src, float(np.sqrt(np.mean(r * r))), cnt, weakest, J.T @ J, info
+        pose, True, cnt / n_src, math.sqrt(M[3, 3] / cnt), cnt, weakest, M[:3, :3].copy(), info
     )
 
 
