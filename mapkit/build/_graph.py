@@ -136,62 +136,49 @@ class PoseGraph:
     def _gauss_newton(
         self, x: FloatArray, edges: tuple[Any, ...], iterations: int, huber: float
     ) -> FloatArray:
-        from scipy.sparse import coo_matrix, identity
-        from scipy.sparse.linalg import spsolve
+        from scipy.sparse.linalg import splu
 
         n = len(x)
         I, J, _, OM, RB = edges  # noqa: E741 (I, J: the edges' node indices, as in the maths)
         active = self._active(len(I)).astype(np.float64)
+        pattern = _Pattern(I, J, n)
+        A = np.zeros((len(I), 3, 3))
+        B = np.zeros((len(I), 3, 3))
+        A[:, 2, 2] = -1.0
+        B[:, 2, 2] = 1.0
         for _ in range(iterations):
             e, ci, si, cz, sz, dx, dy = self._errors(x, edges)
-            # Jacobians (E, 3, 3)
-            A = np.zeros((len(I), 3, 3))
-            B = np.zeros((len(I), 3, 3))
-            # d(Ri^T (tj - ti))/d ti = -Ri^T; d/dthi = dRi^T/dth (tj - ti)
-            RiT = np.stack([np.stack([ci, si], 1), np.stack([-si, ci], 1)], 1)  # (E,2,2)
-            RzT = np.stack([np.stack([cz, sz], 1), np.stack([-sz, cz], 1)], 1)
-            M = np.einsum("eab,ebc->eac", RzT, RiT)
-            dRiT = np.stack([np.stack([-si, ci], 1), np.stack([-ci, -si], 1)], 1)
-            dth = np.einsum("eab,eb->ea", RzT, np.einsum("eab,eb->ea", dRiT, np.stack([dx, dy], 1)))
+            # Jacobians (E, 3, 3). With M = Rz^T Ri^T:
+            # d/d ti = -M; d/d thi = Rz^T dRi^T/dth (tj - ti); d/d tj = M.
+            M = np.empty((len(I), 2, 2))
+            M[:, 0, 0] = cz * ci - sz * si
+            M[:, 0, 1] = cz * si + sz * ci
+            M[:, 1, 0] = -sz * ci - cz * si
+            M[:, 1, 1] = -sz * si + cz * ci
+            ux, uy = -si * dx + ci * dy, -ci * dx - si * dy  # dRi^T/dth (tj - ti)
             A[:, :2, :2] = -M
-            A[:, :2, 2] = dth
-            A[:, 2, 2] = -1.0
+            A[:, 0, 2] = cz * ux + sz * uy
+            A[:, 1, 2] = -sz * ux + cz * uy
             B[:, :2, :2] = M
-            B[:, 2, 2] = 1.0
             chi = _chi_of(e, OM)
             scale = np.where(RB & (chi > huber), huber / np.maximum(chi, 1e-12), 1.0) * active
             om = OM * scale[:, None, None]
-            Ao = np.einsum("ekl,elb->ekb", om, A)  # Omega A
-            Bo = np.einsum("ekl,elb->ekb", om, B)
-            Hii = np.einsum("eka,ekb->eab", A, Ao)
-            Hij = np.einsum("eka,ekb->eab", A, Bo)
-            Hjj = np.einsum("eka,ekb->eab", B, Bo)
-            bi = np.einsum("eka,ek->ea", Ao, e)
-            bj = np.einsum("eka,ek->ea", Bo, e)
-            r3 = np.arange(3)
-            rows, cols, vals = [], [], []
-            for blk, ra, cb in (
-                (Hii, I, I),
-                (Hij, I, J),
-                (Hij.transpose(0, 2, 1), J, I),
-                (Hjj, J, J),
-            ):
-                rr = (3 * ra[:, None, None] + r3[None, :, None]).repeat(3, axis=2)
-                cc = (3 * cb[:, None, None] + r3[None, None, :]).repeat(3, axis=1)
-                rows.append(rr.ravel())
-                cols.append(cc.ravel())
-                vals.append(blk.ravel())
-            H = coo_matrix(
-                (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-                shape=(3 * n, 3 * n),
-            ).tocsr()
-            b = np.zeros(3 * n)
-            np.add.at(b, (3 * I[:, None] + r3).ravel(), bi.ravel())
-            np.add.at(b, (3 * J[:, None] + r3).ravel(), bj.ravel())
-            H = H[3:, 3:]
-            # A tiny damping keeps disconnected pieces solvable.
-            H = H + identity(H.shape[0], format="csr") * 1e-9
-            delta = spsolve(H.tocsc(), -b[3:])
+            Ao = om @ A  # Omega A
+            Bo = om @ B
+            At, Bt = A.transpose(0, 2, 1), B.transpose(0, 2, 1)
+            H = pattern.matrix(At @ Ao, At @ Bo, Bt @ Bo)
+            e3 = e[:, :, None]
+            b = pattern.vector(
+                (Ao.transpose(0, 2, 1) @ e3)[:, :, 0], (Bo.transpose(0, 2, 1) @ e3)[:, :, 0]
+            )
+            # Symmetric positive definite: no pivoting, a fill-reducing ordering of A + A^T.
+            lu = splu(
+                H,
+                permc_spec="MMD_AT_PLUS_A",
+                diag_pivot_thresh=0.0,
+                options={"SymmetricMode": True},
+            )
+            delta = lu.solve(-b)
             if not np.all(np.isfinite(delta)):
                 break
             x[1:] += delta.reshape(-1, 3)
@@ -199,3 +186,47 @@ class PoseGraph:
             if np.max(np.abs(delta[0::3])) < 0.1 and np.max(np.abs(delta[2::3])) < 1e-5:
                 break
         return x
+
+
+class _Pattern:
+    """Where the 3x3 blocks of the edges go in the system of all nodes but node 0 (which is held
+    fixed), worked out once per graph: each iteration then only sums the values into place."""
+
+    def __init__(self, I: np.ndarray[Any, Any], J: np.ndarray[Any, Any], n: int) -> None:  # noqa: E741
+        r3 = np.arange(3)
+        rows, cols = [], []
+        for ra, cb in ((I, I), (I, J), (J, I), (J, J)):
+            rows.append((3 * ra[:, None, None] + r3[None, :, None]).repeat(3, axis=2).ravel())
+            cols.append((3 * cb[:, None, None] + r3[None, None, :]).repeat(3, axis=1).ravel())
+        m = 3 * (n - 1)
+        # A tiny damping on the diagonal keeps disconnected pieces solvable.
+        diag = np.arange(3, 3 * n)
+        row = np.concatenate([*rows, diag]) - 3
+        col = np.concatenate([*cols, diag]) - 3
+        self._keep = (row >= 0) & (col >= 0)
+        key = col[self._keep] * m + row[self._keep]
+        uniq, self._slot = np.unique(key, return_inverse=True)
+        self._indices = (uniq % m).astype(np.int32)
+        self._indptr = np.searchsorted(uniq // m, np.arange(m + 1)).astype(np.int32)
+        self._damping = np.full(len(diag), 1e-9)
+        self._m = m
+        vi = (3 * I[:, None] + r3).ravel() - 3
+        vj = (3 * J[:, None] + r3).ravel() - 3
+        self._v = np.concatenate([vi, vj])
+        self._vkeep = self._v >= 0
+
+    def matrix(self, hii: FloatArray, hij: FloatArray, hjj: FloatArray) -> Any:
+        """The ``csc_matrix`` of the blocks (E, 3, 3) of each edge (i, j) and the damping."""
+        from scipy.sparse import csc_matrix
+
+        vals = np.concatenate(
+            [hii.ravel(), hij.ravel(), hij.transpose(0, 2, 1).ravel(), hjj.ravel(), self._damping]
+        )[self._keep]
+        data = np.bincount(self._slot, weights=vals, minlength=len(self._indices))
+        return csc_matrix((data, self._indices, self._indptr), shape=(self._m, self._m))
+
+    def vector(self, bi: FloatArray, bj: FloatArray) -> FloatArray:
+        """The right-hand side from each edge's (E, 3) parts at node i and node j."""
+        vals = np.concatenate([bi.ravel(), bj.ravel()])
+        out = np.bincount(self._v[self._vkeep], weights=vals[self._vkeep], minlength=self._m)
+        return np.asarray(out, dtype=np.float64)
