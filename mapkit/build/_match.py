@@ -54,42 +54,69 @@ def scan_normals_many(scans: list[FloatArray], window: int = 3) -> list[FloatArr
     sums = np.add.reduceat(pts, starts[sizes > 0], axis=0)
     means = np.zeros((len(scans), 2))
     means[sizes > 0] = sums / sizes[sizes > 0, None]
-    mean_at = np.repeat(means, sizes, axis=0)
-    x = pts[:, 0] - mean_at[:, 0]
-    y = pts[:, 1] - mean_at[:, 1]
+    scan_of = np.repeat(np.arange(len(scans)), sizes)
+    # Window k covers points k .. k + w - 1 and sets the normal of point k + window. The windows
+    # go in chunks (small temporaries, no page faults for fresh gigabytes); the running sums
+    # carry over from chunk to chunk, so every figure is what one pass over all would give.
+    carry = np.zeros(5)
+    n_win = total - w + 1
+    for k0 in range(0, n_win, _CHUNK):
+        k1 = min(k0 + _CHUNK, n_win)
+        _normals_chunk(pts, means, scan_of, k0, k1, w, carry, out[window + k0 : window + k1])
+    return np.split(out, np.cumsum(sizes)[:-1])
 
-    def wsum(v: FloatArray) -> FloatArray:
-        c = np.concatenate(([0.0], np.cumsum(v)))
-        return c[w:] - c[:-w]
 
-    sx, sy = wsum(x), wsum(y)
+#: Windows per chunk in :func:`scan_normals_many`.
+_CHUNK = 1 << 15
+
+
+def _normals_chunk(
+    pts: FloatArray,
+    means: FloatArray,
+    scan_of: np.ndarray[Any, Any],
+    k0: int,
+    k1: int,
+    w: int,
+    carry: FloatArray,
+    body: FloatArray,
+) -> None:
+    """The normals of windows ``k0 .. k1 - 1`` into ``body``; ``carry`` holds the running sums
+    of x, y, xx, yy, xy of the points before ``k0`` and moves on to ``k1``."""
+    e = k1 + w - 1  # points k0 .. e - 1
+    p = pts[k0:e]
+    mean_at = means[scan_of[k0:e]]
+    x = p[:, 0] - mean_at[:, 0]
+    y = p[:, 1] - mean_at[:, 1]
+    m = k1 - k0
+
+    sums = []  # over each window, as differences of running sums
+    for j, v in enumerate((x, y, x * x, y * y, x * y)):
+        c = np.concatenate((carry[j : j + 1], v))
+        np.cumsum(c, out=c)
+        carry[j] = c[m]
+        sums.append(c[w:] - c[:-w])
+    sx, sy, sxx, syy, sxy = sums
     mx, my = sx / w, sy / w
-    cxx = wsum(x * x) / w - mx * mx
-    cyy = wsum(y * y) / w - my * my
-    cxy = wsum(x * y) / w - mx * my
+    cxx = sxx / w - mx * mx
+    cyy = syy / w - my * my
+    cxy = sxy / w - mx * my
     ang = 0.5 * np.arctan2(2 * cxy, cxx - cyy)  # direction of the line
     tr = cxx + cyy
     disc = np.sqrt(np.maximum((cxx - cyy) ** 2 / 4 + cxy * cxy, 0))
     l1, l2 = tr / 2 + disc, tr / 2 - disc
-    step = np.hypot(np.diff(pts[:, 0]), np.diff(pts[:, 1]))
-    m = len(step) - (w - 2)  # windows of w - 1 steps
-    gaps = step[:m].copy()
+    step = np.hypot(np.diff(p[:, 0]), np.diff(p[:, 1]))
+    gaps = step[:m].copy()  # the widest step within each window
     for k in range(1, w - 1):
         np.maximum(gaps, step[k : k + m], out=gaps)
-    span = np.hypot(
-        pts[w - 1 :, 0] - pts[: total - w + 1, 0], pts[w - 1 :, 1] - pts[: total - w + 1, 1]
-    )
-    first = mean_at[: total - w + 1]
+    span = np.hypot(p[w - 1 :, 0] - p[:m, 0], p[w - 1 :, 1] - p[:m, 1])
+    first = mean_at[:m]
     rng = np.hypot(mx + first[:, 0], my + first[:, 1])
     # A window that runs over the end of a scan into the next is no neighbourhood.
-    scan_of = np.repeat(np.arange(len(scans)), sizes)
-    same = scan_of[: total - w + 1] == scan_of[w - 1 :]
+    same = scan_of[k0:k1] == scan_of[k0 + w - 1 : e]
     good = same & (l2 < 0.05 * np.maximum(l1, 1e-9)) & (gaps < 0.08 * rng + 60.0) & (span > 20.0)
-    body = out[window : total - window]
     body[:, 0] = -np.sin(ang)
     body[:, 1] = np.cos(ang)
     body[~good] = np.nan
-    return np.split(out, np.cumsum(sizes)[:-1])
 
 
 @dataclass
@@ -303,6 +330,7 @@ def _search(
     ths: FloatArray,
 ) -> tuple[FloatArray, float]:
     shape = like.shape
+    flat = like.ravel()
     offs = np.arange(-k, k + 1)
     best_sc, best = -1.0, center.copy()
     for th in ths:
@@ -310,7 +338,8 @@ def _search(
         base = np.floor((p - lo) / cell).astype(np.int64)
         ix = np.clip(base[:, 0][None, :] + offs[:, None], 0, shape[0] - 1)  # (K, n)
         iy = np.clip(base[:, 1][None, :] + offs[:, None], 0, shape[1] - 1)
-        score = like[ix[:, None, :], iy[None, :, :]].sum(axis=2)  # (K, K)
+        # like[ix[:, None, :], iy[None, :, :]] as one gather from the flat grid (faster).
+        score = flat.take((ix * shape[1])[:, None, :] + iy[None, :, :]).sum(axis=2)  # (K, K)
         a, b = np.unravel_index(int(np.argmax(score)), score.shape)
         sc = float(score[a, b])
         if sc > best_sc:
