@@ -60,6 +60,7 @@ class PoseGraph:
         self.robust: list[bool] = []
         #: Indices of the edges the consistency check switched off.
         self.rejected: set[int] = set()
+        self._have: tuple[Any, ...] | None = None
 
     def add(self, i: int, j: int, z: FloatArray, info: FloatArray, *, robust: bool = False) -> None:
         """Add an edge with a 3x3 information matrix (see :func:`sigma_info`)."""
@@ -114,13 +115,21 @@ class PoseGraph:
         return act
 
     def _arrays(self) -> tuple[Any, ...]:
-        return (
-            np.array(self.i),
-            np.array(self.j),
-            np.array(self.z),
-            np.array(self.info),
-            np.array(self.robust),
+        # The edges as arrays; those of an earlier call are kept, only new edges are converted.
+        have = self._have
+        m = len(self.i)
+        if have is None or len(have[0]) > m:
+            have = tuple(np.zeros((0, *shape)) for shape in ((), (), (3,), (3, 3), ()))
+        k = len(have[0])
+        new = (self.i[k:], self.j[k:], self.z[k:], self.info[k:], self.robust[k:])
+        types = (np.int64, np.int64, np.float64, np.float64, bool)
+        self._have = tuple(
+            np.concatenate(
+                [h.astype(t, copy=False), np.array(v, dtype=t).reshape(-1, *h.shape[1:])]
+            )
+            for h, v, t in zip(have, new, types, strict=True)
         )
+        return self._have
 
     @staticmethod
     def _errors(x: FloatArray, edges: tuple[Any, ...]) -> tuple[FloatArray, ...]:
@@ -200,26 +209,40 @@ class PoseGraph:
 
 class _Pattern:
     """Where the 3x3 blocks of the edges go in the system of all nodes but node 0 (which is held
-    fixed), worked out once per graph: each iteration then only sums the values into place."""
+    fixed), worked out once per optimisation (on blocks, not entries): each iteration then only
+    sums the values into place."""
 
     def __init__(self, I: np.ndarray[Any, Any], J: np.ndarray[Any, Any], n: int) -> None:  # noqa: E741
+        nodes = np.arange(n)
+        # The blocks (row node, column node) of H_ii, H_ij, H_ji, H_jj of each edge, and each
+        # node's own diagonal block (the damping).
+        br = np.concatenate([I, I, J, J, nodes])
+        bc = np.concatenate([I, J, I, J, nodes])
+        self._keep = (br > 0) & (bc > 0)
+        uniq, slot = np.unique(bc[self._keep] * n + br[self._keep], return_inverse=True)
+        ub = len(uniq)
+        col, row = uniq // n - 1, uniq % n - 1  # block column major, then row (nodes 1..n-1)
+        # Every node has its diagonal block: each block column holds at least one block.
+        g0 = np.searchsorted(col, np.arange(n - 1))
+        cnt = np.diff(np.append(g0, ub))
         r3 = np.arange(3)
-        rows, cols = [], []
-        for ra, cb in ((I, I), (I, J), (J, I), (J, J)):
-            rows.append((3 * ra[:, None, None] + r3[None, :, None]).repeat(3, axis=2).ravel())
-            cols.append((3 * cb[:, None, None] + r3[None, None, :]).repeat(3, axis=1).ravel())
-        m = 3 * (n - 1)
+        gc, cc = g0[col][:, None, None], cnt[col][:, None, None]
+        # Entry (block u, r, c) sits at 9 g0 + 3 c cnt + 3 (u - g0) + r of the CSC data.
+        pos = 9 * gc + 3 * r3[None, None, :] * cc + 3 * (np.arange(ub)[:, None, None] - gc)
+        pos = pos + r3[None, :, None]
+        self._order = np.empty(9 * ub, dtype=np.int64)
+        self._order[pos.ravel()] = np.arange(9 * ub)
+        self._slot = (slot[:, None] * 9 + np.arange(9)).ravel()
+        self._indices = np.empty(9 * ub, dtype=np.int32)
+        self._indices[pos.ravel()] = np.broadcast_to(
+            3 * row[:, None, None] + r3[None, :, None], (ub, 3, 3)
+        ).ravel()
+        starts = 9 * g0[:, None] + 3 * r3[None, :] * cnt[:, None]
+        self._indptr = np.append(starts.ravel(), 9 * ub).astype(np.int32)
         # A tiny damping on the diagonal keeps disconnected pieces solvable.
-        diag = np.arange(3, 3 * n)
-        row = np.concatenate([*rows, diag]) - 3
-        col = np.concatenate([*cols, diag]) - 3
-        self._keep = (row >= 0) & (col >= 0)
-        key = col[self._keep] * m + row[self._keep]
-        uniq, self._slot = np.unique(key, return_inverse=True)
-        self._indices = (uniq % m).astype(np.int32)
-        self._indptr = np.searchsorted(uniq // m, np.arange(m + 1)).astype(np.int32)
-        self._damping = np.full(len(diag), 1e-9)
-        self._m = m
+        self._damping = np.broadcast_to(np.eye(3) * 1e-9, (n, 3, 3))
+        self._size = 9 * ub
+        self._m = 3 * (n - 1)
         vi = (3 * I[:, None] + r3).ravel() - 3
         vj = (3 * J[:, None] + r3).ravel() - 3
         self._v = np.concatenate([vi, vj])
@@ -229,11 +252,11 @@ class _Pattern:
         """The ``csc_matrix`` of the blocks (E, 3, 3) of each edge (i, j) and the damping."""
         from scipy.sparse import csc_matrix
 
-        vals = np.concatenate(
-            [hii.ravel(), hij.ravel(), hij.transpose(0, 2, 1).ravel(), hjj.ravel(), self._damping]
-        )[self._keep]
-        data = np.bincount(self._slot, weights=vals, minlength=len(self._indices))
-        return csc_matrix((data, self._indices, self._indptr), shape=(self._m, self._m))
+        vals = np.concatenate([hii, hij, hij.transpose(0, 2, 1), hjj, self._damping])[self._keep]
+        sums = np.bincount(self._slot, weights=vals.ravel(), minlength=self._size)
+        return csc_matrix(
+            (sums[self._order], self._indices, self._indptr), shape=(self._m, self._m)
+        )
 
     def vector(self, bi: FloatArray, bj: FloatArray) -> FloatArray:
         """The right-hand side from each edge's (E, 3) parts at node i and node j."""
