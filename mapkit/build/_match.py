@@ -136,8 +136,16 @@ class MatchResult:
         """Unit vector along which the match tells nothing (a corridor's axis), or None."""
         if self.normals is None:
             return None
-        w, v = np.linalg.eigh(self.normals)
-        return v[:, 0] if w[0] < floor else None
+        (a, b), (_, d) = self.normals.tolist()
+        h = math.hypot(0.5 * (a - d), b)
+        low = 0.5 * (a + d) - h  # the smaller eigenvalue (closed form: a 2x2 symmetric matrix)
+        if low >= floor:
+            return None
+        # Its eigenvector: the larger of two equivalent forms (the other may vanish).
+        u, v = (b, low - a), (low - d, b)
+        x, y = u if abs(u[0]) + abs(u[1]) >= abs(v[0]) + abs(v[1]) else v
+        n = math.hypot(x, y)
+        return np.array([x / n, y / n]) if n > 0 else np.array([1.0, 0.0])
 
     def info(self, sigma: float = 15.0, points: float = 10.0) -> FloatArray:
         """Information of the match in the world frame, as if from ``points`` points of ``sigma``.
@@ -233,6 +241,12 @@ def icp(
         P = np.asarray(prior_info, dtype=np.float64).tolist()
     R = np.empty((2, 2))
     t = np.empty(2)
+    # The target's points and normals in one table, with a last row of zeros for the source
+    # points that find no target within reach (the tree answers its size for them): a zero
+    # normal adds nothing to the sums, so no point needs to be masked out.
+    tab = np.zeros((len(tgt_pts) + 1, 4))
+    tab[:-1, :2] = tgt_pts
+    tab[:-1, 2:] = tgt_nrm
     K = None
     cnt = 0
     last = len(schedule) - 1
@@ -249,19 +263,14 @@ def icp(
         t[1] = y
         p = v + t
         d, idx = query(p, k=1, distance_upper_bound=dmax, eps=0.2)
-        ok = d < dmax
-        cnt = int(np.count_nonzero(ok))
+        cnt = int(np.count_nonzero(d < dmax))
         if cnt < min_points:
             pose[:] = (x, y, th)
             return MatchResult(pose, False, cnt / n_src, math.inf, cnt, 0.0)
-        if cnt < n_src:
-            idx = idx[ok]
-            v = v[ok]
-            p = p[ok]
-        nn = tgt_nrm[idx]
-        p -= tgt_pts[idx]
-        K = np.empty((cnt, 4))
-        K[:, :2] = nn
+        T = tab[idx]
+        p -= T[:, :2]
+        K = np.empty((n_src, 4))
+        K[:, :2] = nn = T[:, 2:]
         nx, ny = nn[:, 0], nn[:, 1]
         # K = [nx, ny, ny vx - nx vy, r]: the Jacobian and the residual of each point.
         np.multiply(ny, v[:, 0], out=K[:, 2])
@@ -301,7 +310,8 @@ def icp(
     pose[:] = (x, y, th)
     M = K.T @ K
     info = M[:2, :2] / cnt
-    weakest = float(np.linalg.eigvalsh(info)[0])
+    (a, b), (_, d2) = info.tolist()
+    weakest = 0.5 * (a + d2) - math.hypot(0.5 * (a - d2), b)  # smaller eigenvalue
     return MatchResult(
         pose, True, cnt / n_src, math.sqrt(M[3, 3] / cnt), cnt, weakest, M[:3, :3].copy(), info
     )
