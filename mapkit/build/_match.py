@@ -189,6 +189,10 @@ def _solve3(
     )
 
 
+#: Largest target (points) :func:`icp` copies into one table with its normals.
+_TABLE_MAX = 20_000
+
+
 def icp(
     src: FloatArray,
     tree: Any,
@@ -241,12 +245,16 @@ def icp(
         P = np.asarray(prior_info, dtype=np.float64).tolist()
     R = np.empty((2, 2))
     t = np.empty(2)
-    # The target's points and normals in one table, with a last row of zeros for the source
-    # points that find no target within reach (the tree answers its size for them): a zero
-    # normal adds nothing to the sums, so no point needs to be masked out.
-    tab = np.zeros((len(tgt_pts) + 1, 4))
-    tab[:-1, :2] = tgt_pts
-    tab[:-1, 2:] = tgt_nrm
+    # A local map's points and normals go in one table with a last row of zeros for the source
+    # points that find no target within reach (the tree answers its size for them): one gather
+    # per iteration, and a zero normal adds nothing to the sums. A large target (the whole map)
+    # is not copied: the index is clamped and those points' rows zeroed instead.
+    tab = None
+    if len(tgt_pts) <= _TABLE_MAX:
+        tab = np.zeros((len(tgt_pts) + 1, 4))
+        tab[:-1, :2] = tgt_pts
+        tab[:-1, 2:] = tgt_nrm
+    last_tgt = len(tgt_pts) - 1
     K = None
     cnt = 0
     last = len(schedule) - 1
@@ -263,14 +271,22 @@ def icp(
         t[1] = y
         p = v + t
         d, idx = query(p, k=1, distance_upper_bound=dmax, eps=0.2)
-        cnt = int(np.count_nonzero(d < dmax))
+        ok = d < dmax
+        cnt = int(np.count_nonzero(ok))
         if cnt < min_points:
             pose[:] = (x, y, th)
             return MatchResult(pose, False, cnt / n_src, math.inf, cnt, 0.0)
-        T = tab[idx]
-        p -= T[:, :2]
+        if tab is not None:
+            T = tab[idx]
+            p -= T[:, :2]
+            nn = T[:, 2:]
+        else:
+            if cnt < n_src:
+                np.minimum(idx, last_tgt, out=idx)  # any valid index: the row is zeroed below
+            nn = tgt_nrm[idx]
+            p -= tgt_pts[idx]
         K = np.empty((n_src, 4))
-        K[:, :2] = nn = T[:, 2:]
+        K[:, :2] = nn
         nx, ny = nn[:, 0], nn[:, 1]
         # K = [nx, ny, ny vx - nx vy, r]: the Jacobian and the residual of each point.
         np.multiply(ny, v[:, 0], out=K[:, 2])
@@ -278,6 +294,8 @@ def icp(
         r = K[:, 3]
         np.multiply(p[:, 0], nx, out=r)
         r += p[:, 1] * ny
+        if tab is None and cnt < n_src:
+            K[~ok] = 0.0
         if cauchy is not None:
             w = r / cauchy
             w *= w
