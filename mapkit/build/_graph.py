@@ -158,35 +158,14 @@ class PoseGraph:
         I, J, _, OM, RB = edges  # noqa: E741 (I, J: the edges' node indices, as in the maths)
         active = self._active(len(I)).astype(np.float64)
         pattern = _Pattern(I, J, n)
-        A = np.zeros((len(I), 3, 3))
-        B = np.zeros((len(I), 3, 3))
-        A[:, 2, 2] = -1.0
-        B[:, 2, 2] = 1.0
         for _ in range(iterations):
             e, ci, si, cz, sz, dx, dy = self._errors(x, edges)
-            # Jacobians (E, 3, 3). With M = Rz^T Ri^T:
-            # d/d ti = -M; d/d thi = Rz^T dRi^T/dth (tj - ti); d/d tj = M.
-            M = np.empty((len(I), 2, 2))
-            M[:, 0, 0] = cz * ci - sz * si
-            M[:, 0, 1] = cz * si + sz * ci
-            M[:, 1, 0] = -sz * ci - cz * si
-            M[:, 1, 1] = -sz * si + cz * ci
-            ux, uy = -si * dx + ci * dy, -ci * dx - si * dy  # dRi^T/dth (tj - ti)
-            A[:, :2, :2] = -M
-            A[:, 0, 2] = cz * ux + sz * uy
-            A[:, 1, 2] = -sz * ux + cz * uy
-            B[:, :2, :2] = M
             chi = _chi_of(e, OM)
             scale = np.where(RB & (chi > huber), huber / np.maximum(chi, 1e-12), 1.0) * active
             om = OM * scale[:, None, None]
-            Ao = om @ A  # Omega A
-            Bo = om @ B
-            At, Bt = A.transpose(0, 2, 1), B.transpose(0, 2, 1)
-            H = pattern.matrix(At @ Ao, At @ Bo, Bt @ Bo)
-            e3 = e[:, :, None]
-            b = pattern.vector(
-                (Ao.transpose(0, 2, 1) @ e3)[:, :, 0], (Bo.transpose(0, 2, 1) @ e3)[:, :, 0]
-            )
+            hii, hij, hjj, bi, bj = _blocks(om, e, ci, si, cz, sz, dx, dy)
+            H = pattern.matrix(hii, hij, hjj)
+            b = pattern.vector(bi, bj)
             # Symmetric positive definite: no pivoting, a fill-reducing ordering of A + A^T; no
             # supernodes to speak of (a chain with a few loop edges), so none are looked for.
             lu = splu(
@@ -205,6 +184,67 @@ class PoseGraph:
             if np.max(np.abs(delta[0::3])) < 0.1 and np.max(np.abs(delta[2::3])) < 1e-5:
                 break
         return x
+
+
+def _blocks(
+    om: FloatArray,
+    e: FloatArray,
+    ci: FloatArray,
+    si: FloatArray,
+    cz: FloatArray,
+    sz: FloatArray,
+    dx: FloatArray,
+    dy: FloatArray,
+) -> tuple[FloatArray, ...]:
+    """Each edge's blocks of the normal equations, ``A^T Om A``, ``A^T Om B``, ``B^T Om B``,
+    ``A^T Om e`` and ``B^T Om e``, written out on (E,) columns (a few dozen passes instead of
+    batched 3x3 products).
+
+    With ``M = Rz^T Ri^T``, the Jacobians of the error are ``B = [[M, 0], [0, 1]]`` (pose j)
+    and ``A = -B + a e3^T`` (pose i), ``a = (Rz^T dRi^T/dth (tj - ti), 0)``. So with
+    ``u = Om a``, ``c = B^T u``: ``A^T Om B = -B^T Om B + e3 c^T``, ``A^T Om A = B^T Om B -
+    c e3^T - e3 c^T + (a.u) e3 e3^T``, and ``A^T Om e = -B^T Om e + (a.Om e) e3``.
+    """
+    m00, m01 = cz * ci - sz * si, cz * si + sz * ci
+    m10, m11 = -sz * ci - cz * si, -sz * si + cz * ci
+    ux, uy = -si * dx + ci * dy, -ci * dx - si * dy  # dRi^T/dth (tj - ti)
+    a0, a1 = cz * ux + sz * uy, -sz * ux + cz * uy
+    w00, w01, w02 = om[:, 0, 0], om[:, 0, 1], om[:, 0, 2]
+    w10, w11, w12 = om[:, 1, 0], om[:, 1, 1], om[:, 1, 2]
+    w20, w21, w22 = om[:, 2, 0], om[:, 2, 1], om[:, 2, 2]
+    # B^T Om B = [[M^T W M, M^T w], [w'^T M, om22]] with W the top left 2x2 of Om.
+    t00, t01 = w00 * m00 + w01 * m10, w00 * m01 + w01 * m11  # W M
+    t10, t11 = w10 * m00 + w11 * m10, w10 * m01 + w11 * m11
+    hjj = np.empty((len(om), 3, 3))
+    hjj[:, 0, 0] = m00 * t00 + m10 * t10
+    hjj[:, 0, 1] = m00 * t01 + m10 * t11
+    hjj[:, 1, 0] = m01 * t00 + m11 * t10
+    hjj[:, 1, 1] = m01 * t01 + m11 * t11
+    hjj[:, 0, 2] = m00 * w02 + m10 * w12
+    hjj[:, 1, 2] = m01 * w02 + m11 * w12
+    hjj[:, 2, 0] = w20 * m00 + w21 * m10
+    hjj[:, 2, 1] = w20 * m01 + w21 * m11
+    hjj[:, 2, 2] = w22
+    u0, u1, u2 = w00 * a0 + w01 * a1, w10 * a0 + w11 * a1, w20 * a0 + w21 * a1
+    c0, c1 = m00 * u0 + m10 * u1, m01 * u0 + m11 * u1  # c = B^T u, c2 = u2
+    hij = -hjj
+    hij[:, 2, 0] += c0
+    hij[:, 2, 1] += c1
+    hij[:, 2, 2] += u2
+    hii = hjj.copy()
+    hii[:, 0, 2] -= c0
+    hii[:, 1, 2] -= c1
+    hii[:, 2, 0] -= c0
+    hii[:, 2, 1] -= c1
+    hii[:, 2, 2] += a0 * u0 + a1 * u1 - 2.0 * u2
+    q = (om @ e[:, :, None])[:, :, 0]  # Om e
+    bj = np.empty((len(om), 3))
+    bj[:, 0] = m00 * q[:, 0] + m10 * q[:, 1]
+    bj[:, 1] = m01 * q[:, 0] + m11 * q[:, 1]
+    bj[:, 2] = q[:, 2]
+    bi = -bj
+    bi[:, 2] += a0 * q[:, 0] + a1 * q[:, 1]
+    return hii, hij, hjj, bi, bj
 
 
 class _Pattern:

@@ -11,7 +11,7 @@ from hypothesis import given, settings, strategies as st
 from scipy.spatial import cKDTree
 
 from mapkit.build import _match
-from mapkit.build._graph import PoseGraph, _Pattern, between, sigma_info, wrap
+from mapkit.build._graph import PoseGraph, _blocks, _Pattern, between, sigma_info, wrap
 from mapkit.build._match import MatchResult, icp, scan_normals_many, transform
 from mapkit.build.builder import _cell_counts
 
@@ -259,3 +259,31 @@ def test_correlative_search_equals_the_plain_gather(seed: int, k: int) -> None:
             best_sc = float(score[a, b])
             best = np.array([center[0] + offs[a] * cell, center[1] + offs[b] * cell, th])
     assert np.array_equal(got[0], best) and got[1] == best_sc / len(src)
+
+
+@settings(max_examples=40, deadline=None)
+@given(seeds, st.integers(min_value=1, max_value=50))
+def test_pose_graph_blocks_equal_the_jacobian_products(seed: int, m: int) -> None:
+    """The normal equations' blocks written out against ``A^T Om A`` etc. from the Jacobians."""
+    rng = np.random.default_rng(seed)
+    L = rng.normal(size=(m, 3, 3)) * [1.0, 1.0, 100.0]
+    om = L @ L.transpose(0, 2, 1)  # symmetric, positive semi-definite
+    e = rng.normal(size=(m, 3)) * [50.0, 50.0, 0.05]
+    ti, tz = rng.uniform(-4, 4, m), rng.uniform(-4, 4, m)
+    ci, si, cz, sz = np.cos(ti), np.sin(ti), np.cos(tz), np.sin(tz)
+    dx, dy = rng.normal(size=(2, m)) * 3000.0
+    RiT = np.stack([np.stack([ci, si], 1), np.stack([-si, ci], 1)], 1)
+    RzT = np.stack([np.stack([cz, sz], 1), np.stack([-sz, cz], 1)], 1)
+    dRiT = np.stack([np.stack([-si, ci], 1), np.stack([-ci, -si], 1)], 1)
+    M = RzT @ RiT
+    A, B = np.zeros((m, 3, 3)), np.zeros((m, 3, 3))
+    A[:, :2, :2], B[:, :2, :2] = -M, M
+    A[:, :2, 2] = (RzT @ (dRiT @ np.stack([dx, dy], 1)[:, :, None]))[:, :, 0]
+    A[:, 2, 2], B[:, 2, 2] = -1.0, 1.0
+    At, Bt = A.transpose(0, 2, 1), B.transpose(0, 2, 1)
+    want = (At @ om @ A, At @ om @ B, Bt @ om @ B, (At @ om @ e[:, :, None])[:, :, 0])
+    want = (*want, (Bt @ om @ e[:, :, None])[:, :, 0])
+    got = _blocks(om, e, ci, si, cz, sz, dx, dy)
+    for g, w in zip(got, want, strict=True):
+        scale = np.abs(w).max() + 1e-300
+        assert np.allclose(g, w, rtol=1e-10, atol=1e-12 * scale)
