@@ -28,7 +28,7 @@ def pass_counts(
     cells: np.ndarray[Any, Any],
     *,
     max_samples: int = MAX_SAMPLES,
-    chunk: int = 1 << 19,
+    chunk: int = 2_000_000,
 ) -> FloatArray:
     """How many beams passed through each of ``cells`` (estimated when beams are subsampled).
 

@@ -93,23 +93,6 @@ def _through(local: FloatArray, poses: FloatArray, sizes: list[int], *, shift: b
     return out
 
 
-def _cell_counts(cells: np.ndarray[Any, Any], off: int) -> tuple[np.ndarray[Any, Any], ...]:
-    """The distinct cells (x, then y ascending), which of them each point is in, and how many
-    points each holds: ``np.unique`` of the cells' keys, by counting on a dense grid where the
-    cells' bounding box is not much larger than the number of points (no sort)."""
-    lo = cells.min(axis=0)
-    w, h = (cells.max(axis=0) - lo + 1).tolist()
-    if w * h > 4 * len(cells) + 65536:
-        key = ((cells[:, 0] + off) << 32) | (cells[:, 1] + off)
-        uk, inverse, counts = np.unique(key, return_inverse=True, return_counts=True)
-        return (uk >> 32) - off, (uk & 0xFFFFFFFF) - off, inverse, counts
-    flat = (cells[:, 0] - lo[0]) * h + (cells[:, 1] - lo[1])
-    dense = np.bincount(flat, minlength=w * h)
-    used = np.flatnonzero(dense)
-    rank = np.cumsum(dense > 0) - 1
-    return used // h + lo[0], used % h + lo[1], rank[flat], dense[used]
-
-
 def _quantise(
     world: FloatArray,
     res: float,
@@ -132,8 +115,10 @@ def _quantise(
     """
     cells = np.rint(world / res).astype(np.int64)
     off = 1 << 24
-    cx, cy, inverse, counts = _cell_counts(cells, off)
-    uk = ((cx + off) << 32) | (cy + off)
+    key = ((cells[:, 0] + off) << 32) | (cells[:, 1] + off)
+    uk, inverse, counts = np.unique(key, return_inverse=True, return_counts=True)
+    cx = (uk >> 32) - off
+    cy = (uk & 0xFFFFFFFF) - off
 
     def neighbour(dx: Any, dy: Any) -> np.ndarray[Any, Any]:
         nk = ((cx + dx + off) << 32) | (cy + dy + off)

@@ -13,7 +13,6 @@ from scipy.spatial import cKDTree
 from mapkit.build import _match
 from mapkit.build._graph import PoseGraph, _blocks, _Pattern, between, sigma_info, wrap
 from mapkit.build._match import MatchResult, icp, scan_normals_many, transform
-from mapkit.build.builder import _cell_counts
 
 seeds = st.integers(min_value=0, max_value=2**31)
 
@@ -221,19 +220,6 @@ def test_pose_graph_arrays_follow_new_edges() -> None:
     plain = (np.array(g.i), np.array(g.j), np.array(g.z), np.array(g.info), np.array(g.robust))
     for a, b in zip(have, plain, strict=True):
         assert a.dtype == b.dtype and np.array_equal(a, b)
-
-
-@settings(max_examples=60, deadline=None)
-@given(seeds, st.integers(min_value=1, max_value=3000), st.sampled_from([3, 50, 100000]))
-def test_cell_counts_equal_unique(seed: int, n: int, spread: int) -> None:
-    rng = np.random.default_rng(seed)
-    cells = rng.integers(-spread, spread + 1, (n, 2))
-    off = 1 << 24
-    key = ((cells[:, 0] + off) << 32) | (cells[:, 1] + off)
-    uk, inverse, counts = np.unique(key, return_inverse=True, return_counts=True)
-    want = ((uk >> 32) - off, (uk & 0xFFFFFFFF) - off, inverse, counts)
-    for a, b in zip(_cell_counts(cells, off), want, strict=True):
-        assert np.array_equal(a, b)
 
 
 @settings(max_examples=30, deadline=None)
