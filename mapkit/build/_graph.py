@@ -168,14 +168,17 @@ class PoseGraph:
             b = pattern.vector(bi, bj)
             # Symmetric positive definite: no pivoting, a fill-reducing ordering of A + A^T; no
             # supernodes to speak of (a chain with a few loop edges), so none are looked for.
-            lu = splu(
-                H,
-                permc_spec="MMD_AT_PLUS_A",
-                diag_pivot_thresh=0.0,
-                relax=1,
-                panel_size=1,
-                options={"SymmetricMode": True},
-            )
+            try:
+                lu = splu(
+                    H,
+                    permc_spec="MMD_AT_PLUS_A",
+                    diag_pivot_thresh=0.0,
+                    relax=1,
+                    panel_size=1,
+                    options={"SymmetricMode": True},
+                )
+            except RuntimeError:  # singular (as spsolve's non-finite answer before)
+                break
             delta = lu.solve(-b)
             if not np.all(np.isfinite(delta)):
                 break

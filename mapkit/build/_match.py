@@ -144,8 +144,12 @@ class MatchResult:
         # Its eigenvector: the larger of two equivalent forms (the other may vanish).
         u, v = (b, low - a), (low - d, b)
         x, y = u if abs(u[0]) + abs(u[1]) >= abs(v[0]) + abs(v[1]) else v
+        big = max(abs(x), abs(y))
+        if big == 0:
+            return np.array([1.0, 0.0])
+        x, y = x / big, y / big  # (tiny entries keep their precision)
         n = math.hypot(x, y)
-        return np.array([x / n, y / n]) if n > 0 else np.array([1.0, 0.0])
+        return np.array([x / n, y / n])
 
     def info(self, sigma: float = 15.0, points: float = 10.0) -> FloatArray:
         """Information of the match in the world frame, as if from ``points`` points of ``sigma``.

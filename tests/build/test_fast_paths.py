@@ -273,3 +273,14 @@ def test_pose_graph_blocks_equal_the_jacobian_products(seed: int, m: int) -> Non
     for g, w in zip(got, want, strict=True):
         scale = np.abs(w).max() + 1e-300
         assert np.allclose(g, w, rtol=1e-10, atol=1e-12 * scale)
+
+
+def test_pose_graph_with_a_broken_edge_leaves_the_poses() -> None:
+    """A system that cannot be factored (here: an edge whose information is NaN) stops the
+    optimisation with the poses as they were, as the general solver's non-finite answer did."""
+    g = PoseGraph()
+    x = np.array([[0.0, 0.0, 0.0], [1000.0, 0.0, 0.0], [2000.0, 10.0, 0.1]])
+    g.add(0, 1, np.array([1000.0, 0.0, 0.0]), np.full((3, 3), np.nan))
+    g.add(1, 2, np.array([1000.0, 0.0, 0.0]), sigma_info(10, 10, 0.01))
+    with np.errstate(all="ignore"):
+        assert np.array_equal(g.optimize(x), x)
