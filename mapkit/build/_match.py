@@ -100,9 +100,9 @@ def _normals_chunk(
     cxx = sxx / w - mx * mx
     cyy = syy / w - my * my
     cxy = sxy / w - mx * my
-    ang = 0.5 * np.arctan2(2 * cxy, cxx - cyy)  # direction of the line
+    dxy = cxx - cyy
     tr = cxx + cyy
-    disc = np.sqrt(np.maximum((cxx - cyy) ** 2 / 4 + cxy * cxy, 0))
+    disc = np.sqrt(np.maximum(dxy**2 / 4 + cxy * cxy, 0))
     l1, l2 = tr / 2 + disc, tr / 2 - disc
     step = np.hypot(np.diff(p[:, 0]), np.diff(p[:, 1]))
     gaps = step[:m].copy()  # the widest step within each window
@@ -114,9 +114,10 @@ def _normals_chunk(
     # A window that runs over the end of a scan into the next is no neighbourhood.
     same = scan_of[k0:k1] == scan_of[k0 + w - 1 : e]
     good = same & (l2 < 0.05 * np.maximum(l1, 1e-9)) & (gaps < 0.08 * rng + 60.0) & (span > 20.0)
-    body[:, 0] = -np.sin(ang)
-    body[:, 1] = np.cos(ang)
-    body[~good] = np.nan
+    # The line's direction, and the normal from it, of the windows that have one.
+    ang = 0.5 * np.arctan2(2 * cxy[good], dxy[good])
+    body[good, 0] = -np.sin(ang)
+    body[good, 1] = np.cos(ang)
 
 
 @dataclass
@@ -417,5 +418,13 @@ def voxel_keep(pts: FloatArray, size: float) -> np.ndarray[Any, Any]:
         return np.zeros(0, dtype=np.int64)
     k = np.floor(pts / size).astype(np.int64)
     key = (k[:, 0] << 32) + (k[:, 1] & 0xFFFFFFFF)
-    _, idx = np.unique(key, return_index=True)
-    return np.sort(idx)
+    # np.unique(key, return_index=True)'s indices, without its extra passes: a stable sort
+    # puts each cell's first point first.
+    order = np.argsort(key, kind="stable")
+    sk = key[order]
+    first = np.empty(len(sk), dtype=bool)
+    first[0] = True
+    np.not_equal(sk[1:], sk[:-1], out=first[1:])
+    idx = order[first]
+    idx.sort()
+    return idx

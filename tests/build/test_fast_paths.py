@@ -284,3 +284,14 @@ def test_pose_graph_with_a_broken_edge_leaves_the_poses() -> None:
     g.add(1, 2, np.array([1000.0, 0.0, 0.0]), sigma_info(10, 10, 0.01))
     with np.errstate(all="ignore"):
         assert np.array_equal(g.optimize(x), x)
+
+
+@settings(max_examples=60, deadline=None)
+@given(seeds, st.integers(min_value=1, max_value=2000), st.sampled_from([30.0, 500.0, 1e6]))
+def test_voxel_keep_equals_unique(seed: int, n: int, spread: float) -> None:
+    """The first point of each cell, as ``np.unique(..., return_index=True)`` finds them."""
+    rng = np.random.default_rng(seed)
+    pts = rng.normal(0, spread, (n, 2))
+    k = np.floor(pts / 40.0).astype(np.int64)
+    _, idx = np.unique((k[:, 0] << 32) + (k[:, 1] & 0xFFFFFFFF), return_index=True)
+    assert np.array_equal(_match.voxel_keep(pts, 40.0), np.sort(idx))
