@@ -45,7 +45,7 @@ class _Submap:
 
         cache: dict[int, tuple[tuple[float, ...], FloatArray, FloatArray]] = {}
         for k in idx:
-            key = tuple(poses[k])
+            key = tuple(poses[k].tolist())
             hit = self._cache.get(k)
             if hit is None or hit[0] != key:
                 hit = (key, *_world(pts[k], nrm[k], poses[k]))

@@ -27,6 +27,13 @@ def sigma_info(sx: float, sy: float, sth: float) -> FloatArray:
 
 def between(a: FloatArray, b: FloatArray) -> FloatArray:
     """Pose b in a's frame (vectorised, radians)."""
+    if a.shape == (3,) and b.shape == (3,):
+        # One pair (most calls): plain floats, a fraction of numpy's per-call cost.
+        (ax, ay, at), (bx, by, bt) = a.tolist(), b.tolist()
+        co, si = math.cos(at), math.sin(at)
+        ex, ey = bx - ax, by - ay
+        tw = (bt - at + math.pi) % (2 * math.pi) - math.pi
+        return np.array([co * ex + si * ey, -si * ex + co * ey, tw])
     c, s = np.cos(a[..., 2]), np.sin(a[..., 2])
     dx, dy = b[..., 0] - a[..., 0], b[..., 1] - a[..., 1]
     return np.stack([c * dx + s * dy, -s * dx + c * dy, wrap(b[..., 2] - a[..., 2])], axis=-1)
@@ -53,6 +60,7 @@ class PoseGraph:
         self.robust: list[bool] = []
         #: Indices of the edges the consistency check switched off.
         self.rejected: set[int] = set()
+        self._have: tuple[Any, ...] | None = None
 
     def add(self, i: int, j: int, z: FloatArray, info: FloatArray, *, robust: bool = False) -> None:
         """Add an edge with a 3x3 information matrix (see :func:`sigma_info`)."""
@@ -107,13 +115,21 @@ class PoseGraph:
         return act
 
     def _arrays(self) -> tuple[Any, ...]:
-        return (
-            np.array(self.i),
-            np.array(self.j),
-            np.array(self.z),
-            np.array(self.info),
-            np.array(self.robust),
+        # The edges as arrays; those of an earlier call are kept, only new edges are converted.
+        have = self._have
+        m = len(self.i)
+        if have is None or len(have[0]) > m:
+            have = tuple(np.zeros((0, *shape)) for shape in ((), (), (3,), (3, 3), ()))
+        k = len(have[0])
+        new = (self.i[k:], self.j[k:], self.z[k:], self.info[k:], self.robust[k:])
+        types = (np.int64, np.int64, np.float64, np.float64, bool)
+        self._have = tuple(
+            np.concatenate(
+                [h.astype(t, copy=False), np.array(v, dtype=t).reshape(-1, *h.shape[1:])]
+            )
+            for h, v, t in zip(have, new, types, strict=True)
         )
+        return self._have
 
     @staticmethod
     def _errors(x: FloatArray, edges: tuple[Any, ...]) -> tuple[FloatArray, ...]:
@@ -136,62 +152,34 @@ class PoseGraph:
     def _gauss_newton(
         self, x: FloatArray, edges: tuple[Any, ...], iterations: int, huber: float
     ) -> FloatArray:
-        from scipy.sparse import coo_matrix, identity
-        from scipy.sparse.linalg import spsolve
+        from scipy.sparse.linalg import splu
 
         n = len(x)
         I, J, _, OM, RB = edges  # noqa: E741 (I, J: the edges' node indices, as in the maths)
         active = self._active(len(I)).astype(np.float64)
+        pattern = _Pattern(I, J, n)
         for _ in range(iterations):
             e, ci, si, cz, sz, dx, dy = self._errors(x, edges)
-            # Jacobians (E, 3, 3)
-            A = np.zeros((len(I), 3, 3))
-            B = np.zeros((len(I), 3, 3))
-            # d(Ri^T (tj - ti))/d ti = -Ri^T; d/dthi = dRi^T/dth (tj - ti)
-            RiT = np.stack([np.stack([ci, si], 1), np.stack([-si, ci], 1)], 1)  # (E,2,2)
-            RzT = np.stack([np.stack([cz, sz], 1), np.stack([-sz, cz], 1)], 1)
-            M = np.einsum("eab,ebc->eac", RzT, RiT)
-            dRiT = np.stack([np.stack([-si, ci], 1), np.stack([-ci, -si], 1)], 1)
-            dth = np.einsum("eab,eb->ea", RzT, np.einsum("eab,eb->ea", dRiT, np.stack([dx, dy], 1)))
-            A[:, :2, :2] = -M
-            A[:, :2, 2] = dth
-            A[:, 2, 2] = -1.0
-            B[:, :2, :2] = M
-            B[:, 2, 2] = 1.0
             chi = _chi_of(e, OM)
             scale = np.where(RB & (chi > huber), huber / np.maximum(chi, 1e-12), 1.0) * active
             om = OM * scale[:, None, None]
-            Ao = np.einsum("ekl,elb->ekb", om, A)  # Omega A
-            Bo = np.einsum("ekl,elb->ekb", om, B)
-            Hii = np.einsum("eka,ekb->eab", A, Ao)
-            Hij = np.einsum("eka,ekb->eab", A, Bo)
-            Hjj = np.einsum("eka,ekb->eab", B, Bo)
-            bi = np.einsum("eka,ek->ea", Ao, e)
-            bj = np.einsum("eka,ek->ea", Bo, e)
-            r3 = np.arange(3)
-            rows, cols, vals = [], [], []
-            for blk, ra, cb in (
-                (Hii, I, I),
-                (Hij, I, J),
-                (Hij.transpose(0, 2, 1), J, I),
-                (Hjj, J, J),
-            ):
-                rr = (3 * ra[:, None, None] + r3[None, :, None]).repeat(3, axis=2)
-                cc = (3 * cb[:, None, None] + r3[None, None, :]).repeat(3, axis=1)
-                rows.append(rr.ravel())
-                cols.append(cc.ravel())
-                vals.append(blk.ravel())
-            H = coo_matrix(
-                (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-                shape=(3 * n, 3 * n),
-            ).tocsr()
-            b = np.zeros(3 * n)
-            np.add.at(b, (3 * I[:, None] + r3).ravel(), bi.ravel())
-            np.add.at(b, (3 * J[:, None] + r3).ravel(), bj.ravel())
-            H = H[3:, 3:]
-            # A tiny damping keeps disconnected pieces solvable.
-            H = H + identity(H.shape[0], format="csr") * 1e-9
-            delta = spsolve(H.tocsc(), -b[3:])
+            hii, hij, hjj, bi, bj = _blocks(om, e, ci, si, cz, sz, dx, dy)
+            H = pattern.matrix(hii, hij, hjj)
+            b = pattern.vector(bi, bj)
+            # Symmetric positive definite: no pivoting, a fill-reducing ordering of A + A^T; no
+            # supernodes to speak of (a chain with a few loop edges), so none are looked for.
+            try:
+                lu = splu(
+                    H,
+                    permc_spec="MMD_AT_PLUS_A",
+                    diag_pivot_thresh=0.0,
+                    relax=1,
+                    panel_size=1,
+                    options={"SymmetricMode": True},
+                )
+            except RuntimeError:  # singular (as spsolve's non-finite answer before)
+                break
+            delta = lu.solve(-b)
             if not np.all(np.isfinite(delta)):
                 break
             x[1:] += delta.reshape(-1, 3)
@@ -199,3 +187,122 @@ class PoseGraph:
             if np.max(np.abs(delta[0::3])) < 0.1 and np.max(np.abs(delta[2::3])) < 1e-5:
                 break
         return x
+
+
+def _blocks(
+    om: FloatArray,
+    e: FloatArray,
+    ci: FloatArray,
+    si: FloatArray,
+    cz: FloatArray,
+    sz: FloatArray,
+    dx: FloatArray,
+    dy: FloatArray,
+) -> tuple[FloatArray, ...]:
+    """Each edge's blocks of the normal equations, ``A^T Om A``, ``A^T Om B``, ``B^T Om B``,
+    ``A^T Om e`` and ``B^T Om e``, written out on (E,) columns (a few dozen passes instead of
+    batched 3x3 products).
+
+    With ``M = Rz^T Ri^T``, the Jacobians of the error are ``B = [[M, 0], [0, 1]]`` (pose j)
+    and ``A = -B + a e3^T`` (pose i), ``a = (Rz^T dRi^T/dth (tj - ti), 0)``. So with
+    ``u = Om a``, ``c = B^T u``: ``A^T Om B = -B^T Om B + e3 c^T``, ``A^T Om A = B^T Om B -
+    c e3^T - e3 c^T + (a.u) e3 e3^T``, and ``A^T Om e = -B^T Om e + (a.Om e) e3``.
+    """
+    m00, m01 = cz * ci - sz * si, cz * si + sz * ci
+    m10, m11 = -sz * ci - cz * si, -sz * si + cz * ci
+    ux, uy = -si * dx + ci * dy, -ci * dx - si * dy  # dRi^T/dth (tj - ti)
+    a0, a1 = cz * ux + sz * uy, -sz * ux + cz * uy
+    w00, w01, w02 = om[:, 0, 0], om[:, 0, 1], om[:, 0, 2]
+    w10, w11, w12 = om[:, 1, 0], om[:, 1, 1], om[:, 1, 2]
+    w20, w21, w22 = om[:, 2, 0], om[:, 2, 1], om[:, 2, 2]
+    # B^T Om B = [[M^T W M, M^T w], [w'^T M, om22]] with W the top left 2x2 of Om.
+    t00, t01 = w00 * m00 + w01 * m10, w00 * m01 + w01 * m11  # W M
+    t10, t11 = w10 * m00 + w11 * m10, w10 * m01 + w11 * m11
+    hjj = np.empty((len(om), 3, 3))
+    hjj[:, 0, 0] = m00 * t00 + m10 * t10
+    hjj[:, 0, 1] = m00 * t01 + m10 * t11
+    hjj[:, 1, 0] = m01 * t00 + m11 * t10
+    hjj[:, 1, 1] = m01 * t01 + m11 * t11
+    hjj[:, 0, 2] = m00 * w02 + m10 * w12
+    hjj[:, 1, 2] = m01 * w02 + m11 * w12
+    hjj[:, 2, 0] = w20 * m00 + w21 * m10
+    hjj[:, 2, 1] = w20 * m01 + w21 * m11
+    hjj[:, 2, 2] = w22
+    u0, u1, u2 = w00 * a0 + w01 * a1, w10 * a0 + w11 * a1, w20 * a0 + w21 * a1
+    c0, c1 = m00 * u0 + m10 * u1, m01 * u0 + m11 * u1  # c = B^T u, c2 = u2
+    hij = -hjj
+    hij[:, 2, 0] += c0
+    hij[:, 2, 1] += c1
+    hij[:, 2, 2] += u2
+    hii = hjj.copy()
+    hii[:, 0, 2] -= c0
+    hii[:, 1, 2] -= c1
+    hii[:, 2, 0] -= c0
+    hii[:, 2, 1] -= c1
+    hii[:, 2, 2] += a0 * u0 + a1 * u1 - 2.0 * u2
+    q = (om @ e[:, :, None])[:, :, 0]  # Om e
+    bj = np.empty((len(om), 3))
+    bj[:, 0] = m00 * q[:, 0] + m10 * q[:, 1]
+    bj[:, 1] = m01 * q[:, 0] + m11 * q[:, 1]
+    bj[:, 2] = q[:, 2]
+    bi = -bj
+    bi[:, 2] += a0 * q[:, 0] + a1 * q[:, 1]
+    return hii, hij, hjj, bi, bj
+
+
+class _Pattern:
+    """Where the 3x3 blocks of the edges go in the system of all nodes but node 0 (which is held
+    fixed), worked out once per optimisation (on blocks, not entries): each iteration then only
+    sums the values into place."""
+
+    def __init__(self, I: np.ndarray[Any, Any], J: np.ndarray[Any, Any], n: int) -> None:  # noqa: E741
+        nodes = np.arange(n)
+        # The blocks (row node, column node) of H_ii, H_ij, H_ji, H_jj of each edge, and each
+        # node's own diagonal block (the damping).
+        br = np.concatenate([I, I, J, J, nodes])
+        bc = np.concatenate([I, J, I, J, nodes])
+        self._keep = (br > 0) & (bc > 0)
+        uniq, slot = np.unique(bc[self._keep] * n + br[self._keep], return_inverse=True)
+        ub = len(uniq)
+        col, row = uniq // n - 1, uniq % n - 1  # block column major, then row (nodes 1..n-1)
+        # Every node has its diagonal block: each block column holds at least one block.
+        g0 = np.searchsorted(col, np.arange(n - 1))
+        cnt = np.diff(np.append(g0, ub))
+        r3 = np.arange(3)
+        gc, cc = g0[col][:, None, None], cnt[col][:, None, None]
+        # Entry (block u, r, c) sits at 9 g0 + 3 c cnt + 3 (u - g0) + r of the CSC data.
+        pos = 9 * gc + 3 * r3[None, None, :] * cc + 3 * (np.arange(ub)[:, None, None] - gc)
+        pos = pos + r3[None, :, None]
+        self._order = np.empty(9 * ub, dtype=np.int64)
+        self._order[pos.ravel()] = np.arange(9 * ub)
+        self._slot = (slot[:, None] * 9 + np.arange(9)).ravel()
+        self._indices = np.empty(9 * ub, dtype=np.int32)
+        self._indices[pos.ravel()] = np.broadcast_to(
+            3 * row[:, None, None] + r3[None, :, None], (ub, 3, 3)
+        ).ravel()
+        starts = 9 * g0[:, None] + 3 * r3[None, :] * cnt[:, None]
+        self._indptr = np.append(starts.ravel(), 9 * ub).astype(np.int32)
+        # A tiny damping on the diagonal keeps disconnected pieces solvable.
+        self._damping = np.broadcast_to(np.eye(3) * 1e-9, (n, 3, 3))
+        self._size = 9 * ub
+        self._m = 3 * (n - 1)
+        vi = (3 * I[:, None] + r3).ravel() - 3
+        vj = (3 * J[:, None] + r3).ravel() - 3
+        self._v = np.concatenate([vi, vj])
+        self._vkeep = self._v >= 0
+
+    def matrix(self, hii: FloatArray, hij: FloatArray, hjj: FloatArray) -> Any:
+        """The ``csc_matrix`` of the blocks (E, 3, 3) of each edge (i, j) and the damping."""
+        from scipy.sparse import csc_matrix
+
+        vals = np.concatenate([hii, hij, hij.transpose(0, 2, 1), hjj, self._damping])[self._keep]
+        sums = np.bincount(self._slot, weights=vals.ravel(), minlength=self._size)
+        return csc_matrix(
+            (sums[self._order], self._indices, self._indptr), shape=(self._m, self._m)
+        )
+
+    def vector(self, bi: FloatArray, bj: FloatArray) -> FloatArray:
+        """The right-hand side from each edge's (E, 3) parts at node i and node j."""
+        vals = np.concatenate([bi.ravel(), bj.ravel()])
+        out = np.bincount(self._v[self._vkeep], weights=vals[self._vkeep], minlength=self._m)
+        return np.asarray(out, dtype=np.float64)

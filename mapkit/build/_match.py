@@ -54,42 +54,70 @@ def scan_normals_many(scans: list[FloatArray], window: int = 3) -> list[FloatArr
     sums = np.add.reduceat(pts, starts[sizes > 0], axis=0)
     means = np.zeros((len(scans), 2))
     means[sizes > 0] = sums / sizes[sizes > 0, None]
-    mean_at = np.repeat(means, sizes, axis=0)
-    x = pts[:, 0] - mean_at[:, 0]
-    y = pts[:, 1] - mean_at[:, 1]
+    scan_of = np.repeat(np.arange(len(scans)), sizes)
+    # Window k covers points k .. k + w - 1 and sets the normal of point k + window. The windows
+    # go in chunks (small temporaries, no page faults for fresh gigabytes); the running sums
+    # carry over from chunk to chunk, so every figure is what one pass over all would give.
+    carry = np.zeros(5)
+    n_win = total - w + 1
+    for k0 in range(0, n_win, _CHUNK):
+        k1 = min(k0 + _CHUNK, n_win)
+        _normals_chunk(pts, means, scan_of, k0, k1, w, carry, out[window + k0 : window + k1])
+    return np.split(out, np.cumsum(sizes)[:-1])
 
-    def wsum(v: FloatArray) -> FloatArray:
-        c = np.concatenate(([0.0], np.cumsum(v)))
-        return c[w:] - c[:-w]
 
-    sx, sy = wsum(x), wsum(y)
+#: Windows per chunk in :func:`scan_normals_many`.
+_CHUNK = 1 << 15
+
+
+def _normals_chunk(
+    pts: FloatArray,
+    means: FloatArray,
+    scan_of: np.ndarray[Any, Any],
+    k0: int,
+    k1: int,
+    w: int,
+    carry: FloatArray,
+    body: FloatArray,
+) -> None:
+    """The normals of windows ``k0 .. k1 - 1`` into ``body``; ``carry`` holds the running sums
+    of x, y, xx, yy, xy of the points before ``k0`` and moves on to ``k1``."""
+    e = k1 + w - 1  # points k0 .. e - 1
+    p = pts[k0:e]
+    mean_at = means[scan_of[k0:e]]
+    x = p[:, 0] - mean_at[:, 0]
+    y = p[:, 1] - mean_at[:, 1]
+    m = k1 - k0
+
+    sums = []  # over each window, as differences of running sums
+    for j, v in enumerate((x, y, x * x, y * y, x * y)):
+        c = np.concatenate((carry[j : j + 1], v))
+        np.cumsum(c, out=c)
+        carry[j] = c[m]
+        sums.append(c[w:] - c[:-w])
+    sx, sy, sxx, syy, sxy = sums
     mx, my = sx / w, sy / w
-    cxx = wsum(x * x) / w - mx * mx
-    cyy = wsum(y * y) / w - my * my
-    cxy = wsum(x * y) / w - mx * my
-    ang = 0.5 * np.arctan2(2 * cxy, cxx - cyy)  # direction of the line
+    cxx = sxx / w - mx * mx
+    cyy = syy / w - my * my
+    cxy = sxy / w - mx * my
+    dxy = cxx - cyy
     tr = cxx + cyy
-    disc = np.sqrt(np.maximum((cxx - cyy) ** 2 / 4 + cxy * cxy, 0))
+    disc = np.sqrt(np.maximum(dxy**2 / 4 + cxy * cxy, 0))
     l1, l2 = tr / 2 + disc, tr / 2 - disc
-    step = np.hypot(np.diff(pts[:, 0]), np.diff(pts[:, 1]))
-    m = len(step) - (w - 2)  # windows of w - 1 steps
-    gaps = step[:m].copy()
+    step = np.hypot(np.diff(p[:, 0]), np.diff(p[:, 1]))
+    gaps = step[:m].copy()  # the widest step within each window
     for k in range(1, w - 1):
         np.maximum(gaps, step[k : k + m], out=gaps)
-    span = np.hypot(
-        pts[w - 1 :, 0] - pts[: total - w + 1, 0], pts[w - 1 :, 1] - pts[: total - w + 1, 1]
-    )
-    first = mean_at[: total - w + 1]
+    span = np.hypot(p[w - 1 :, 0] - p[:m, 0], p[w - 1 :, 1] - p[:m, 1])
+    first = mean_at[:m]
     rng = np.hypot(mx + first[:, 0], my + first[:, 1])
     # A window that runs over the end of a scan into the next is no neighbourhood.
-    scan_of = np.repeat(np.arange(len(scans)), sizes)
-    same = scan_of[: total - w + 1] == scan_of[w - 1 :]
+    same = scan_of[k0:k1] == scan_of[k0 + w - 1 : e]
     good = same & (l2 < 0.05 * np.maximum(l1, 1e-9)) & (gaps < 0.08 * rng + 60.0) & (span > 20.0)
-    body = out[window : total - window]
-    body[:, 0] = -np.sin(ang)
-    body[:, 1] = np.cos(ang)
-    body[~good] = np.nan
-    return np.split(out, np.cumsum(sizes)[:-1])
+    # The line's direction, and the normal from it, of the windows that have one.
+    ang = 0.5 * np.arctan2(2 * cxy[good], dxy[good])
+    body[good, 0] = -np.sin(ang)
+    body[good, 1] = np.cos(ang)
 
 
 @dataclass
@@ -109,8 +137,20 @@ class MatchResult:
         """Unit vector along which the match tells nothing (a corridor's axis), or None."""
         if self.normals is None:
             return None
-        w, v = np.linalg.eigh(self.normals)
-        return v[:, 0] if w[0] < floor else None
+        (a, b), (_, d) = self.normals.tolist()
+        h = math.hypot(0.5 * (a - d), b)
+        low = 0.5 * (a + d) - h  # the smaller eigenvalue (closed form: a 2x2 symmetric matrix)
+        if low >= floor:
+            return None
+        # Its eigenvector: the larger of two equivalent forms (the other may vanish).
+        u, v = (b, low - a), (low - d, b)
+        x, y = u if abs(u[0]) + abs(u[1]) >= abs(v[0]) + abs(v[1]) else v
+        big = max(abs(x), abs(y))
+        if big == 0:
+            return np.array([1.0, 0.0])
+        x, y = x / big, y / big  # (tiny entries keep their precision)
+        n = math.hypot(x, y)
+        return np.array([x / n, y / n])
 
     def info(self, sigma: float = 15.0, points: float = 10.0) -> FloatArray:
         """Information of the match in the world frame, as if from ``points`` points of ``sigma``.
@@ -129,13 +169,15 @@ class MatchResult:
         return info
 
 
-def _solve3(H: FloatArray, g: FloatArray) -> FloatArray | None:
-    """``-H^-1 g`` for a symmetric 3x3 H (Cramer's rule; None when singular)."""
-    (a, b, c), (_, d, e), (_, _, f) = H.tolist()
+def _solve3(
+    h: tuple[tuple[float, ...], ...], g0: float, g1: float, g2: float
+) -> tuple[float, float, float] | None:
+    """``-H^-1 g`` for a symmetric 3x3 H (upper triangle given; Cramer's rule; None when
+    singular). Plain floats: for a 3x3 system numpy's per-call overhead is most of the cost."""
+    (a, b, c), (_, d, e), (_, _, f) = h
     a += 1e-9
     d += 1e-9
     f += 1e-6
-    g0, g1, g2 = g.tolist()
     A = d * f - e * e
     B = c * e - b * f
     C = b * e - c * d
@@ -145,13 +187,15 @@ def _solve3(H: FloatArray, g: FloatArray) -> FloatArray | None:
     D = a * f - c * c
     E = b * c - a * e
     F = a * d - b * b
-    return np.array(
-        [
-            -(A * g0 + B * g1 + C * g2) / det,
-            -(B * g0 + D * g1 + E * g2) / det,
-            -(C * g0 + E * g1 + F * g2) / det,
-        ]
+    return (
+        -(A * g0 + B * g1 + C * g2) / det,
+        -(B * g0 + D * g1 + E * g2) / det,
+        -(C * g0 + E * g1 + F * g2) / det,
     )
+
+
+#: Largest target (points) :func:`icp` copies into one table with its normals.
+_TABLE_MAX = 20_000
 
 
 def icp(
@@ -197,62 +241,102 @@ def icp(
     n_src = len(src)
     if n_src < min_points or len(tgt_pts) < min_points:
         return MatchResult(pose, False, 0.0, math.inf, 0, 0.0)
-    sx = np.ascontiguousarray(src[:, 0])
-    sy = np.ascontiguousarray(src[:, 1])
+    src = np.asarray(src, dtype=np.float64)
+    x, y, th = pose.tolist()
     inv_s2 = 1.0 / (sigma * sigma)
-    use_prior = prior is not None and prior_info is not None
-    nn = r = vx = vy = None
+    P = None
+    if prior is not None and prior_info is not None:
+        px, py, pth = np.asarray(prior, dtype=np.float64).tolist()
+        P = np.asarray(prior_info, dtype=np.float64).tolist()
+    R = np.empty((2, 2))
+    t = np.empty(2)
+    # A local map's points and normals go in one table with a last row of zeros for the source
+    # points that find no target within reach (the tree answers its size for them): one gather
+    # per iteration, and a zero normal adds nothing to the sums. A large target (the whole map)
+    # is not copied: the index is clamped and those points' rows zeroed instead.
+    tab = None
+    if len(tgt_pts) <= _TABLE_MAX:
+        tab = np.zeros((len(tgt_pts) + 1, 4))
+        tab[:-1, :2] = tgt_pts
+        tab[:-1, 2:] = tgt_nrm
+    last_tgt = len(tgt_pts) - 1
+    K = None
     cnt = 0
     last = len(schedule) - 1
+    query = tree.query
     for it in range(max_iter):
         dmax = schedule[min(it, last)]
-        c, s = math.cos(pose[2]), math.sin(pose[2])
-        vx = sx * c - sy * s  # point minus robot position
-        vy = sx * s + sy * c
-        p = np.empty((n_src, 2))
-        p[:, 0] = vx + pose[0]
-        p[:, 1] = vy + pose[1]
-        d, idx = tree.query(p, k=1, distance_upper_bound=dmax, eps=0.2)
+        c, s = math.cos(th), math.sin(th)
+        R[0, 0] = c
+        R[0, 1] = s
+        R[1, 0] = -s
+        R[1, 1] = c
+        v = src @ R  # point minus robot position
+        t[0] = x
+        t[1] = y
+        p = v + t
+        d, idx = query(p, k=1, distance_upper_bound=dmax, eps=0.2)
         ok = d < dmax
         cnt = int(np.count_nonzero(ok))
         if cnt < min_points:
+            pose[:] = (x, y, th)
             return MatchResult(pose, False, cnt / n_src, math.inf, cnt, 0.0)
-        ti = idx[ok]
-        nn = tgt_nrm[ti]
-        q = tgt_pts[ti]
-        vx, vy = vx[ok], vy[ok]
-        nx, ny = nn[:, 0], nn[:, 1]
-        r = (p[ok, 0] - q[:, 0]) * nx + (p[ok, 1] - q[:, 1]) * ny
-        jt = ny * vx - nx * vy
-        a = np.abs(r)
-        if cauchy is not None:
-            w = inv_s2 / (1.0 + (a / cauchy) ** 2)
+        if tab is not None:
+            T = tab[idx]
+            p -= T[:, :2]
+            nn = T[:, 2:]
         else:
-            w = np.minimum(1.0, huber / np.maximum(a, 1e-9)) * inv_s2
-        J = np.empty((cnt, 3))
-        J[:, 0] = nx
-        J[:, 1] = ny
-        J[:, 2] = jt
-        Jw = J * w[:, None]
-        H = Jw.T @ J
-        g = Jw.T @ r
-        if use_prior:
-            dp = pose - prior  # type: ignore[operator]
-            dp[2] = (dp[2] + math.pi) % (2 * math.pi) - math.pi
-            H = H + prior_info
-            g = g + prior_info @ dp  # type: ignore[operator]
-        delta = _solve3(H, g)
+            if cnt < n_src:
+                np.minimum(idx, last_tgt, out=idx)  # any valid index: the row is zeroed below
+            nn = tgt_nrm[idx]
+            p -= tgt_pts[idx]
+        K = np.empty((n_src, 4))
+        K[:, :2] = nn
+        nx, ny = nn[:, 0], nn[:, 1]
+        # K = [nx, ny, ny vx - nx vy, r]: the Jacobian and the residual of each point.
+        np.multiply(ny, v[:, 0], out=K[:, 2])
+        K[:, 2] -= nx * v[:, 1]
+        r = K[:, 3]
+        np.multiply(p[:, 0], nx, out=r)
+        r += p[:, 1] * ny
+        if tab is None and cnt < n_src:
+            K[~ok] = 0.0
+        if cauchy is not None:
+            w = r / cauchy
+            w *= w
+            w += 1.0
+            w = inv_s2 / w
+        else:
+            w = np.minimum(1.0, huber / np.maximum(np.abs(r), 1e-9)) * inv_s2
+        M = (K.T * w) @ K
+        (h0, h1, h2, g0), (_, h4, h5, g1), (_, _, h8, g2), _ = M.tolist()
+        if P is not None:
+            dx, dy = x - px, y - py
+            dth = (th - pth + math.pi) % (2 * math.pi) - math.pi
+            (a, b, cc), (d_, e, f), (gg, hh, ii) = P
+            H = ((h0 + a, h1 + b, h2 + cc), (0, h4 + e, h5 + f), (0, 0, h8 + ii))
+            g0 += a * dx + b * dy + cc * dth
+            g1 += d_ * dx + e * dy + f * dth
+            g2 += gg * dx + hh * dy + ii * dth
+        else:
+            H = ((h0, h1, h2), (0, h4, h5), (0, 0, h8))
+        delta = _solve3(H, g0, g1, g2)
         if delta is None:
+            pose[:] = (x, y, th)
             return MatchResult(pose, False, cnt / n_src, math.inf, cnt, 0.0)
-        pose += delta
+        x += delta[0]
+        y += delta[1]
+        th += delta[2]
         if it >= last and abs(delta[0]) + abs(delta[1]) < 0.5 and abs(delta[2]) < 5e-5:
             break
-    assert nn is not None and r is not None and vx is not None and vy is not None
-    info = nn.T @ nn / cnt
-    weakest = float(np.linalg.eigvalsh(info)[0])
-    J = np.stack([nn[:, 0], nn[:, 1], nn[:, 1] * vx - nn[:, 0] * vy], axis=1)
+    assert K is not None
+    pose[:] = (x, y, th)
+    M = K.T @ K
+    info = M[:2, :2] / cnt
+    (a, b), (_, d2) = info.tolist()
+    weakest = 0.5 * (a + d2) - math.hypot(0.5 * (a - d2), b)  # smaller eigenvalue
     return MatchResult(
-        pose, True, cnt / n_src, float(np.sqrt(np.mean(r * r))), cnt, weakest, J.T @ J, info
+        pose, True, cnt / n_src, math.sqrt(M[3, 3] / cnt), cnt, weakest, M[:3, :3].copy(), info
     )
 
 
@@ -279,6 +363,7 @@ def _search(
     ths: FloatArray,
 ) -> tuple[FloatArray, float]:
     shape = like.shape
+    flat = like.ravel()
     offs = np.arange(-k, k + 1)
     best_sc, best = -1.0, center.copy()
     for th in ths:
@@ -286,7 +371,8 @@ def _search(
         base = np.floor((p - lo) / cell).astype(np.int64)
         ix = np.clip(base[:, 0][None, :] + offs[:, None], 0, shape[0] - 1)  # (K, n)
         iy = np.clip(base[:, 1][None, :] + offs[:, None], 0, shape[1] - 1)
-        score = like[ix[:, None, :], iy[None, :, :]].sum(axis=2)  # (K, K)
+        # like[ix[:, None, :], iy[None, :, :]] as one gather from the flat grid (faster).
+        score = flat.take((ix * shape[1])[:, None, :] + iy[None, :, :]).sum(axis=2)  # (K, K)
         a, b = np.unravel_index(int(np.argmax(score)), score.shape)
         sc = float(score[a, b])
         if sc > best_sc:
@@ -332,5 +418,13 @@ def voxel_keep(pts: FloatArray, size: float) -> np.ndarray[Any, Any]:
         return np.zeros(0, dtype=np.int64)
     k = np.floor(pts / size).astype(np.int64)
     key = (k[:, 0] << 32) + (k[:, 1] & 0xFFFFFFFF)
-    _, idx = np.unique(key, return_index=True)
-    return np.sort(idx)
+    # np.unique(key, return_index=True)'s indices, without its extra passes: a stable sort
+    # puts each cell's first point first.
+    order = np.argsort(key, kind="stable")
+    sk = key[order]
+    first = np.empty(len(sk), dtype=bool)
+    first[0] = True
+    np.not_equal(sk[1:], sk[:-1], out=first[1:])
+    idx = order[first]
+    idx.sort()
+    return idx

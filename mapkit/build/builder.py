@@ -82,8 +82,8 @@ def _scan_arrays(
 def _through(local: FloatArray, poses: FloatArray, sizes: list[int], *, shift: bool) -> FloatArray:
     """Points (or, without ``shift``, directions) of consecutive scans, ``sizes[k]`` of them
     through ``poses[k]`` (radians): :func:`transform` of all scans at once."""
-    th = np.repeat(poses[:, 2], sizes)
-    c, s = np.cos(th), np.sin(th)
+    # One cosine and sine per scan, repeated for its points.
+    c, s = np.repeat(np.cos(poses[:, 2]), sizes), np.repeat(np.sin(poses[:, 2]), sizes)
     out = np.empty_like(local)
     out[:, 0] = local[:, 0] * c - local[:, 1] * s
     out[:, 1] = local[:, 0] * s + local[:, 1] * c
