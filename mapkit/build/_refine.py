@@ -28,6 +28,9 @@ _OWN_PASS = 5000.0
 #: What the registration's relative pose of neighbouring scans is worth (mm, mm, radians).
 _STEP_SIGMA = (3.0, 3.0, math.radians(0.07))
 
+#: Most the first scan's match may turn the map about the start (radians).
+_ANCHOR_TURN = math.radians(0.15)
+
 #: Neighbours looked at per point to find one of another pass.
 _K = 8
 
@@ -118,6 +121,8 @@ def refine(
                 continue
             if math.hypot(*(r.pose[:2] - x[i, :2])) > 150.0:
                 continue
+            if i == 0 and abs(r.pose[2] - x[0, 2]) > _ANCHOR_TURN:
+                continue  # the first scan and the map disagree: one of them is wrong
             info = r.info(sigma=_MATCH_SIGMA, points=_MATCH_POINTS)
             # The scan's place in the map (whose frame is that of x, node 0's estimate).
             graph.add(frame, i, between(x[0], r.pose), _edge_info(info, r.pose), robust=True)
