@@ -78,6 +78,24 @@ def test_no_module_is_too_big() -> None:
     )
 
 
+def test_every_test_folder_is_collected(pytestconfig: pytest.Config) -> None:
+    """No folder of tests (or of the package's doctests) matches a pattern pytest skips: with
+    pytest's default ``norecursedirs`` (which has ``build``) tests/build never ran."""
+    import fnmatch
+
+    skip = pytestconfig.getini("norecursedirs")
+    skipped = sorted(
+        str(d.relative_to(ROOT))
+        for top in ("tests", "mapkit")
+        for d in (ROOT / top).rglob("*")
+        if d.is_dir()
+        and d.name != "__pycache__"
+        and any(fnmatch.fnmatch(d.name, pattern) for pattern in skip)
+        and (any(d.glob("test_*.py")) or (d / "__init__.py").exists())
+    )
+    assert not skipped, f"pytest would never collect these folders: {skipped}"
+
+
 def test_ruff_check() -> None:
     run("ruff", "check", "--no-cache", ".")
 
