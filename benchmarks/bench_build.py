@@ -99,6 +99,21 @@ CASES: dict[str, tuple[str, dict[str, Any]]] = {
         "building",
         {"loop": True, "seed": 1, "drift": 0.05, "scale_error": 0.005, "turn_slip": 0.02},
     ),
+    # A sparse laser (181 beams), a scan every 0.5 m (as a logger set to half a metre would
+    # write), a small drift and turn noise: few points per scan, and far apart.
+    "building-sparse": (
+        "building",
+        {
+            "loop": True,
+            "seed": 2,
+            "readings": 181,
+            "dist_step": 500.0,
+            "translation_error": 0.002,
+            "rotation_error": 0.005,
+            "drift": 0.02,
+            "range_noise": 10.0,
+        },
+    ),
 }
 LONG = (
     "office",
