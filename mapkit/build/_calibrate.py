@@ -67,7 +67,7 @@ class CalibrationFeed:
         if matches and matches[-1][0] == i - 1:
             k, pk, ck = matches[-1]
             raw = between(odo[k], odo[i])
-            if math.hypot(raw[0], raw[1]) < 50.0 and abs(raw[2]) > math.radians(5.0):
+            if self.cal.on_the_spot(raw):
                 self.cal.observe_turn(raw, between(pk, pose), ck + cov)
         for k, pk, ck in reversed(matches):
             if path[i] - path[k] >= BASE:

@@ -120,6 +120,11 @@ def _normals_chunk(
     body[good, 1] = np.cos(ang)
 
 
+def _smaller_eigenvalue(a: float, b: float, d: float) -> float:
+    """The smaller eigenvalue of the symmetric 2x2 matrix ``[[a, b], [b, d]]`` (closed form)."""
+    return 0.5 * (a + d) - math.hypot(0.5 * (a - d), b)
+
+
 @dataclass
 class MatchResult:
     """What a registration found."""
@@ -138,8 +143,7 @@ class MatchResult:
         if self.normals is None:
             return None
         (a, b), (_, d) = self.normals.tolist()
-        h = math.hypot(0.5 * (a - d), b)
-        low = 0.5 * (a + d) - h  # the smaller eigenvalue (closed form: a 2x2 symmetric matrix)
+        low = _smaller_eigenvalue(a, b, d)
         if low >= floor:
             return None
         # Its eigenvector: the larger of two equivalent forms (the other may vanish).
@@ -334,7 +338,7 @@ def icp(
     M = K.T @ K
     info = M[:2, :2] / cnt
     (a, b), (_, d2) = info.tolist()
-    weakest = 0.5 * (a + d2) - math.hypot(0.5 * (a - d2), b)  # smaller eigenvalue
+    weakest = _smaller_eigenvalue(a, b, d2)
     return MatchResult(
         pose, True, cnt / n_src, math.sqrt(M[3, 3] / cnt), cnt, weakest, M[:3, :3].copy(), info
     )

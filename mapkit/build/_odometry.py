@@ -247,9 +247,14 @@ class _Calibration:
             return
         self._drift.append((turn - raw[2] * self.turn) / trans_raw)
 
+    @staticmethod
+    def on_the_spot(raw: FloatArray) -> bool:
+        """Whether a raw odometry step is a turn on the spot (a turning step that hardly moves)."""
+        return math.hypot(raw[0], raw[1]) < 50.0 and abs(raw[2]) > _TURN
+
     def observe_turn(self, raw: FloatArray, motion: FloatArray, var: FloatArray) -> None:
         """One step (see :meth:`observe_run`): a turn on the spot gives a turn scale sample."""
-        if math.hypot(raw[0], raw[1]) >= 50.0 or abs(raw[2]) <= math.radians(5.0):
+        if not self.on_the_spot(raw):
             return
         if math.sqrt(var[2, 2]) < 0.05 * abs(raw[2]):
             self._turn.append(float(motion[2]) / raw[2])

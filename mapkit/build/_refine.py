@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from mapkit.build._common import FloatArray, _world
-from mapkit.build._graph import PoseGraph, between, sigma_info
+from mapkit.build._graph import PoseGraph, between, sigma_info, wrap
 from mapkit.build._loops import _CAUCHY, _MATCH_POINTS, _MATCH_SIGMA, _edge_info
 from mapkit.build._match import icp
 
@@ -121,7 +121,7 @@ def refine(
                 continue
             if math.hypot(*(r.pose[:2] - x[i, :2])) > 150.0:
                 continue
-            if i == 0 and abs(r.pose[2] - x[0, 2]) > _ANCHOR_TURN:
+            if i == 0 and abs(wrap(r.pose[2] - x[0, 2])) > _ANCHOR_TURN:
                 continue  # the first scan and the map disagree: one of them is wrong
             info = r.info(sigma=_MATCH_SIGMA, points=_MATCH_POINTS)
             # The scan's place in the map (whose frame is that of x, node 0's estimate).
