@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from mapkit.build._match import scan_normals_many
 from mapkit.build._refine import refine
+from mapkit.build._register import _sides
 from mapkit.simulate import simulate_log
 from tests.build.test_accuracy import ROUTE, flat
 
@@ -19,10 +19,9 @@ def two_laps() -> tuple[np.ndarray, list, list, list, np.ndarray]:
     all_pts = [s.robot_points(las, max_range=16000.0) for s in scans]
     truth = sim.truth[np.searchsorted(sim.truth_ids, [s.scan_id for s in scans])].copy()
     truth[:, 2] = np.radians(truth[:, 2])
-    src = [p[:: max(1, len(p) // 120)] for p in all_pts]
-    pts = [p[::2] if len(p) > 240 else p for p in all_pts]
+    src, pts, nrm = _sides(all_pts)  # as registration takes them
     path = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(truth[:, :2], axis=0).T))))
-    return truth, src, pts, scan_normals_many(pts), path
+    return truth, src, pts, nrm, path
 
 
 def test_refinement_brings_two_passes_onto_one_wall() -> None:
