@@ -82,7 +82,7 @@ class _OdometryModel:
 
     #: The 80th percentile of chi-square with 3 degrees of freedom (the fit uses the upper part
     #: of the distribution: turns, where odometry errs most, are a minority of the steps).
-    _CHI2_3_MEDIAN = 4.642
+    _CHI2_3_P80 = 4.642
 
     def __init__(
         self,
@@ -139,7 +139,7 @@ class _OdometryModel:
         D = np.array(self._d[-_FIT_STEPS:])
         S = np.array(self._scan_cov[-_FIT_STEPS:])
         V = np.array(self._odo_var[-_FIT_STEPS:])
-        self.scale = _fit_scale(D, S, V, 80.0, self._CHI2_3_MEDIAN)
+        self.scale = _fit_scale(D, S, V, 80.0, self._CHI2_3_P80)
         self._fit_turns()
 
     def _fit_turns(self) -> None:
