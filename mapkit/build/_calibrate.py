@@ -96,12 +96,7 @@ class CalibrationFeed:
                     if path[i] - path[k] < 2.0 * DRIFT_BASE and abs(run[2]) < math.radians(3.0):
                         seen = self._scan_to_scan(k, i, between(pk, pose))
                         if seen is not None:
-                            self.cal.observe_drift(
-                                run,
-                                float(seen[0][2]),
-                                float(seen[1][2, 2]),
-                                int(path[i] // DRIFT_BASE),
-                            )
+                            self.cal.observe_drift(run, float(seen[0][2]), float(seen[1][2, 2]))
                             self._last_drift = i
                     break
         scans.append((i, pose.copy()))

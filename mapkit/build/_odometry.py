@@ -186,8 +186,6 @@ class _Calibration:
         self._dist: list[float] = []
         self._turn: list[float] = []
         self._drift: list[float] = []
-        #: The stretches of path the drift samples end in (see :meth:`observe_drift`).
-        self._drift_at: set[int] = set()
         self._seen = 0
         #: The factors kept until there are samples enough for new ones (see :meth:`fresh`).
         self._prior = (1.0, 1.0, 0.0)
@@ -241,15 +239,13 @@ class _Calibration:
             self._dist.append(float(motion[:2] @ u) / trans_raw)
         self._count()
 
-    def observe_drift(self, raw: FloatArray, turn: float, var: float, stretch: int) -> None:
+    def observe_drift(self, raw: FloatArray, turn: float, var: float) -> None:
         """A straight run: its raw odometry, the turn the scans saw over it and that turn's
-        variance (radians squared). ``stretch`` numbers the piece of path (a run long) it ends
-        in: runs ending in the same one overlap."""
+        variance (radians squared)."""
         trans_raw = math.hypot(raw[0], raw[1])
         if trans_raw < 1.0 or math.sqrt(var) > math.radians(0.3):
             return
         self._drift.append((turn - raw[2] * self.turn) / trans_raw)
-        self._drift_at.add(stretch)
 
     @staticmethod
     def on_the_spot(raw: FloatArray) -> bool:
@@ -270,32 +266,19 @@ class _Calibration:
             dist, turn, drift = self._prior
             self.dist = self._fit(self._dist, 1.0, dist)
             self.turn = self._fit(self._turn, 1.0, turn)
-            # Runs that overlap see the same walls: their errors go together. As many
-            # independent samples as stretches of path the runs cover.
-            self.drift = self._fit(
-                self._drift, 0.0, drift, least=_MIN_DRIFT, independent=len(self._drift_at)
-            )
+            self.drift = self._fit(self._drift, 0.0, drift, least=_MIN_DRIFT)
 
     @property
     def drift_samples(self) -> list[float]:
         """The drift samples so far (radians per mm)."""
         return self._drift
 
-    def _fit(
-        self,
-        obs: list[float],
-        none: float,
-        prior: float,
-        least: int = 0,
-        independent: int | None = None,
-    ) -> float:
+    def _fit(self, obs: list[float], none: float, prior: float, least: int = 0) -> float:
         """The median of ``obs`` where it differs from ``none`` (no error) by more than three
-        standard errors, else ``none``; ``prior`` while there are too few samples. The standard
-        error is that of ``independent`` samples (default: all of them)."""
+        standard errors, else ``none``; ``prior`` while there are too few samples."""
         if len(obs) < (least or self._MIN):
             return prior
         a = np.array(obs)
         med = float(np.median(a))
-        n = len(obs) if independent is None else max(independent, 1)
-        err = 1.4826 * float(np.median(np.abs(a - med))) * 1.25 / math.sqrt(n)
+        err = 1.4826 * float(np.median(np.abs(a - med))) * 1.25 / math.sqrt(len(a))
         return med if abs(med - none) > 3.0 * err else none

@@ -55,32 +55,3 @@ def test_calibration_keeps_what_an_earlier_pass_learnt_until_it_has_samples() ->
     for _ in range(80):
         cal.observe_run(straight, straight, np.diag([1.0, 1.0, 1e-6]))
     assert cal.dist == pytest.approx(1.0)
-
-
-def _feed_drift(cal: _odometry._Calibration, per_stretch: list[float], samples: int) -> None:
-    """Drift samples over 2 m straight runs: ``samples`` in each stretch of path, all seeing
-    that stretch's turn (its walls' error, in degrees) with a little noise of their own."""
-    rng = np.random.default_rng(5)
-    run = np.array([2000.0, 0.0, 0.0])
-    for stretch, turn in enumerate(per_stretch):
-        for _ in range(samples):
-            seen = math.radians(turn + rng.normal(0.0, 0.002))
-            cal.observe_drift(run, seen, math.radians(0.05) ** 2, stretch)
-            cal.observe_run(run, run, np.diag([1e8, 1.0, 1e-6]))  # a corridor: no scale sample
-
-
-def test_drift_is_not_learnt_from_overlapping_runs() -> None:
-    """Runs taken at every scan overlap: runs ending in the same stretch of path see the same
-    walls and share their error. Counted as independent they made noise look like drift (a
-    robot with none got 0.05 deg/m and bent its map); they count once per stretch."""
-    learnt = []
-    for seed in range(20):
-        walls = list(np.random.default_rng(seed).normal(0.0, 0.1, 30))  # 0.1 degrees each
-        cal = _odometry._Calibration()
-        _feed_drift(cal, walls, 7)  # a scan every 300 mm, a sample at each
-        learnt.append(cal.drift)
-    assert learnt == [0.0] * 20
-    # A drift the stretches agree on is learnt.
-    drifting = _odometry._Calibration()
-    _feed_drift(drifting, [0.2 + w * 0.5 for w in walls], 7)
-    assert math.degrees(drifting.drift) * 1000.0 == pytest.approx(0.1, abs=0.015)  # deg/m
