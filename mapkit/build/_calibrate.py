@@ -10,7 +10,7 @@ import numpy as np
 
 from mapkit.build._common import FloatArray
 from mapkit.build._graph import between
-from mapkit.build._loops import _CAUCHY, _MATCH_POINTS, _MATCH_SIGMA
+from mapkit.build._loops import _CAUCHY, match_info
 from mapkit.build._match import icp, scan_normals
 from mapkit.build._odometry import _EPS, _Calibration
 
@@ -128,6 +128,6 @@ class CalibrationFeed:
         r = icp(self.src[i], tree, p, n, guess, schedule=(150.0, 60.0, 40.0), cauchy=_CAUCHY)
         if not (r.ok and r.inliers > 0.3 and r.rms < 30.0):
             return None
-        info = r.info(sigma=_MATCH_SIGMA, points=_MATCH_POINTS)
+        info = match_info(r)
         var = np.asarray(np.linalg.inv(info + _EPS), dtype=np.float64)
         return r.pose, var

@@ -73,11 +73,17 @@ def refine(
     *,
     first: FloatArray | None = None,
     rounds: int = 1,
+    odometry: tuple[FloatArray, FloatArray] | None = None,
 ) -> tuple[FloatArray, int]:
     """The poses after ``rounds`` of matching every scan against the other passes' scans.
 
     ``first``: the first scan's points to match (default ``pts[0]``): it alone places the map
     around the start, so it is matched with all it has.
+
+    ``odometry``: the ``(N - 1, 3)`` odometry steps between neighbouring scans and their
+    ``(N - 1, 3, 3)`` information. The neighbours are held by them too: where odometry is
+    better than a scan's match (a simulator's, a well-kept robot's), the matches' noise does
+    not bend the chain.
 
     Returns:
         The new ``(N, 3)`` poses (radians) and how many scans matched in the last round.
@@ -104,6 +110,8 @@ def refine(
         graph = PoseGraph()
         for i in range(1, n):
             graph.add(i - 1, i, between(x[i - 1], x[i]), step_info)
+            if odometry is not None:
+                graph.add(i - 1, i, odometry[0][i - 1], odometry[1][i - 1])
         matched = 0
         for i in range(n):
             others.at = float(path[i])

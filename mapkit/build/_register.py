@@ -3,6 +3,7 @@ passes."""
 
 from __future__ import annotations
 
+import itertools
 import math
 from typing import Any
 
@@ -13,13 +14,12 @@ from mapkit.build._common import FloatArray, Progress, _Submap
 from mapkit.build._graph import PoseGraph, between, sigma_info, wrap
 from mapkit.build._loops import (
     _CAUCHY,
-    _MATCH_POINTS,
-    _MATCH_SIGMA,
     _close,
     _edge_info,
     _fuse,
     _loop_pairs,
     _revisit_candidate,
+    match_info,
 )
 from mapkit.build._match import MatchResult, icp, scan_normals_many
 from mapkit.build._odometry import _OdometryModel
@@ -85,7 +85,7 @@ def _register(
     )
     if not model.calibration.differs(start) or n > _SECOND_PASS_MAX:
         stats.update(first)
-        return _refined(est, odo, sides, all_pts[0], stats, loop_closure)
+        return _refined(est, odo, sides, all_pts[0], stats, loop_closure, model)
     # The odometry's systematic errors were learnt on the way: the first metres were registered
     # without them. Once more from the start, with the odometry as calibrated. (A long log comes
     # back over its first metres many times: its loop closures correct them instead.)
@@ -93,7 +93,7 @@ def _register(
     model.frozen = True
     est = _register_pass(scans, odo, all_pts, sides, log, [], stats, loop_closure, None, model)
     stats["passes"] = 2
-    return _refined(est, odo, sides, all_pts[0], stats, loop_closure)
+    return _refined(est, odo, sides, all_pts[0], stats, loop_closure, model)
 
 
 #: A scan's points as registration uses them: the scan side, the map side and its normals.
@@ -117,14 +117,20 @@ def _refined(
     first: FloatArray,
     stats: dict[str, Any],
     loop_closure: bool,
+    model: _OdometryModel,
 ) -> FloatArray:
     """The poses after the global refinement (:mod:`mapkit.build._refine`) where a place was
-    seen more than once (loops closed), on logs of up to ``_REFINE_MAX`` scans."""
+    seen more than once (loops closed), on logs of up to ``_REFINE_MAX`` scans. The odometry
+    goes in as registration weighed it: its calibrated steps, with the noise the log showed."""
     closed = stats.get("revisits", 0) or stats.get("tag_loops_matched", 0)
     if not loop_closure or not closed or len(est) > _REFINE_MAX:
         return est
     path = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(odo[:, :2], axis=0).T))))
-    out, matched = refine(est, path, *sides, first=first, rounds=_REFINE_ROUNDS)
+    steps = np.array([model.calibration.correct(between(a, b)) for a, b in itertools.pairwise(odo)])
+    infos = np.array([model.info(math.hypot(s[0], s[1]), float(s[2])) for s in steps])
+    out, matched = refine(
+        est, path, *sides, first=first, rounds=_REFINE_ROUNDS, odometry=(steps, infos)
+    )
     stats["refined"] = matched
     return out
 
@@ -162,6 +168,8 @@ def _register_pass(
     sub = _Submap(voxel=40.0)
     src, pts, nrm = sides
     path = np.zeros(n)
+    # Running sums of the odometry's variance along the log (see _loops._within_reach).
+    reach = (np.zeros(n), np.zeros(n))
     pairs = _loop_pairs(log, scans, issues) if loop_closure else []
     stats["tag_loops"] = len(pairs)
     tag_at: dict[int, list[tuple[int, str]]] = {}
@@ -190,6 +198,8 @@ def _register_pass(
         # Odometry as the evidence it is: its noise grows with distance and turn, scaled to what
         # this log's odometry turns out to be worth (see _OdometryModel).
         odo_info = model.info(trans, float(step[2]))
+        reach[0][i] = reach[0][i - 1] + 1.0 / odo_info[0, 0] + 1.0 / odo_info[1, 1]
+        reach[1][i] = reach[1][i - 1] + 1.0 / odo_info[2, 2]
         # The scan's own view: matched with only a weak pull to the prediction (which holds the
         # directions the scan cannot fix, a corridor's length), then fused with odometry.
         r = (
@@ -210,7 +220,7 @@ def _register_pass(
         )
         dv = _seen(r, pred, trans)
         if r is not None and dv is not None:
-            scan_info = r.info(sigma=_MATCH_SIGMA, points=_MATCH_POINTS)
+            scan_info = match_info(r)
             model.observe(dv, scan_info, trans, float(step[2]))
             if not model.frozen:
                 feed.step(i, r.pose, scan_info)
@@ -230,12 +240,14 @@ def _register_pass(
         # Loop closures.
         moved = False
         for s0, _tag in tag_at.get(i, []):
-            if _close(i, s0, est, src, pts, nrm, path, graph, stats, tagged=True):
+            if _close(i, s0, est, src, pts, nrm, path, graph, stats, tagged=True, reach=reach):
                 stats["tag_loops_matched"] += 1
                 moved = stats.pop("_moved", False) or moved
             else:
+                # The tag says where the robot is, not which way it faces (it may come back
+                # the other way round): a hint on the place alone.
                 graph.add(
-                    s0, i, np.zeros(3), sigma_info(500.0, 500.0, math.radians(10.0)), robust=True
+                    s0, i, _hint(est[s0], est[i]), sigma_info(500.0, 500.0, math.pi), robust=True
                 )
                 issues.append(
                     Issue.make(
@@ -249,7 +261,7 @@ def _register_pass(
         if loop_closure and i >= next_check:
             j = _revisit_candidate(i, est, path)
             if j is not None:
-                if _close(i, j, est, src, pts, nrm, path, graph, stats, tagged=False):
+                if _close(i, j, est, src, pts, nrm, path, graph, stats, tagged=False, reach=reach):
                     stats["revisits"] += 1
                     moved = stats.pop("_moved", False) or moved
                     next_check = i + 20
@@ -283,6 +295,12 @@ def _register_pass(
         stats["closures"] = [c for c in stats["closures"] if tuple(c) not in off]
         stats["closures_rejected"] = len(off)
     return est
+
+
+def _hint(start: FloatArray, now: FloatArray) -> FloatArray:
+    """A ``loop:`` tag's claim when its scans do not match: the robot back at the tag's start
+    (the same place), facing as the estimate has it."""
+    return np.array([0.0, 0.0, wrap(now[2] - start[2])])
 
 
 def _seen(r: MatchResult | None, pred: FloatArray, trans: float) -> FloatArray | None:

@@ -431,6 +431,11 @@ def build(
             f"  loops: {plural(loops['tags'], 'loop tag')} ({loops['tags_matched']} matched), "
             f"{plural(loops['revisits'], 'revisit')} closed, "
             + (f"{loops['rejected']} rejected as inconsistent, " if loops.get("rejected") else "")
+            + (
+                f"{loops['refused']} refused as beyond the odometry's reach, "
+                if loops.get("refused")
+                else ""
+            )
             + f"{plural(loops['optimisations'], 'optimisation')}, "
             f"largest correction {loops['max_correction_mm']} mm / "
             f"{loops['max_correction_deg']} deg; the end moved "
