@@ -1,0 +1,135 @@
+"""Benchmark of ``mapkit build`` on logs simulated from real ARIA maps (given as a folder).
+
+The maps of ``bench_build.py`` are ours; real sites look otherwise (clutter, long corridors that
+look alike, a start in a dead end). This drives the simulated robot through real ARIA maps that
+have goals (a tour of the goals and back home, as ``mapkit simulate --loop`` does) with four
+odometries, and checks the issue's targets on each log: map median within 5 mm of the floor, p90
+under 60 mm, trajectory RMS under 40 mm and within odometry's + 15 mm.
+
+    python benchmarks/bench_build_real.py --maps ../shared/sample-data/real
+    python benchmarks/bench_build_real.py --maps DIR --seeds 3 --tree OLD   # before/after
+
+Figures are per log; the last lines count the logs that meet every target and give the mean and
+worst trajectory RMS per odometry, so two trees compare on the same logs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+#: The maps used (those of ../shared/sample-data/real that have goals to tour).
+MAPS = ("amrisim-AMROffice.map", "aria291-columbia.map", "aria294-columbia.map")
+
+#: name -> simulate_log arguments.
+ODOMETRIES: dict[str, dict[str, Any]] = {
+    # A simulator's odometry (0.2 %), a noisy laser: odometry is better than any scan match.
+    "sim": {
+        "readings": 181,
+        "translation_error": 0.002,
+        "rotation_error": 0.002,
+        "drift": 0.0,
+        "range_noise": 15.0,
+    },
+    "sim361": {
+        "readings": 361,
+        "translation_error": 0.002,
+        "rotation_error": 0.002,
+        "drift": 0.0,
+        "range_noise": 15.0,
+    },
+    # A small drift, a scan every half metre.
+    "drift": {
+        "readings": 181,
+        "translation_error": 0.002,
+        "rotation_error": 0.005,
+        "drift": 0.02,
+        "range_noise": 10.0,
+        "dist_step": 500.0,
+    },
+    # A robot that slips in its turns, drifts, misjudges distance; a few spurious readings.
+    "rough": {
+        "readings": 361,
+        "translation_error": 0.01,
+        "rotation_error": 0.02,
+        "drift": 0.05,
+        "range_noise": 10.0,
+        "turn_slip": 0.02,
+        "scale_error": 0.005,
+        "outliers": 0.02,
+    },
+}
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--maps", required=True, help="folder with the real ARIA maps")
+    ap.add_argument("--tree", help="checkout whose mapkit builds")
+    ap.add_argument("--seeds", type=int, default=3, help="random draws per map and odometry")
+    ap.add_argument("--only", nargs="*", help="odometries to run (names)")
+    args = ap.parse_args()
+    if args.tree:
+        sys.path.insert(0, str(Path(args.tree).resolve()))
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from bench_build import _with_poses, measure
+
+    import mapkit
+    from mapkit.build import build_map
+    from mapkit.simulate import simulate_log
+
+    print(f"mapkit from {Path(mapkit.__file__).parent.parent}")
+    print(
+        f"{'log':28} {'scans':>5} | {'floor med/p90':>13} | {'odometry med/p90 rms':>21} | "
+        f"{'built med/p90 rms':>18} | {'cpu s':>5} | targets"
+    )
+    per: dict[str, list[tuple[float, bool]]] = {}
+    for name in MAPS:
+        world = mapkit.load(Path(args.maps) / name)
+        for odo_name, kw in ODOMETRIES.items():
+            if args.only and odo_name not in args.only:
+                continue
+            for seed in range(1, args.seeds + 1):
+                sim = simulate_log(world, loop=True, seed=seed, odometry_origin="zero", **kw)
+                log, ids, truth = sim.log, sim.truth_ids, sim.truth
+                floor = measure(
+                    build_map(_with_poses(log, ids, truth), register=False, lines=False),
+                    world,
+                    ids,
+                    truth,
+                )
+                raw = measure(build_map(log, register=False, lines=False), world, ids, truth)
+                t = time.process_time()
+                res = build_map(log)
+                cpu = time.process_time() - t
+                b = measure(res, world, ids, truth)
+                ok = (
+                    b["median"] <= floor["median"] + 5.0
+                    and b["p90"] < 60.0
+                    and b["rms"] < 40.0
+                    and b["rms"] <= raw["rms"] + 15.0
+                )
+                per.setdefault(odo_name, []).append((b["rms"], ok))
+                label = f"{name.removesuffix('.map')} {odo_name} {seed}"
+                print(
+                    f"{label:28} {len(log.scans):5d} | {floor['median']:5.1f} / {floor['p90']:5.1f}"
+                    f" | {raw['median']:6.1f} / {raw['p90']:5.0f} {raw['rms']:6.1f} | "
+                    f"{b['median']:5.1f} / {b['p90']:4.0f} {b['rms']:5.1f} | {cpu:5.1f} | "
+                    f"{'ok' if ok else 'MISS'}",
+                    flush=True,
+                )
+    total = sum(ok for runs in per.values() for _, ok in runs)
+    print(f"{total} of {sum(len(r) for r in per.values())} logs meet every target")
+    for odo_name, runs in per.items():
+        rms = [r for r, _ in runs]
+        print(
+            f"  {odo_name:7} {sum(ok for _, ok in runs)} of {len(runs)} ok, "
+            f"trajectory RMS mean {sum(rms) / len(rms):.1f} mm, worst {max(rms):.1f} mm"
+        )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
