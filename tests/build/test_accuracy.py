@@ -41,6 +41,11 @@ def flat() -> MapData:
     )
 
 
+def tour(seed: int, **noise: float):
+    """A log of the flat's tour (``ROUTE``, back home) with these noise settings."""
+    return simulate_log(flat(), waypoints=ROUTE, loop=True, seed=seed, **noise)
+
+
 def with_true_odometry(sim) -> LaserLog:
     at = {int(i): Pose2D(*map(float, p)) for i, p in zip(sim.truth_ids, sim.truth, strict=True)}
     recs = [
@@ -81,16 +86,7 @@ def test_never_worse_than_odometry_and_near_the_floor(noise: str) -> None:
 
 
 def test_true_poses_as_odometry_stay_true() -> None:
-    sim = simulate_log(
-        flat(),
-        waypoints=ROUTE,
-        loop=True,
-        seed=3,
-        range_noise=15.0,
-        translation_error=0.0,
-        rotation_error=0.0,
-        drift=0.0,
-    )
+    sim = tour(3, range_noise=15.0, translation_error=0.0, rotation_error=0.0, drift=0.0)
     res = build_map(with_true_odometry(sim), lines=False)
     rms, rms_deg = trajectory_rms(res.poses, sim.truth)
     assert rms < 5.0 and rms_deg < 0.1, (rms, rms_deg)
@@ -184,11 +180,8 @@ def test_good_odometry_is_trusted_as_it_deserves(seed: int) -> None:
     odometry, and the noise scale fitted against the matches' claims must say so (it sits at
     its floor). With matches claiming more than they are worth it came out 3 to 5 times higher,
     and the scans' noise went into the trajectory."""
-    sim = simulate_log(
-        flat(),
-        waypoints=ROUTE,
-        loop=True,
-        seed=seed,
+    sim = tour(
+        seed,
         translation_error=0.002,
         rotation_error=0.002,
         drift=0.0,
