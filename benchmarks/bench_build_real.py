@@ -74,7 +74,7 @@ def main() -> int:
     if args.tree:
         sys.path.insert(0, str(Path(args.tree).resolve()))
     sys.path.insert(0, str(Path(__file__).resolve().parent))
-    from bench_build import _with_poses, measure
+    from bench_build import _with_poses, measure, targets
 
     import mapkit
     from mapkit.build import build_map
@@ -105,12 +105,7 @@ def main() -> int:
                 res = build_map(log)
                 cpu = time.process_time() - t
                 b = measure(res, world, ids, truth)
-                ok = (
-                    b["median"] <= floor["median"] + 5.0
-                    and b["p90"] < 60.0
-                    and b["rms"] < 40.0
-                    and b["rms"] <= raw["rms"] + 15.0
-                )
+                ok = all(targets(floor, raw, b).values())
                 per.setdefault(odo_name, []).append((b["rms"], ok))
                 label = f"{name.removesuffix('.map')} {odo_name} {seed}"
                 print(

@@ -215,7 +215,7 @@ def _close(
     corr = math.hypot(*(r.pose[:2] - est[i][:2]))
     dth = abs(float(wrap(r.pose[2] - est[i][2])))
     if reach is not None and not _within_reach(reach, i, j, path, corr, dth):
-        stats["implausible"] = stats.get("implausible", 0) + 1
+        stats["closures_refused"] = stats.get("closures_refused", 0) + 1
         return False
     info = r.info() + (claim if tagged else 0.0)
     graph.add(j, i, between(est[j], r.pose), _edge_info(info, r.pose), robust=True)

@@ -294,7 +294,7 @@ def build_map(
             "tags_matched": stats["tag_loops_matched"],
             "revisits": stats["revisits"],
             "rejected": stats.get("closures_rejected", 0),
-            "refused": stats.get("implausible", 0),
+            "refused": stats.get("closures_refused", 0),
             "optimisations": stats["optimisations"],
             "max_correction_mm": round(max(cm), 1) if cm else 0.0,
             "max_correction_deg": round(max(cd), 2) if cd else 0.0,

@@ -8,6 +8,7 @@ full benchmark over noisier and longer logs is ``benchmarks/bench_build.py``.
 from __future__ import annotations
 
 import dataclasses
+from typing import Any
 
 import numpy as np
 import pytest
@@ -41,9 +42,9 @@ def flat() -> MapData:
     )
 
 
-def tour(seed: int, **noise: float):
-    """A log of the flat's tour (``ROUTE``, back home) with these noise settings."""
-    return simulate_log(flat(), waypoints=ROUTE, loop=True, seed=seed, **noise)
+def tour(seed: int, **settings: Any):
+    """A log of the flat's tour (``ROUTE``, back home) with these simulation settings."""
+    return simulate_log(flat(), waypoints=ROUTE, loop=True, seed=seed, **settings)
 
 
 def with_true_odometry(sim) -> LaserLog:
@@ -76,7 +77,7 @@ NOISE = {
 
 @pytest.mark.parametrize("noise", sorted(NOISE))
 def test_never_worse_than_odometry_and_near_the_floor(noise: str) -> None:
-    sim = simulate_log(flat(), waypoints=ROUTE, loop=True, seed=7, **NOISE[noise])
+    sim = tour(7, **NOISE[noise])
     built = figures(build_map(sim.log, lines=False), sim)
     raw = figures(build_map(sim.log, register=False, lines=False), sim)
     floor = figures(build_map(with_true_odometry(sim), register=False, lines=False), sim)
@@ -94,16 +95,7 @@ def test_true_poses_as_odometry_stay_true() -> None:
 
 
 def test_outliers_and_people_stay_out_of_the_map() -> None:
-    sim = simulate_log(
-        flat(),
-        waypoints=ROUTE,
-        loop=True,
-        seed=5,
-        outliers=0.03,
-        people=2,
-        drift=0.1,
-        turn_slip=0.03,
-    )
+    sim = tour(5, outliers=0.03, people=2, drift=0.1, turn_slip=0.03)
     med, p90, rms = figures(build_map(sim.log, lines=False), sim)
     assert med < 15.0 and p90 < 60.0 and rms < 40.0, (med, p90, rms)
 
@@ -152,9 +144,7 @@ def test_fusion_weighs_scan_and_odometry_and_distrusts_a_wild_match() -> None:
 def test_distance_scale_learnt_from_small_steps() -> None:
     """A wrong wheel diameter is found even when scans are logged every 100 mm (each step's own
     0.5 mm of error is far below a scan match's noise: the scale is measured over a metre)."""
-    sim = simulate_log(
-        flat(), waypoints=ROUTE, loop=True, laps=2, seed=2, dist_step=100.0, scale_error=0.01
-    )
+    sim = tour(2, laps=2, dist_step=100.0, scale_error=0.01)
     res = build_map(sim.log, lines=False)
     cal = res.summary["registration"]["odometry_calibration"]
     assert cal["distance_scale"] == pytest.approx(1 / 1.01, abs=0.002), cal
@@ -167,7 +157,7 @@ def test_heading_drift_learnt_scan_to_scan(drift: float) -> None:
     """Unequal wheels (a steady heading drift per metre) are measured scan to scan over straight
     runs: against the local map, laid out with the drifting odometry itself, it would come out
     too small."""
-    sim = simulate_log(flat(), waypoints=ROUTE, loop=True, seed=7, drift=drift)
+    sim = tour(7, drift=drift)
     res = build_map(sim.log, lines=False)
     cal = res.summary["registration"]["odometry_calibration"]
     assert cal["drift_deg_per_m"] == pytest.approx(-drift, abs=0.015), cal

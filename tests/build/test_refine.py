@@ -8,13 +8,12 @@ import numpy as np
 from mapkit.build._graph import between, sigma_info
 from mapkit.build._refine import refine
 from mapkit.build._register import _sides
-from mapkit.simulate import simulate_log
-from tests.build.test_accuracy import ROUTE, flat
+from tests.build.test_accuracy import tour
 
 
 def two_laps(range_noise: float = 5.0) -> tuple[np.ndarray, list, list, list, np.ndarray]:
     """Two laps of the flat: true poses (radians), the scans' sides and the path along them."""
-    sim = simulate_log(flat(), waypoints=ROUTE, loop=True, laps=2, seed=4, range_noise=range_noise)
+    sim = tour(4, laps=2, range_noise=range_noise)
     scans = sim.log.scans
     las = sim.log.header.laser(scans[0].laser)
     all_pts = [s.robot_points(las, max_range=16000.0) for s in scans]
