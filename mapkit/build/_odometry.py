@@ -24,6 +24,10 @@ _MIN_DRIFT = 25
 #: Least noise scale (log10): odometry is never trusted as exact, so scans keep a say.
 _MIN_LOG_SCALE = -2.0
 
+#: Least noise scale (log10) of the turn's part of the heading noise: 0.03 % of the turn (a
+#: simulator's turns, or a well-kept robot's on a hard floor, are that good).
+_MIN_LOG_TURN_SCALE = -4.0
+
 
 #: Added to a scan match's information before it is inverted (a corridor leaves it singular).
 _EPS = np.diag([1e-8, 1e-8, 1e-4])
@@ -38,7 +42,14 @@ _MIN_TURNS = 10
 _CHI2_1_HALF = 0.455
 
 
-def _fit_scale(D: FloatArray, S: FloatArray, V: FloatArray, pct: float, target: float) -> float:
+def _fit_scale(
+    D: FloatArray,
+    S: FloatArray,
+    V: FloatArray,
+    pct: float,
+    target: float,
+    floor: float = _MIN_LOG_SCALE,
+) -> float:
     """The factor k on the odometry variances ``V`` for which the ``pct`` percentile of the
     steps' disagreements ``D`` with their scan matches (covariances ``S``), normalised by both
     noises, is ``target`` (bisection on log10 k, never below the floor). ``D`` and ``V`` may
@@ -50,7 +61,7 @@ def _fit_scale(D: FloatArray, S: FloatArray, V: FloatArray, pct: float, target: 
         x = np.linalg.solve(C, D[..., None])[..., 0]
         return float(np.percentile(np.einsum("ni,ni->n", D, x), pct))
 
-    lo, hi = _MIN_LOG_SCALE, 2.0  # log10 of the scale, never below the floor
+    lo, hi = floor, 2.0  # log10 of the scale, never below the floor
     if chi(10**lo) <= target:
         return float(10**lo)
     if chi(10**hi) >= target:
@@ -67,15 +78,17 @@ def _fit_scale(D: FloatArray, S: FloatArray, V: FloatArray, pct: float, target: 
 class _OdometryModel:
     """Odometry noise per step: distance- and turn-dependent, scaled to the log.
 
-    The model's shape (standard deviations) is ``2 mm + 2 %`` of the distance in x and y and
-    ``0.05 deg + 3 %`` of the turn ``+ 0.15 deg per metre`` in heading. How good a robot's odometry
+    The model's shape (standard deviations) is ``2 mm + 2 %`` of the distance in x and y and, in
+    heading, ``0.05 deg + 0.15 deg per metre`` from the distance and ``3 %`` of the turn from the
+    turn (two independent parts, see :meth:`parts`). How good a robot's odometry
     really is differs by orders of magnitude (a simulated robot's is nearly perfect, a slipping one
     is not), so the variances are scaled by a factor found from the log itself: the disagreement of
     each step's odometry with its scan match is compared with the two noises combined (scan match
     noise from its information), and the scale is chosen so that the median normalised
     disagreement is what chance gives (the median of chi-square with 3 degrees of freedom). Odometry
     that agrees with the scans better than the scans' own noise explains gets its scale lowered, so
-    the scans cannot walk away from it; drifting odometry gets it raised. The scale never falls
+    the scans cannot walk away from it; drifting odometry gets it raised. The turn's part has a
+    scale of its own (:meth:`_fit_turns`). The scale never falls
     below a floor (``10 ** _MIN_LOG_SCALE``): odometry that is good but not perfect (a few tenths of
     a percent) is otherwise taken as exact and drifts unchecked between loop closures.
     """
@@ -91,7 +104,8 @@ class _OdometryModel:
         turn_scale: float | None = None,
     ) -> None:
         self.scale = scale
-        #: The scale of turning steps (None: ``scale``), see :meth:`_fit_turns`.
+        #: The scale of the turn's part of the heading noise (None: not known yet), see
+        #: :meth:`_fit_turns`.
         self.turn_scale = turn_scale
         self.calibration = calibration or _Calibration()
         self.frozen = False  # True: the calibration is final
@@ -99,6 +113,8 @@ class _OdometryModel:
         self._scan_cov: list[FloatArray] = []
         self._odo_var: list[FloatArray] = []
         self._turning: list[bool] = []
+        self._straight_var: list[float] = []
+        self._turn_var: list[float] = []
         self._next = 30
 
     def fresh(self) -> _OdometryModel:
@@ -108,16 +124,29 @@ class _OdometryModel:
 
     @staticmethod
     def variances(trans: float, turn: float) -> FloatArray:
+        """The model's shape: variances of x, y and heading at scale 1 (the turn's part
+        included, see :meth:`parts`)."""
+        s_xy, s_th, s_turn = _OdometryModel.parts(trans, turn)
+        return np.array([s_xy * s_xy, s_xy * s_xy, s_th * s_th + s_turn * s_turn])
+
+    @staticmethod
+    def parts(trans: float, turn: float) -> tuple[float, float, float]:
+        """Standard deviations at scale 1: in x and y, of the heading from the distance (and a
+        floor), and of the heading from the turn. The last is what wheel slip makes, and is
+        scaled on its own (:meth:`_fit_turns`)."""
         s_xy = 2.0 + 0.02 * trans
-        s_th = math.radians(0.05) + 0.03 * abs(turn) + math.radians(0.15) * trans / 1000.0
-        return np.array([s_xy * s_xy, s_xy * s_xy, s_th * s_th])
+        s_th = math.radians(0.05) + math.radians(0.15) * trans / 1000.0
+        return s_xy, s_th, 0.03 * abs(turn)
 
     def info(self, trans: float, turn: float) -> FloatArray:
-        scale = self.scale
-        if abs(turn) > _TURN:
+        s_xy, s_th, s_turn = self.parts(trans, turn)
+        turn_scale = self.turn_scale
+        if turn_scale is None:
             # Until turns enough were seen, the model's own shape: a few percent of the turn.
-            scale = self.turn_scale if self.turn_scale is not None else max(self.scale, 1.0)
-        return np.diag(1.0 / (scale * self.variances(trans, turn)))
+            turn_scale = max(self.scale, 1.0) if abs(turn) > _TURN else self.scale
+        var_xy = self.scale * s_xy * s_xy
+        var_th = self.scale * s_th * s_th + turn_scale * s_turn * s_turn
+        return np.diag(1.0 / np.array([var_xy, var_xy, var_th]))
 
     def settle(self) -> None:
         """Fit now (on what was seen) and keep what was seen for later fits."""
@@ -129,6 +158,9 @@ class _OdometryModel:
         cov: FloatArray = np.linalg.inv(scan_info + _EPS).astype(np.float64)
         self._scan_cov.append(cov)
         self._odo_var.append(self.variances(trans, turn))
+        _, s_th, s_turn = self.parts(trans, turn)
+        self._straight_var.append(s_th * s_th)
+        self._turn_var.append(s_turn * s_turn)
         self._turning.append(abs(turn) > _TURN)
         if len(self._d) >= self._next:
             self._next = int(len(self._d) * 1.3) + 10
@@ -143,12 +175,17 @@ class _OdometryModel:
         self._fit_turns()
 
     def _fit_turns(self) -> None:
-        """The scale of turning steps on its own, once there are turns enough.
+        """The scale of the turn's part of the heading noise on its own, once there are turns
+        enough.
 
         A turn's error is mostly wheel slip, which the straight steps (the most of a log) say
         nothing of: with one scale fitted to all, a robot that slips 2 % in its turns gets its
         turns trusted to a few tenths of a percent, and the scans that see the slip are
-        outvoted by it. Turns are never trusted more than straight steps.
+        outvoted by it. The other way round, a simulator's turns are right to a few hundredths
+        of a percent: trusted like its straight steps, every turn on the spot lets the scans
+        (a tenth of a degree each on a noisy laser) turn the map. So the turn's part gets its
+        own scale, down to ``_MIN_LOG_TURN_SCALE``; the distance's part of a turning step (drift
+        while driving a curve) keeps the straight steps' scale.
         """
         turning = np.flatnonzero(self._turning)
         if len(turning) < _MIN_TURNS:
@@ -156,9 +193,11 @@ class _OdometryModel:
         turning = turning[-_FIT_STEPS:]
         # The heading alone: a turn on the spot hardly moves, what it gets wrong is the angle.
         D = np.array([self._d[k][2:] for k in turning])
+        # What is not the turn's own part is known noise: the match's and the straight part.
         S = np.array([self._scan_cov[k][2:, 2:] for k in turning])
-        V = np.array([self._odo_var[k][2:] for k in turning])
-        self.turn_scale = max(self.scale, _fit_scale(D, S, V, 50.0, _CHI2_1_HALF))
+        S[:, 0, 0] += self.scale * np.array([self._straight_var[k] for k in turning])
+        V = np.array([[self._turn_var[k]] for k in turning])
+        self.turn_scale = _fit_scale(D, S, V, 50.0, _CHI2_1_HALF, floor=_MIN_LOG_TURN_SCALE)
 
 
 class _Calibration:
@@ -185,6 +224,7 @@ class _Calibration:
         self.drift = 0.0  # radians per mm
         self._dist: list[float] = []
         self._turn: list[float] = []
+        self._turn_info: list[float] = []
         self._drift: list[float] = []
         self._seen = 0
         #: The factors kept until there are samples enough for new ones (see :meth:`fresh`).
@@ -258,6 +298,8 @@ class _Calibration:
             return
         if math.sqrt(var[2, 2]) < 0.05 * abs(raw[2]):
             self._turn.append(float(motion[2]) / raw[2])
+            # The ratio's weight: its inverse variance (a small turn's ratio is a noisy one).
+            self._turn_info.append(float(raw[2]) ** 2 / max(float(var[2, 2]), 1e-12))
         self._count()
 
     def _count(self) -> None:
@@ -265,7 +307,7 @@ class _Calibration:
         if self._seen % (25 if self._seen < 1000 else 250) == 0:
             dist, turn, drift = self._prior
             self.dist = self._fit(self._dist, 1.0, dist)
-            self.turn = self._fit(self._turn, 1.0, turn)
+            self.turn = self._fit(self._turn, 1.0, turn, weights=self._turn_info)
             self.drift = self._fit(self._drift, 0.0, drift, least=_MIN_DRIFT)
 
     @property
@@ -273,12 +315,24 @@ class _Calibration:
         """The drift samples so far (radians per mm)."""
         return self._drift
 
-    def _fit(self, obs: list[float], none: float, prior: float, least: int = 0) -> float:
+    def _fit(
+        self,
+        obs: list[float],
+        none: float,
+        prior: float,
+        least: int = 0,
+        weights: list[float] | None = None,
+    ) -> float:
         """The median of ``obs`` where it differs from ``none`` (no error) by more than three
-        standard errors, else ``none``; ``prior`` while there are too few samples."""
+        standard errors, else ``none``; ``prior`` while there are too few samples. ``weights``:
+        the samples' inverse variances, which bound the standard error from below."""
         if len(obs) < (least or self._MIN):
             return prior
         a = np.array(obs)
         med = float(np.median(a))
         err = 1.4826 * float(np.median(np.abs(a - med))) * 1.25 / math.sqrt(len(a))
+        if weights is not None:
+            # What the samples' matches claim (inverse variances): the spread of samples that
+            # share matches (one turn's steps do) can look smaller than it is.
+            err = max(err, 1.25 / math.sqrt(float(np.sum(weights))))
         return med if abs(med - none) > 3.0 * err else none

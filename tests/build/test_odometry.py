@@ -55,3 +55,47 @@ def test_calibration_keeps_what_an_earlier_pass_learnt_until_it_has_samples() ->
     for _ in range(80):
         cal.observe_run(straight, straight, np.diag([1.0, 1.0, 1e-6]))
     assert cal.dist == pytest.approx(1.0)
+
+
+def test_a_simulators_turns_are_trusted_beyond_its_straight_steps() -> None:
+    """Turns right to a thousandth of a degree (a simulator's) against scan matches of a tenth:
+    the turn's part of the heading noise gets a scale of its own, below the straight steps' (it
+    was never trusted more than them, and every turn on the spot let the matches turn the map).
+    A turning step that also drives keeps the straight part of its noise."""
+    model = _odometry._OdometryModel()
+    match = np.diag([1 / 100.0, 1 / 100.0, 1 / math.radians(0.1) ** 2])  # 10 mm, 0.1 deg
+    turn = math.radians(25.0)
+    rng = np.random.default_rng(5)
+    for k in range(400):
+        # The disagreement is the match's noise alone: the odometry is exact.
+        d = np.array([rng.normal(0, 10.0), rng.normal(0, 10.0), rng.normal(0, math.radians(0.1))])
+        if k % 8 == 0:
+            model.observe(d * [0.0, 0.0, 1.0], match, 0.0, turn)
+        else:
+            model.observe(d, match, 300.0, 0.0)
+    model.settle()
+    assert model.turn_scale is not None and model.turn_scale < 0.1 * model.scale
+    sigma_turn = 1.0 / math.sqrt(model.info(0.0, turn)[2, 2])
+    assert sigma_turn < 0.001 * turn, math.degrees(sigma_turn)
+    # Driving a curve: the distance's part stays (the straight steps' scale).
+    curve = model.info(500.0, math.radians(10.0))[2, 2]
+    assert curve <= model.info(500.0, 0.0)[2, 2]
+    assert curve == pytest.approx(model.info(500.0, 0.0)[2, 2], rel=0.1)
+
+
+def test_a_turn_scale_the_matches_cannot_vouch_for_is_not_learnt() -> None:
+    """Turn-scale samples from the steps of turns share their matches, so they can agree with
+    each other far better than the matches are worth: a 0.3 % turn scale that the matches'
+    own claims (0.15 degrees each) cannot tell from none is not learnt (it turned every turn of
+    a simulator's exact odometry); a 2 % slip is."""
+    for true, learnt in ((1.003, False), (0.98, True)):
+        cal = _odometry._Calibration()
+        rng = np.random.default_rng(2)
+        sd = math.radians(0.15)
+        for _ in range(60):
+            raw = np.array([0.0, 0.0, math.radians(rng.uniform(10.0, 30.0))])
+            seen = raw * [0.0, 0.0, true] + [0.0, 0.0, rng.normal(0.0, 0.02 * sd)]
+            cal.observe_turn(raw, seen, np.diag([1.0, 1.0, 2 * sd * sd]))
+        assert (cal.turn != 1.0) is learnt, cal.turn
+        if learnt:
+            assert cal.turn == pytest.approx(true, abs=0.002)
