@@ -176,13 +176,18 @@ def _log_and_truth(
 
 def _with_poses(log: Any, ids: Any, truth: Any) -> Any:
     """The log with the true poses (from the true start, as odometry is) written as odometry."""
+    from mapkit.model.scan import relative
+
+    return _with_odometry(log, ids, relative(truth[0], truth))
+
+
+def _with_odometry(log: Any, ids: Any, poses: Any) -> Any:
+    """The log with these poses (mm, mm, degrees; by scan id) written as its odometry."""
     from dataclasses import replace
 
-    from mapkit.model.scan import LaserLog, LaserScan, Pose2D, relative
+    from mapkit.model.scan import LaserLog, LaserScan, Pose2D
 
-    at = {
-        int(i): Pose2D(*map(float, p)) for i, p in zip(ids, relative(truth[0], truth), strict=True)
-    }
+    at = {int(i): Pose2D(*map(float, p)) for i, p in zip(ids, poses, strict=True)}
     recs = [
         replace(r, robot=at[r.scan_id], robot_global=at[r.scan_id])
         if isinstance(r, LaserScan) and r.scan_id in at

@@ -18,6 +18,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -82,6 +83,34 @@ ODOMETRIES: dict[str, dict[str, Any]] = {
 }
 
 
+def logs(maps: str, seeds: int, only: list[str] | None) -> Iterator[tuple[Any, ...]]:
+    """Each log: ``(label, odometry name, world map, simulated log, floor figures, odometry
+    figures)`` (figures of ``bench_build.measure``), maps by odometries by draws."""
+    from bench_build import _with_poses, measure
+
+    import mapkit
+    from mapkit.build import build_map
+    from mapkit.simulate import simulate_log
+
+    for name in MAPS:
+        world = mapkit.load(Path(maps) / name)
+        for odo_name, kw in ODOMETRIES.items():
+            if only and odo_name not in only:
+                continue
+            for seed in range(1, seeds + 1):
+                sim = simulate_log(world, loop=True, seed=seed, odometry_origin="zero", **kw)
+                log, ids, truth = sim.log, sim.truth_ids, sim.truth
+                floor = measure(
+                    build_map(_with_poses(log, ids, truth), register=False, lines=False),
+                    world,
+                    ids,
+                    truth,
+                )
+                raw = measure(build_map(log, register=False, lines=False), world, ids, truth)
+                label = f"{name.removesuffix('.map')} {odo_name} {seed}"
+                yield label, odo_name, world, sim, floor, raw
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--maps", required=True, help="folder with the real ARIA maps")
@@ -92,11 +121,10 @@ def main() -> int:
     if args.tree:
         sys.path.insert(0, str(Path(args.tree).resolve()))
     sys.path.insert(0, str(Path(__file__).resolve().parent))
-    from bench_build import _with_poses, measure, targets
+    from bench_build import measure, targets
 
     import mapkit
     from mapkit.build import build_map
-    from mapkit.simulate import simulate_log
 
     print(f"mapkit from {Path(mapkit.__file__).parent.parent}")
     print(
@@ -104,35 +132,21 @@ def main() -> int:
         f"{'built med/p90 rms':>18} | {'cpu s':>5} | targets"
     )
     per: dict[str, list[tuple[float, bool]]] = {}
-    for name in MAPS:
-        world = mapkit.load(Path(args.maps) / name)
-        for odo_name, kw in ODOMETRIES.items():
-            if args.only and odo_name not in args.only:
-                continue
-            for seed in range(1, args.seeds + 1):
-                sim = simulate_log(world, loop=True, seed=seed, odometry_origin="zero", **kw)
-                log, ids, truth = sim.log, sim.truth_ids, sim.truth
-                floor = measure(
-                    build_map(_with_poses(log, ids, truth), register=False, lines=False),
-                    world,
-                    ids,
-                    truth,
-                )
-                raw = measure(build_map(log, register=False, lines=False), world, ids, truth)
-                t = time.process_time()
-                res = build_map(log)
-                cpu = time.process_time() - t
-                b = measure(res, world, ids, truth)
-                ok = all(targets(floor, raw, b).values())
-                per.setdefault(odo_name, []).append((b["rms"], ok))
-                label = f"{name.removesuffix('.map')} {odo_name} {seed}"
-                print(
-                    f"{label:28} {len(log.scans):5d} | {floor['median']:5.1f} / {floor['p90']:5.1f}"
-                    f" | {raw['median']:6.1f} / {raw['p90']:5.0f} {raw['rms']:6.1f} | "
-                    f"{b['median']:5.1f} / {b['p90']:4.0f} {b['rms']:5.1f} | {cpu:5.1f} | "
-                    f"{'ok' if ok else 'MISS'}",
-                    flush=True,
-                )
+    for label, odo_name, world, sim, floor, raw in logs(args.maps, args.seeds, args.only):
+        log, ids, truth = sim.log, sim.truth_ids, sim.truth
+        t = time.process_time()
+        res = build_map(log)
+        cpu = time.process_time() - t
+        b = measure(res, world, ids, truth)
+        ok = all(targets(floor, raw, b).values())
+        per.setdefault(odo_name, []).append((b["rms"], ok))
+        print(
+            f"{label:28} {len(log.scans):5d} | {floor['median']:5.1f} / {floor['p90']:5.1f}"
+            f" | {raw['median']:6.1f} / {raw['p90']:5.0f} {raw['rms']:6.1f} | "
+            f"{b['median']:5.1f} / {b['p90']:4.0f} {b['rms']:5.1f} | {cpu:5.1f} | "
+            f"{'ok' if ok else 'MISS'}",
+            flush=True,
+        )
     total = sum(ok for runs in per.values() for _, ok in runs)
     print(f"{total} of {sum(len(r) for r in per.values())} logs meet every target")
     for odo_name, runs in per.items():

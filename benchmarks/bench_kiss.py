@@ -61,24 +61,6 @@ def kiss_poses(log: Any, voxel: float) -> Any:
     return [s.scan_id for s in scans], np.array(out)
 
 
-def with_poses(log: Any, ids: Any, poses: Any) -> Any:
-    """The log with these poses (by scan id) written as its odometry."""
-    from dataclasses import replace
-
-    from mapkit.model.scan import LaserLog, LaserScan, Pose2D
-
-    at = {int(i): Pose2D(*map(float, p)) for i, p in zip(ids, poses, strict=True)}
-    recs = [
-        replace(r, robot=at[r.scan_id], robot_global=at[r.scan_id])
-        if isinstance(r, LaserScan) and r.scan_id in at
-        else r
-        for r in log.records
-    ]
-    return LaserLog(
-        header=log.header, records=tuple(recs), complete=log.complete, source=log.source
-    )
-
-
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--maps", required=True, help="folder with the real ARIA maps")
@@ -92,55 +74,39 @@ def main() -> int:
         print("KISS-ICP is not installed: pip install kiss-icp", file=sys.stderr)
         return 2
     sys.path.insert(0, str(Path(__file__).resolve().parent))
-    from bench_build import _with_poses, measure
-    from bench_build_real import MAPS, ODOMETRIES
+    from bench_build import _with_odometry, measure
+    from bench_build_real import logs
 
-    import mapkit
     from mapkit.build import build_map
-    from mapkit.simulate import simulate_log
 
     print(
         f"{'log':28} {'scans':>5} | {'floor':>5} | {'odometry med/p90 rms':>20} | "
         f"{'KISS-ICP med/p90 rms':>20} | {'mapkit med/p90 rms':>18} | cpu s KISS / mapkit"
     )
     rows: dict[str, list[tuple[float, float, float]]] = {}
-    for name in MAPS:
-        world = mapkit.load(Path(args.maps) / name)
-        for odo_name, kw in ODOMETRIES.items():
-            if args.only and odo_name not in args.only:
-                continue
-            for seed in range(1, args.seeds + 1):
-                sim = simulate_log(world, loop=True, seed=seed, odometry_origin="zero", **kw)
-                log, ids, truth = sim.log, sim.truth_ids, sim.truth
-                floor = measure(
-                    build_map(_with_poses(log, ids, truth), register=False, lines=False),
-                    world,
-                    ids,
-                    truth,
-                )
-                raw = measure(build_map(log, register=False, lines=False), world, ids, truth)
-                t = time.process_time()
-                k_ids, k_poses = kiss_poses(log, args.voxel)
-                t_kiss = time.process_time() - t
-                kiss = measure(
-                    build_map(with_poses(log, k_ids, k_poses), register=False, lines=False),
-                    world,
-                    ids,
-                    truth,
-                )
-                t = time.process_time()
-                ours = measure(build_map(log), world, ids, truth)
-                t_ours = time.process_time() - t
-                rows.setdefault(odo_name, []).append((raw["rms"], kiss["rms"], ours["rms"]))
-                label = f"{name.removesuffix('.map')} {odo_name} {seed}"
-                print(
-                    f"{label:28} {len(log.scans):5d} | {floor['median']:5.1f} | "
-                    f"{raw['median']:6.1f} / {raw['p90']:4.0f} {raw['rms']:6.1f} | "
-                    f"{kiss['median']:6.1f} / {kiss['p90']:4.0f} {kiss['rms']:6.1f} | "
-                    f"{ours['median']:5.1f} / {ours['p90']:4.0f} {ours['rms']:5.1f} | "
-                    f"{t_kiss:5.1f} / {t_ours:5.1f}",
-                    flush=True,
-                )
+    for label, odo_name, world, sim, floor, raw in logs(args.maps, args.seeds, args.only):
+        log, ids, truth = sim.log, sim.truth_ids, sim.truth
+        t = time.process_time()
+        k_ids, k_poses = kiss_poses(log, args.voxel)
+        t_kiss = time.process_time() - t
+        kiss = measure(
+            build_map(_with_odometry(log, k_ids, k_poses), register=False, lines=False),
+            world,
+            ids,
+            truth,
+        )
+        t = time.process_time()
+        ours = measure(build_map(log), world, ids, truth)
+        t_ours = time.process_time() - t
+        rows.setdefault(odo_name, []).append((raw["rms"], kiss["rms"], ours["rms"]))
+        print(
+            f"{label:28} {len(log.scans):5d} | {floor['median']:5.1f} | "
+            f"{raw['median']:6.1f} / {raw['p90']:4.0f} {raw['rms']:6.1f} | "
+            f"{kiss['median']:6.1f} / {kiss['p90']:4.0f} {kiss['rms']:6.1f} | "
+            f"{ours['median']:5.1f} / {ours['p90']:4.0f} {ours['rms']:5.1f} | "
+            f"{t_kiss:5.1f} / {t_ours:5.1f}",
+            flush=True,
+        )
     for odo_name, r in rows.items():
         n = len(r)
         raw_m, kiss_m, ours_m = (sum(x[i] for x in r) / n for i in range(3))

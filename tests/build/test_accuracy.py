@@ -185,6 +185,20 @@ def test_good_odometry_is_trusted_as_it_deserves(seed: int) -> None:
     assert rms < raw + 5.0, (rms, raw)
 
 
+def mobilesim() -> dict[str, Any]:
+    """A simulator's odometry and laser as ARIA's logger records them from MobileSim: the
+    "good" class of ``benchmarks/bench_build_real.py`` (the issue's)."""
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[2] / "benchmarks" / "bench_build_real.py"
+    spec = importlib.util.spec_from_file_location("bench_build_real", path)
+    assert spec is not None and spec.loader is not None
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    return dict(bench.ODOMETRIES["good"])
+
+
 @pytest.mark.parametrize("seed", [2, 3])
 def test_a_simulators_odometry_on_a_real_site_is_not_made_worse(seed: int, shared_dir) -> None:
     """A simulator's odometry (0.05 %: a few mm over the whole tour, as MobileSim's is) and a
@@ -195,17 +209,7 @@ def test_a_simulators_odometry_on_a_real_site_is_not_made_worse(seed: int, share
     import mapkit
 
     world = mapkit.load(shared_dir / "real" / "amrisim-AMROffice.map")
-    sim = simulate_log(
-        world,
-        loop=True,
-        seed=seed,
-        readings=361,
-        translation_error=0.0005,
-        rotation_error=0.0005,
-        drift=0.0,
-        range_noise=12.0,
-        dist_step=150.0,
-    )
+    sim = simulate_log(world, loop=True, seed=seed, **mobilesim())
     res = build_map(sim.log, lines=False)
     raw = build_map(sim.log, register=False, lines=False)
     at = sim.truth[np.searchsorted(sim.truth_ids, res.scan_ids)]
