@@ -52,8 +52,8 @@ def _fit_scale(
 ) -> float:
     """The factor k on the odometry variances ``V`` for which the ``pct`` percentile of the
     steps' disagreements ``D`` with their scan matches (covariances ``S``), normalised by both
-    noises, is ``target`` (bisection on log10 k, never below the floor). ``D`` and ``V`` may
-    hold fewer than 3 components (``S`` matching)."""
+    noises, is ``target`` (bisection on log10 k, never below ``floor``, a log10). ``D`` and
+    ``V`` may hold fewer than 3 components (``S`` matching)."""
     eye = np.eye(D.shape[1])
 
     def chi(k: float) -> float:
