@@ -113,7 +113,8 @@ class _OdometryModel:
         self._scan_cov: list[FloatArray] = []
         self._odo_var: list[FloatArray] = []
         self._turning: list[bool] = []
-        self._straight_var: list[float] = []
+        #: The turn's part of each step's heading variance (the rest of ``_odo_var``'s is the
+        #: distance's part).
         self._turn_var: list[float] = []
         self._next = 30
 
@@ -158,8 +159,7 @@ class _OdometryModel:
         cov: FloatArray = np.linalg.inv(scan_info + _EPS).astype(np.float64)
         self._scan_cov.append(cov)
         self._odo_var.append(self.variances(trans, turn))
-        _, s_th, s_turn = self.parts(trans, turn)
-        self._straight_var.append(s_th * s_th)
+        s_turn = self.parts(trans, turn)[2]
         self._turn_var.append(s_turn * s_turn)
         self._turning.append(abs(turn) > _TURN)
         if len(self._d) >= self._next:
@@ -195,8 +195,9 @@ class _OdometryModel:
         D = np.array([self._d[k][2:] for k in turning])
         # What is not the turn's own part is known noise: the match's and the straight part.
         S = np.array([self._scan_cov[k][2:, 2:] for k in turning])
-        S[:, 0, 0] += self.scale * np.array([self._straight_var[k] for k in turning])
-        V = np.array([[self._turn_var[k]] for k in turning])
+        turn_var = np.array([self._turn_var[k] for k in turning])
+        S[:, 0, 0] += self.scale * (np.array([self._odo_var[k][2] for k in turning]) - turn_var)
+        V = turn_var[:, None]
         self.turn_scale = _fit_scale(D, S, V, 50.0, _CHI2_1_HALF, floor=_MIN_LOG_TURN_SCALE)
 
 
