@@ -230,6 +230,9 @@ class _Calibration:
         self._seen = 0
         #: The factors kept until there are samples enough for new ones (see :meth:`fresh`).
         self._prior = (1.0, 1.0, 0.0)
+        #: The factors :meth:`moved` compares with, and whether they differed from them.
+        self._mark = (1.0, 1.0, 0.0)
+        self._moved = False
 
     def fresh(self) -> _Calibration:
         """A calibration that starts from this one's factors but forgets its observations; it
@@ -239,13 +242,10 @@ class _Calibration:
         c._prior = (self.dist, self.turn, self.drift)
         return c
 
-    def differs(self, other: _Calibration) -> bool:
-        """Whether the factors differ from ``other``'s by enough to matter."""
-        return (
-            abs(self.dist - other.dist) > 0.003
-            or abs(self.turn - other.turn) > 0.01
-            or abs(self.drift - other.drift) > math.radians(0.02) / 1000.0
-        )
+    @property
+    def factors(self) -> tuple[float, float, float]:
+        """Distance scale, turn scale and drift (radians per mm) as applied now."""
+        return self.dist, self.turn, self.drift
 
     def summary(self) -> dict[str, float]:
         """The factors, for the build's summary."""
@@ -306,10 +306,28 @@ class _Calibration:
     def _count(self) -> None:
         self._seen += 1
         if self._seen % (25 if self._seen < 1000 else 250) == 0:
-            dist, turn, drift = self._prior
-            self.dist = self._fit(self._dist, 1.0, dist)
-            self.turn = self._fit(self._turn, 1.0, turn, weights=self._turn_info)
-            self.drift = self._fit(self._drift, 0.0, drift, least=_MIN_DRIFT)
+            self.settle()
+
+    def settle(self) -> None:
+        """Fit the factors now, on all samples so far (a pass ends with this: the factors it
+        hands on are those all its samples give, not those of the last regular fit)."""
+        dist, turn, drift = self._prior
+        self.dist = self._fit(self._dist, 1.0, dist)
+        self.turn = self._fit(self._turn, 1.0, turn, weights=self._turn_info)
+        self.drift = self._fit(self._drift, 0.0, drift, least=_MIN_DRIFT)
+        self._moved = self._moved or _apart(self.factors, self._mark)
+
+    def mark(self) -> None:
+        """Remember the factors as they are now (see :meth:`moved`)."""
+        self._mark = self.factors
+        self._moved = False
+
+    @property
+    def moved(self) -> bool:
+        """Whether the factors applied differed from the ones at :meth:`mark` at any fit since
+        (a drift learnt half way and dropped at the end still turned the poses registered
+        with it)."""
+        return self._moved
 
     @property
     def drift_samples(self) -> list[float]:
@@ -337,3 +355,13 @@ class _Calibration:
             # share matches (one turn's steps do) can look smaller than it is.
             err = max(err, 1.25 / math.sqrt(float(np.sum(weights))))
         return med if abs(med - none) > 3.0 * err else none
+
+
+def _apart(a: tuple[float, float, float], b: tuple[float, float, float]) -> bool:
+    """Whether two calibrations' factors (see :attr:`_Calibration.factors`) differ by enough
+    to matter."""
+    return (
+        abs(a[0] - b[0]) > 0.003
+        or abs(a[1] - b[1]) > 0.01
+        or abs(a[2] - b[2]) > math.radians(0.02) / 1000.0
+    )

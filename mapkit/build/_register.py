@@ -70,7 +70,7 @@ def _register(
                 model,
             )
             model.settle()
-    start = model.calibration.fresh()
+    model.calibration.mark()
     first = dict(
         stats,
         residuals=[],
@@ -83,7 +83,8 @@ def _register(
     est = _register_pass(
         scans, odo, all_pts, sides, log, issues, first, loop_closure, progress, model
     )
-    if not model.calibration.differs(start) or n > _SECOND_PASS_MAX:
+    model.calibration.settle()
+    if not model.calibration.moved or n > _SECOND_PASS_MAX:
         stats.update(first)
         return _refined(est, odo, sides, all_pts[0], stats, loop_closure, model)
     # The odometry's systematic errors were learnt on the way: the first metres were registered

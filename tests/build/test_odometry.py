@@ -99,3 +99,33 @@ def test_a_turn_scale_the_matches_cannot_vouch_for_is_not_learnt() -> None:
         assert (cal.turn != 1.0) is learnt, cal.turn
         if learnt:
             assert cal.turn == pytest.approx(true, abs=0.002)
+
+
+def test_a_pass_hands_on_what_all_its_drift_samples_give() -> None:
+    """Drift samples that look like a drift early on and like none once the pass has seen them
+    all (a few stretches whose matches lean the same way, as on a simulated robot whose odometry
+    has none): the factor a pass hands on is what all its samples give, fitted when the pass
+    ends, not what its last regular fit saw; and the pass still counts as having moved (the
+    poses registered with the drift must be registered again)."""
+    cal = _odometry._Calibration()
+    cal.mark()
+    straight = np.array([2000.0, 0.0, 0.0])
+    corridor = np.diag([1e8, 1.0, 1e-6])  # runs that give no distance sample
+    lean = math.radians(0.03) * 2.0  # 0.03 degrees per metre over 2 m
+    rng = np.random.default_rng(5)
+    for _ in range(50):  # a stretch that leans
+        cal.observe_drift(straight, lean + rng.normal(0.0, 1e-5), 1e-6)
+    for _ in range(25):  # a regular fit
+        cal.observe_run(straight, straight, corridor)
+    assert cal.drift == pytest.approx(math.radians(0.03) / 1000.0, rel=0.05)
+    assert cal.moved
+    for _ in range(150):  # the rest of the pass: none, and no regular fit after it
+        cal.observe_drift(straight, rng.normal(0.0, 1e-4), 1e-6)
+    assert cal.drift != 0.0  # the last regular fit's
+    cal.settle()
+    assert cal.drift == 0.0
+    assert cal.moved
+    # A pass during which the factors never changed has not moved.
+    cal.mark()
+    cal.settle()
+    assert not cal.moved
