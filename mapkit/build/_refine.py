@@ -34,6 +34,9 @@ _ANCHOR_TURN = math.radians(0.15)
 #: Neighbours looked at per point to find one of another pass.
 _K = 8
 
+#: Path (mm) along which neighbouring scans' matches err together (see :func:`refine`).
+_SHARED_PATH = 1000.0
+
 
 class _OtherPasses:
     """A KD-tree of all scans' points that answers, for scan i, only with points of other passes
@@ -98,6 +101,14 @@ def refine(
     # own view too, not only the chain of matches that led away from it.
     frame = n
     anchor = pts[0] if first is None else first
+    # Scans close along the path see the same walls against the same map: their matches err
+    # together, not independently (a log that scans every 150 mm is not six times as sure of a
+    # wall as one that scans every metre). Each match counts for its scan's share of
+    # ``_SHARED_PATH``; counted in full, a dense log's matches outvoted its odometry and bent the
+    # chain with their shared errors.
+    ahead = np.append(path[1:], path[-1])
+    behind = np.insert(path[:-1], 0, path[0])
+    share = np.clip((ahead - behind) / 2.0, 1.0, _SHARED_PATH) / _SHARED_PATH
     for _ in range(rounds):
         parts = [_world(p, q, e) for p, q, e in zip(pts, nrm, x, strict=True)]
         sizes = np.array([len(a) for a, _ in parts])
@@ -131,7 +142,7 @@ def refine(
                 continue
             if i == 0 and abs(wrap(r.pose[2] - x[0, 2])) > _ANCHOR_TURN:
                 continue  # the first scan and the map disagree: one of them is wrong
-            info = r.info(sigma=_MATCH_SIGMA, points=_MATCH_POINTS)
+            info = r.info(sigma=_MATCH_SIGMA, points=_MATCH_POINTS) * share[i]
             # The scan's place in the map (whose frame is that of x, node 0's estimate).
             graph.add(frame, i, between(x[0], r.pose), _edge_info(info, r.pose), robust=True)
             matched += 1

@@ -199,13 +199,15 @@ def mobilesim() -> dict[str, Any]:
     return dict(bench.ODOMETRIES["good"])
 
 
-@pytest.mark.parametrize("seed", [2, 3])
+@pytest.mark.parametrize("seed", [1, 2, 3])
 def test_a_simulators_odometry_on_a_real_site_is_not_made_worse(seed: int, shared_dir) -> None:
     """A simulator's odometry (0.05 %: a few mm over the whole tour, as MobileSim's is) and a
     dense 12 mm laser on a real ARIA map. A turn on the spot is right to a thousandth of a degree
     by odometry and to a tenth by a scan match: with the turns trusted no more than the straight
     steps, the first turn turned the map by 0.15-0.25 degrees about the start, and the tour came
-    out 40 mm RMS where odometry was 5-8 mm."""
+    out 40 mm RMS where odometry was 5-8 mm. With a scan every 150 mm, the global refinement
+    counted each scan's match as independent of its neighbours': they outvoted the odometry,
+    and seed 1 came out 11.6 mm RMS where odometry was 1.3."""
     import mapkit
 
     world = mapkit.load(shared_dir / "real" / "amrisim-AMROffice.map")
@@ -215,7 +217,7 @@ def test_a_simulators_odometry_on_a_real_site_is_not_made_worse(seed: int, share
     at = sim.truth[np.searchsorted(sim.truth_ids, res.scan_ids)]
     rms, _ = trajectory_rms(res.poses, at)
     raw_rms, _ = trajectory_rms(raw.poses, sim.truth[np.searchsorted(sim.truth_ids, raw.scan_ids)])
-    assert rms <= raw_rms + 15.0, (rms, raw_rms)
+    assert rms <= raw_rms + 8.0, (rms, raw_rms)
     # The map is not turned about the start: the heading after the first turn is the truth's.
     turned = (np.asarray(res.poses)[10, 2] - at[10, 2] + 180.0) % 360.0 - 180.0
     assert abs(turned) < 0.1, turned
