@@ -108,6 +108,14 @@ class PoseGraph:
             x = self._gauss_newton(x, edges, iterations, huber)
         return x
 
+    def cost(self, x: FloatArray, huber: float = 3.0) -> float:
+        """What :meth:`optimize` minimises, at poses ``x``: each edge's chi-square (Huber's
+        beyond ``huber`` standard deviations for a robust edge), switched-off edges left out."""
+        edges = self._arrays()
+        chi = self._chi(np.asarray(x, dtype=np.float64), edges)
+        rho = np.where(edges[4] & (chi > huber), 2.0 * huber * chi - huber * huber, chi * chi)
+        return float(np.sum(rho * self._active(len(chi))))
+
     def _active(self, m: int) -> np.ndarray[Any, Any]:
         act = np.ones(m, dtype=bool)
         if self.rejected:

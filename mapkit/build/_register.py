@@ -84,17 +84,32 @@ def _register(
         scans, odo, all_pts, sides, log, issues, first, loop_closure, progress, model
     )
     model.calibration.settle()
-    if not model.calibration.moved or n > _SECOND_PASS_MAX:
+
+    def again(model: _OdometryModel, drift: float) -> tuple[FloatArray, _OdometryModel]:
+        """Once more from the start, with the odometry as calibrated (and ``drift`` taken out
+        of it too), the calibration frozen."""
+        model = model.fresh()
+        model.calibration.drift += drift
+        model.frozen = True
+        est = _register_pass(scans, odo, all_pts, sides, log, [], stats, loop_closure, None, model)
+        stats["passes"] = stats.get("passes", 1) + 1
+        return est, model
+
+    if model.calibration.moved and n <= _SECOND_PASS_MAX:
+        # The odometry's systematic errors were learnt on the way: the first metres were
+        # registered without them. (A long log comes back over its first metres many times:
+        # its loop closures correct them instead.)
+        est, model = again(model, 0.0)
+    else:
         stats.update(first)
-        return _refined(est, odo, sides, all_pts[0], stats, loop_closure, model)
-    # The odometry's systematic errors were learnt on the way: the first metres were registered
-    # without them. Once more from the start, with the odometry as calibrated. (A long log comes
-    # back over its first metres many times: its loop closures correct them instead.)
-    model = model.fresh()
-    model.frozen = True
-    est = _register_pass(scans, odo, all_pts, sides, log, [], stats, loop_closure, None, model)
-    stats["passes"] = 2
-    return _refined(est, odo, sides, all_pts[0], stats, loop_closure, model)
+    poses, drift = _refined(est, odo, sides, all_pts[0], stats, loop_closure, model)
+    if drift and n <= _SECOND_PASS_MAX:
+        # The refinement found a drift the calibration missed: the registration and the loop
+        # closures ran with it and left the passes apart, which the refinement alone cannot
+        # undo. Once more with the drift taken out.
+        est, model = again(model, drift)
+        poses, _ = _refined(est, odo, sides, all_pts[0], stats, loop_closure, model)
+    return poses
 
 
 #: A scan's points as registration uses them: the scan side, the map side and its normals.
@@ -119,21 +134,20 @@ def _refined(
     stats: dict[str, Any],
     loop_closure: bool,
     model: _OdometryModel,
-) -> FloatArray:
+) -> tuple[FloatArray, float]:
     """The poses after the global refinement (:mod:`mapkit.build._refine`) where a place was
-    seen more than once (loops closed), on logs of up to ``_REFINE_MAX`` scans. The odometry
-    goes in as registration weighed it: its calibrated steps, with the noise the log showed."""
+    seen more than once (loops closed), on logs of up to ``_REFINE_MAX`` scans, and the drift
+    it found left in the odometry (radians per mm, 0.0: none). The odometry goes in as
+    registration weighed it: its calibrated steps, with the noise the log showed."""
     closed = stats.get("revisits", 0) or stats.get("tag_loops_matched", 0)
     if not loop_closure or not closed or len(est) > _REFINE_MAX:
-        return est
+        return est, 0.0
     path = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(odo[:, :2], axis=0).T))))
     steps = np.array([model.calibration.correct(between(a, b)) for a, b in itertools.pairwise(odo)])
     infos = np.array([model.info(math.hypot(s[0], s[1]), float(s[2])) for s in steps])
-    out, matched = refine(
-        est, path, *sides, first=first, rounds=_REFINE_ROUNDS, odometry=(steps, infos)
-    )
-    stats["refined"] = matched
-    return out
+    found = refine(est, path, *sides, first=first, rounds=_REFINE_ROUNDS, odometry=(steps, infos))
+    stats["refined"] = found.matched
+    return found.poses, found.drift
 
 
 #: Longest log (scans) refined against the map of all its scans.
