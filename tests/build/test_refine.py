@@ -31,6 +31,29 @@ def two_laps(
     return truth, src, pts, nrm, path
 
 
+def _heading_error(x: np.ndarray, truth: np.ndarray) -> float:
+    """RMS heading error (degrees) of poses ``x`` against the truth."""
+    d = (x[:, 2] - truth[:, 2] + np.pi) % (2 * np.pi) - np.pi
+    return float(np.degrees(np.sqrt(np.mean(d * d))))
+
+
+def _assert_less_turned(
+    better: np.ndarray, worse: np.ndarray, truth: np.ndarray, factor: float
+) -> None:
+    """``better``'s heading error is under ``factor`` times ``worse``'s."""
+    a, b = _heading_error(better, truth), _heading_error(worse, truth)
+    assert a < factor * b, (a, b)
+
+
+def _simulators_odometry(truth: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Exact odometry steps along the truth, weighed as registration finds a simulator's (the
+    noise scale at its floor, turns to 0.03 %)."""
+    steps = between(truth[:-1], truth[1:])
+    model = _OdometryModel(scale=0.01, turn_scale=1e-4)
+    infos = np.array([model.info(math.hypot(s[0], s[1]), float(s[2])) for s in steps])
+    return steps, infos
+
+
 def test_refinement_brings_two_passes_onto_one_wall() -> None:
     """Two laps whose second sits 25 mm and 0.15 degrees off the first (as loop closing leaves
     them): matched against the map of all scans, the second lap comes back onto the first."""
@@ -109,17 +132,10 @@ def test_odometry_better_than_the_matches_holds_the_chain() -> None:
     steps = between(truth[:-1], truth[1:])
     infos = np.repeat(sigma_info(0.5, 0.5, np.radians(0.005))[None], len(steps), axis=0)
 
-    def heading_error(x: np.ndarray) -> float:
-        d = (x[:, 2] - truth[:, 2] + np.pi) % (2 * np.pi) - np.pi
-        return float(np.degrees(np.sqrt(np.mean(d * d))))
-
     loose, _, _ = refine(truth.copy(), path, src, pts, nrm)
     held, _, _ = refine(truth.copy(), path, src, pts, nrm, odometry=(steps, infos))
-    assert heading_error(held) < 0.5 * heading_error(loose), (
-        heading_error(held),
-        heading_error(loose),
-    )
-    assert heading_error(held) < 0.02
+    _assert_less_turned(held, loose, truth, 0.5)
+    assert _heading_error(held, truth) < 0.02
 
 
 def test_a_dense_logs_matches_count_for_the_path_they_cover(
@@ -132,22 +148,13 @@ def test_a_dense_logs_matches_count_for_the_path_they_cover(
     leave it far less bent."""
     truth, src, pts, nrm, path = two_laps(range_noise=15.0, dist_step=100.0)
     assert np.median(np.diff(path)) < 150.0
-    steps = between(truth[:-1], truth[1:])
-    model = _OdometryModel(scale=0.01, turn_scale=1e-4)
-    infos = np.array([model.info(math.hypot(s[0], s[1]), float(s[2])) for s in steps])
-
-    def heading_error(x: np.ndarray) -> float:
-        d = (x[:, 2] - truth[:, 2] + np.pi) % (2 * np.pi) - np.pi
-        return float(np.degrees(np.sqrt(np.mean(d * d))))
+    steps, infos = _simulators_odometry(truth)
 
     shared, _, _ = refine(truth.copy(), path, src, pts, nrm, odometry=(steps, infos), rounds=2)
     monkeypatch.setattr(refine_module, "_SHARED_PATH", 1.0)  # every match in full
     full, _, _ = refine(truth.copy(), path, src, pts, nrm, odometry=(steps, infos), rounds=2)
-    assert heading_error(shared) < 0.7 * heading_error(full), (
-        heading_error(shared),
-        heading_error(full),
-    )
-    assert heading_error(shared) < 0.03
+    _assert_less_turned(shared, full, truth, 0.7)
+    assert _heading_error(shared, truth) < 0.03
 
 
 def test_a_drift_the_calibration_missed_is_found_and_taken_out(
@@ -158,25 +165,16 @@ def test_a_drift_the_calibration_missed_is_found_and_taken_out(
     noise): over two laps of 48 m the matches show it, and it is taken out of the odometry's
     steps. Exact odometry shows none."""
     truth, src, pts, nrm, path = two_laps(range_noise=15.0)
-    steps = between(truth[:-1], truth[1:])
-    model = _OdometryModel(scale=0.01, turn_scale=1e-4)
-    infos = np.array([model.info(math.hypot(s[0], s[1]), float(s[2])) for s in steps])
+    steps, infos = _simulators_odometry(truth)
     exact = refine(truth.copy(), path, src, pts, nrm, odometry=(steps, infos), rounds=2)
     assert exact.drift == 0.0
     drift = math.radians(0.02) / 1000.0
     drifting = steps.copy()
     drifting[:, 2] += drift * np.hypot(steps[:, 0], steps[:, 1])
 
-    def heading_error(x: np.ndarray) -> float:
-        d = (x[:, 2] - truth[:, 2] + np.pi) % (2 * np.pi) - np.pi
-        return float(np.degrees(np.sqrt(np.mean(d * d))))
-
     found = refine(truth.copy(), path, src, pts, nrm, odometry=(drifting, infos), rounds=2)
     assert found.drift == pytest.approx(-drift, rel=0.1)
     monkeypatch.setattr(refine_module, "_DRIFT_SIGNIFICANT", math.inf)  # never taken
     kept = refine(truth.copy(), path, src, pts, nrm, odometry=(drifting, infos), rounds=2)
     assert kept.drift == 0.0
-    assert heading_error(found.poses) < 0.5 * heading_error(kept.poses), (
-        heading_error(found.poses),
-        heading_error(kept.poses),
-    )
+    _assert_less_turned(found.poses, kept.poses, truth, 0.5)
