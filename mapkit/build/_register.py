@@ -71,14 +71,20 @@ def _register(
             )
             model.settle()
     model.calibration.mark()
-    first = dict(
-        stats,
-        residuals=[],
-        closures=[],
-        corrections_mm=[],
-        corrections_deg=[],
-        residual_per_scan=stats["residual_per_scan"].copy(),
-    )
+    blank = dict(stats)
+
+    def fresh() -> dict[str, Any]:
+        """Figures for a pass of their own (a pass run again does not add to the last's)."""
+        return dict(
+            blank,
+            residuals=[],
+            closures=[],
+            corrections_mm=[],
+            corrections_deg=[],
+            residual_per_scan=blank["residual_per_scan"].copy(),
+        )
+
+    first = fresh()
     sides = _sides(all_pts)
     est = _register_pass(
         scans, odo, all_pts, sides, log, issues, first, loop_closure, progress, model
@@ -91,8 +97,11 @@ def _register(
         model = model.fresh()
         model.calibration.drift += drift
         model.frozen = True
+        passes = stats.get("passes", 1) + 1
+        stats.clear()
+        stats.update(fresh())
         est = _register_pass(scans, odo, all_pts, sides, log, [], stats, loop_closure, None, model)
-        stats["passes"] = stats.get("passes", 1) + 1
+        stats["passes"] = passes
         return est, model
 
     if model.calibration.moved and n <= _SECOND_PASS_MAX:
