@@ -181,13 +181,19 @@ def refine(
             return g
 
         start = np.vstack([x, x[:1]])
-        drift = _drift_left(graph, start) if odometry is not None else 0.0
-        x = graph(drift).optimize(start, iterations=5)[:n]
+        if odometry is None:
+            drift, solved = 0.0, graph(0.0).optimize(start, iterations=5)
+        else:
+            drift, solved = _drift_left(graph, start)
+            if drift:
+                solved = graph(drift).optimize(start, iterations=5)
+        x = solved[:n]
     return Refined(x, matched, drift)
 
 
-def _drift_left(graph: Callable[[float], PoseGraph], start: FloatArray) -> float:
-    """A heading drift (radians per mm) still in the odometry's steps, as the matches show it.
+def _drift_left(graph: Callable[[float], PoseGraph], start: FloatArray) -> tuple[float, FloatArray]:
+    """A heading drift (radians per mm) still in the odometry's steps, as the matches show it,
+    and the graph solved with none taken out (what the refinement keeps when there is none).
 
     The calibration measures drift scan to scan over two metres, where a small one (0.02 deg/m)
     is lost in the matches' noise; odometry that is otherwise good then holds the passes apart,
@@ -199,13 +205,17 @@ def _drift_left(graph: Callable[[float], PoseGraph], start: FloatArray) -> float
     """
     h = _DRIFT_STEP
     costs = []
+    solved = start
     for d in (-h, 0.0, h):
         g = graph(d)
-        costs.append(g.cost(g.optimize(start.copy(), iterations=5)))
+        x = g.optimize(start, iterations=5)
+        costs.append(g.cost(x))
+        if d == 0.0:
+            solved = x
     curve = (costs[0] + costs[2] - 2.0 * costs[1]) / (2.0 * h * h)
     if not curve > 0.0:
-        return 0.0
+        return 0.0, solved
     best = -(costs[2] - costs[0]) / (2.0 * h) / (2.0 * curve)
     if abs(best) <= _DRIFT_SIGNIFICANT / math.sqrt(curve):
-        return 0.0
-    return float(np.clip(best, -_DRIFT_MAX, _DRIFT_MAX))
+        return 0.0, solved
+    return float(np.clip(best, -_DRIFT_MAX, _DRIFT_MAX)), solved
