@@ -97,11 +97,9 @@ def _register(
         model = model.fresh()
         model.calibration.drift += drift
         model.frozen = True
-        passes = stats.get("passes", 1) + 1
         stats.clear()
         stats.update(fresh())
         est = _register_pass(scans, odo, all_pts, sides, log, [], stats, loop_closure, None, model)
-        stats["passes"] = passes
         return est, model
 
     if model.calibration.moved and n <= _SECOND_PASS_MAX:
