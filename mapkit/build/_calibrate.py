@@ -37,7 +37,9 @@ class CalibrationFeed:
     * **Heading drift**: by matching a scan directly against one two metres or more back along a
       straight run (scan to scan). The local map is laid out with the odometry being calibrated,
       and over metres its heading leans towards it: a drift measured against it comes out too
-      small. Scan to scan, only the two scans enter.
+      small. Scan to scan, only the two scans enter. The same match gives a distance scale
+      sample too, which the calibration prefers where it has enough of them (the local map's
+      length leans the same way, see :meth:`~mapkit.build._odometry._Calibration.observe_run`).
     """
 
     def __init__(
@@ -97,6 +99,7 @@ class CalibrationFeed:
                         seen = self._scan_to_scan(k, i, between(pk, pose))
                         if seen is not None:
                             self.cal.observe_drift(run, float(seen[0][2]), float(seen[1][2, 2]))
+                            self.cal.observe_run(run, *seen, direct=True)
                             self._last_drift = i
                     break
         scans.append((i, pose.copy()))

@@ -224,6 +224,8 @@ class _Calibration:
         self.turn = 1.0
         self.drift = 0.0  # radians per mm
         self._dist: list[float] = []
+        #: Distance scale samples matched scan to scan (see :meth:`observe_run`).
+        self._dist_direct: list[float] = []
         self._turn: list[float] = []
         self._turn_info: list[float] = []
         self._drift: list[float] = []
@@ -262,12 +264,24 @@ class _Calibration:
         out[2] = wrap(raw[2] * self.turn + self.drift * trans)
         return out
 
-    def observe_run(self, raw: FloatArray, motion: FloatArray, var: FloatArray) -> None:
+    def observe_run(
+        self, raw: FloatArray, motion: FloatArray, var: FloatArray, *, direct: bool = False
+    ) -> None:
         """A run of a metre or more: its raw odometry, and the motion the scans saw over it.
 
         ``motion`` is the later scan's pose in the earlier one's frame and ``var`` its 3x3
         covariance (in the frame ``motion`` is given in). A direction the scans do not fix (a
         corridor's axis) has a large variance and gives no sample.
+
+        ``direct``: the motion was matched scan to scan, not between two local-map matches. The
+        local map is laid out with the odometry being calibrated, and over metres its length
+        leans towards it: on a simulated building (0.5 % too long, a true scale of 0.99502) the
+        local-map samples gave 0.99607, their motions 1.0 mm too long on a median run, where
+        scan to scan gave -0.1 mm. The scale is fitted on the direct samples once there are
+        ``_MIN`` of them (a long log), on the local map's until then (a short log has few runs a
+        direct match can measure). Direct samples come with the drift's (see
+        :class:`~mapkit.build._calibrate.CalibrationFeed`) and, like them, do not count
+        towards the next fit.
         """
         trans_raw = math.hypot(raw[0], raw[1])
         if trans_raw < 1.0 or abs(raw[2]) > math.radians(3.0):
@@ -277,8 +291,9 @@ class _Calibration:
         u_frame = np.array([c * u[0] - s * u[1], s * u[0] + c * u[1]])
         sig_u = math.sqrt(max(float(u_frame @ var[:2, :2] @ u_frame), 0.0))
         if sig_u < 0.01 * trans_raw:
-            self._dist.append(float(motion[:2] @ u) / trans_raw)
-        self._count()
+            (self._dist_direct if direct else self._dist).append(float(motion[:2] @ u) / trans_raw)
+        if not direct:
+            self._count()
 
     def observe_drift(self, raw: FloatArray, turn: float, var: float) -> None:
         """A straight run: its raw odometry, the turn the scans saw over it and that turn's
@@ -312,7 +327,8 @@ class _Calibration:
         """Fit the factors now, on all samples so far (a pass ends with this: the factors it
         hands on are those all its samples give, not those of the last regular fit)."""
         dist, turn, drift = self._prior
-        self.dist = self._fit(self._dist, 1.0, dist)
+        direct = len(self._dist_direct) >= self._MIN
+        self.dist = self._fit(self._dist_direct if direct else self._dist, 1.0, dist)
         self.turn = self._fit(self._turn, 1.0, turn, weights=self._turn_info)
         self.drift = self._fit(self._drift, 0.0, drift, least=_MIN_DRIFT)
         self._moved = self._moved or _apart(self.factors, self._mark)

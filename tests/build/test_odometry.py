@@ -57,6 +57,38 @@ def test_calibration_keeps_what_an_earlier_pass_learnt_until_it_has_samples() ->
     assert cal.dist == pytest.approx(1.0)
 
 
+def test_the_distance_scale_is_fitted_on_scan_to_scan_samples_once_there_are_enough() -> None:
+    """Runs measured against the local map lean towards the odometry being calibrated (its
+    length is laid out with it); runs matched scan to scan do not. The scale comes from the
+    direct samples once there are enough of them, from the local map's until then; direct
+    samples, like the drift's they come with, do not bring the next fit forward."""
+    cal = _odometry._Calibration()
+    raw = np.array([2000.0, 0.0, 0.0])
+    fixed = np.diag([1.0, 1.0, 1e-6])  # the walls fix the direction of travel
+    rng = np.random.default_rng(8)
+
+    def run(scale: float) -> np.ndarray:
+        return np.array([2000.0 * (scale + rng.normal(0.0, 1e-4)), 0.0, 0.0])
+
+    for _ in range(100):
+        cal.observe_run(raw, run(0.996), fixed)
+    assert cal.dist == pytest.approx(0.996, abs=1e-4)  # only local-map samples: theirs
+    for _ in range(_odometry._Calibration._MIN - 1):
+        cal.observe_run(raw, run(0.995), fixed, direct=True)
+    cal.settle()
+    assert cal.dist == pytest.approx(0.996, abs=1e-4)  # too few direct samples yet
+    fitted = cal.dist
+    for _ in range(30):  # would have been a regular fit had they counted
+        cal.observe_run(raw, run(0.995), fixed, direct=True)
+    assert cal.dist == fitted
+    cal.settle()
+    assert cal.dist == pytest.approx(0.995, abs=1e-4)
+    # A run whose direction the scans do not fix (a corridor) is no sample either way.
+    before = len(cal._dist_direct)
+    cal.observe_run(raw, run(0.9), np.diag([1e8, 1.0, 1e-6]), direct=True)
+    assert len(cal._dist_direct) == before
+
+
 def test_a_simulators_turns_are_trusted_beyond_its_straight_steps() -> None:
     """Turns right to a thousandth of a degree (a simulator's) against scan matches of a tenth:
     the turn's part of the heading noise gets a scale of its own, below the straight steps' (it
