@@ -12,6 +12,7 @@ nothing moves.
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Callable
 from typing import Any, NamedTuple
@@ -132,6 +133,8 @@ def refine(
     ahead = np.append(path[1:], path[-1])
     behind = np.insert(path[:-1], 0, path[0])
     share = np.clip((ahead - behind) / 2.0, 1.0, _SHARED_PATH) / _SHARED_PATH
+    # How far each odometry step goes (a drift is taken out in proportion).
+    lengths = [] if odometry is None else [math.hypot(s[0], s[1]) for s in odometry[0]]
     for _ in range(rounds):
         parts = [_world(p, q, e) for p, q, e in zip(pts, nrm, x, strict=True)]
         sizes = np.array([len(a) for a, _ in parts])
@@ -167,14 +170,19 @@ def refine(
         if not matched:
             break
 
-        def graph(drift: float, x: FloatArray = x, found: list[Any] = found) -> PoseGraph:
+        # The registration's steps, the same in every graph of the round.
+        steps = [between(a, b) for a, b in itertools.pairwise(x)]
+
+        def graph(
+            drift: float, steps: list[FloatArray] = steps, found: list[Any] = found
+        ) -> PoseGraph:
             """The round's pose graph, with ``drift`` taken out of the odometry's steps."""
             g = PoseGraph()
             for i in range(1, n):
-                g.add(i - 1, i, between(x[i - 1], x[i]), step_info)
+                g.add(i - 1, i, steps[i - 1], step_info)
                 if odometry is not None:
                     step = odometry[0][i - 1].copy()
-                    step[2] += drift * math.hypot(step[0], step[1])
+                    step[2] += drift * lengths[i - 1]
                     g.add(i - 1, i, step, odometry[1][i - 1])
             for i, z, info in found:
                 g.add(frame, i, z, info, robust=True)
