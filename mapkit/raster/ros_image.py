@@ -400,6 +400,26 @@ class ImageSource:
         return self.read_rows(0, self.height)
 
 
+def image_size(path: Path | str) -> tuple[int, int] | None:
+    """Width and height from a PNM or PNG header, without decoding the image (``None`` for a
+    file that is not one, or whose header is bad: :func:`open_image` says what is wrong)."""
+    try:
+        with open(os.fspath(path), "rb") as fh:
+            head = fh.read(_HEADER_MAX)
+    except OSError:
+        return None
+    if head[:8] == _PNG_SIGNATURE and head[12:16] == b"IHDR" and len(head) >= 24:
+        w, h = struct.unpack(">II", head[16:24])
+        return int(w), int(h)
+    if head[:2] in (b"P1", b"P2", b"P3", b"P4", b"P5", b"P6"):
+        try:
+            hd = _pnm_header(head, _shown(Path(os.fspath(path))))
+        except RosMapError:
+            return None
+        return hd.width, hd.height
+    return None
+
+
 def open_image(path: Path | str) -> ImageSource:
     """Open a map image: a header check for binary PNM, a bounded whole decode otherwise.
 

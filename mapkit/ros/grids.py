@@ -192,22 +192,6 @@ def _keepout(m: MapData, grid: OccupancyGrid) -> OccupancyGrid:
     return OccupancyGrid(data, grid.resolution, grid.origin)
 
 
-def _image_size(path: Path) -> tuple[int, int] | None:
-    """Width and height from a PNM or PNG header, without decoding (``None`` when unsure)."""
-    import re
-
-    try:
-        with open(path, "rb") as fh:
-            head = fh.read(4096)
-    except OSError:
-        return None
-    if head[:8] == b"\x89PNG\r\n\x1a\n" and head[12:16] == b"IHDR":
-        w, h = struct.unpack(">II", head[16:24])
-        return int(w), int(h)
-    found = re.match(rb"P[1-6](?:\s|#[^\n\r]*[\n\r])+(\d+)(?:\s|#[^\n\r]*[\n\r])+(\d+)", head)
-    return (int(found.group(1)), int(found.group(2))) if found else None
-
-
 def served_map(
     path: str | os.PathLike[str], resolution: float = 0.05, *, progress: Any = None, **raster: Any
 ) -> ServedMap:
@@ -283,10 +267,11 @@ def served_map(
 def _read_yaml_grid(p: Path, progress: Any = None) -> tuple[OccupancyGrid, float]:
     from mapkit.raster.image_stream import pgm_bands
     from mapkit.raster.ros import read_ros_map, read_ros_yaml
+    from mapkit.raster.ros_image import image_size
 
     try:
         info = read_ros_yaml(p)
-        size = _image_size(info.image_path)
+        size = image_size(info.image_path)
         if size is not None:
             check_ros1_size(*size, source=str(info.image_path))
         pgm = pgm_bands(info)  # an 8-bit PGM is read a band at a time

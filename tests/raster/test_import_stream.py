@@ -147,3 +147,31 @@ def test_face_lines_match_the_grid_sized_coverage(occ: np.ndarray, n: int) -> No
     rc = np.argwhere(faces).astype(np.int64)
     got = _face_lines(rc, n) if len(rc) else np.zeros((0, 4), dtype=np.int64)
     assert np.array_equal(got, reference_wall_cells(occ, n))
+
+
+@given(
+    w=st.integers(1, 100_000),
+    h=st.integers(1, 100_000),
+    comment=st.sampled_from([b"", b"# made by hand\n", b"#x\r"]),
+    magic=st.sampled_from([b"P1", b"P2", b"P4", b"P5", b"P6"]),
+)
+@settings(max_examples=40, deadline=None)
+def test_the_image_size_is_read_from_the_header_alone(
+    tmp_path_factory: pytest.TempPathFactory, w: int, h: int, comment: bytes, magic: bytes
+) -> None:
+    """``image_size`` reads what the decoder's own header reader reads, with no pixels there
+    (a server refuses an over-large image before decoding it)."""
+    from mapkit.raster.ros_image import image_size
+
+    d = tmp_path_factory.mktemp("size")
+    maxval = b"" if magic in (b"P1", b"P4") else b" 255"
+    (d / "a.pgm").write_bytes(magic + b"\n" + comment + b"%d %d" % (w, h) + maxval + b"\n")
+    assert image_size(d / "a.pgm") == (w, h)
+    png = (
+        b"\x89PNG\r\n\x1a\n" + b"\x00\x00\x00\x0dIHDR" + w.to_bytes(4, "big") + h.to_bytes(4, "big")
+    )
+    (d / "a.png").write_bytes(png + b"\x08\x00\x00\x00\x00")
+    assert image_size(d / "a.png") == (w, h)
+    (d / "bad.pgm").write_bytes(magic + b" x 1 255\n")
+    assert image_size(d / "bad.pgm") is None
+    assert image_size(d / "missing.pgm") is None
