@@ -2,8 +2,8 @@
 
 The maps of ``bench_build.py`` are ours; real sites look otherwise (clutter, long corridors that
 look alike, a start in a dead end). This drives the simulated robot through real ARIA maps that
-have goals (a tour of the goals and back home, as ``mapkit simulate --loop`` does) with six
-odometries, and checks the issue's targets on each log: map median within 5 mm of the floor, p90
+have goals (a tour of the goals and back home, as ``mapkit simulate --loop`` does) with eight
+odometries and lasers, and checks the issue's targets on each log: map median within 5 mm of the floor, p90
 under 60 mm, trajectory RMS under 40 mm and within odometry's + 15 mm.
 
     python benchmarks/bench_build_real.py --maps ../shared/sample-data/real
@@ -68,6 +68,27 @@ ODOMETRIES: dict[str, dict[str, Any]] = {
         "drift": 0.02,
         "range_noise": 10.0,
         "dist_step": 500.0,
+    },
+    # A short-range wide laser (a Hokuyo URG-04LX: 683 beams over 240 degrees, 5.6 m) on a
+    # robot that drifts a little: few walls in reach, so the scans hold the heading less.
+    "urg": {
+        "readings": 683,
+        "fov": 240.0,
+        "max_range": 5600.0,
+        "translation_error": 0.002,
+        "rotation_error": 0.005,
+        "drift": 0.02,
+        "range_noise": 15.0,
+    },
+    # The true poses as odometry (the issue's own check): nothing to correct, so whatever the
+    # build moves is its own error (target: within 15 mm of odometry's, which is under 1 mm).
+    "exact": {
+        "readings": 181,
+        "translation_error": 0.0,
+        "rotation_error": 0.0,
+        "drift": 0.0,
+        "range_noise": 15.0,
+        "dist_step": 150.0,
     },
     # A robot that slips in its turns, drifts, misjudges distance; a few spurious readings.
     "rough": {
