@@ -198,6 +198,23 @@ def bench_odometry(name: str) -> dict[str, Any]:
     return dict(bench.ODOMETRIES[name])
 
 
+def bench_log(shared_dir: Any, site: str, odometry: str, seed: int) -> tuple[Any, float]:
+    """One log of ``benchmarks/bench_build_real.py`` (a real ARIA map, an odometry class, a draw)
+    built: the result and its trajectory RMS against the truth (mm)."""
+    import mapkit
+
+    world = mapkit.load(shared_dir / "real" / site)
+    sim = simulate_log(
+        world, loop=True, seed=seed, odometry_origin="zero", **bench_odometry(odometry)
+    )
+    res = build_map(sim.log, lines=False)
+    truth = sim.truth[np.searchsorted(sim.truth_ids, res.scan_ids)]
+    # The odometry starts at 0 0 0 (as on a robot): the poses go in the world through the truth's
+    # start.
+    rms, _ = trajectory_rms(compose(sim.truth[0], np.asarray(res.poses)), truth)
+    return res, rms
+
+
 def mobilesim() -> dict[str, Any]:
     """A simulator's odometry and laser as ARIA's logger records them from MobileSim: the
     "good" class of ``benchmarks/bench_build_real.py`` (the issue's)."""
@@ -234,15 +251,7 @@ def test_a_drift_the_calibration_misses_is_taken_out(shared_dir) -> None:
     calibration does not take it. Registered with it, the passes came out apart and the
     refinement, leaning on the odometry, could not bring them together: 54 mm RMS. The
     refinement finds it over the whole log, and the log is registered again without it."""
-    import mapkit
-
-    world = mapkit.load(shared_dir / "real" / "aria294-columbia.map")
-    sim = simulate_log(world, loop=True, seed=2, odometry_origin="zero", **bench_odometry("drift"))
-    res = build_map(sim.log, lines=False)
-    truth = sim.truth[np.searchsorted(sim.truth_ids, res.scan_ids)]
-    # The odometry starts at 0 0 0 (as on a robot): the poses go in the world through the truth's
-    # start.
-    rms, _ = trajectory_rms(compose(sim.truth[0], np.asarray(res.poses)), truth)
+    res, rms = bench_log(shared_dir, "aria294-columbia.map", "drift", seed=2)
     assert rms < 20.0, rms
     learnt = res.summary["registration"]["odometry_calibration"]["drift_deg_per_m"]
     assert learnt == pytest.approx(-0.02, abs=0.005), learnt
@@ -283,11 +292,5 @@ def test_exact_odometry_is_not_turned_at_every_turn(shared_dir) -> None:
     turn's noise scale was fitted at 0.016 (0.1 degrees on a 28 degree step), and the
     refinement turned the map a little at every turn (21.5 mm RMS). The refinement now takes a
     turn scale only where the excess is beyond chance (18.4 mm)."""
-    import mapkit
-
-    world = mapkit.load(shared_dir / "real" / "aria291-columbia.map")
-    sim = simulate_log(world, loop=True, seed=1, odometry_origin="zero", **bench_odometry("exact"))
-    res = build_map(sim.log, lines=False)
-    truth = sim.truth[np.searchsorted(sim.truth_ids, res.scan_ids)]
-    rms, _ = trajectory_rms(compose(sim.truth[0], np.asarray(res.poses)), truth)
+    _, rms = bench_log(shared_dir, "aria291-columbia.map", "exact", seed=1)
     assert rms < 20.0, rms
