@@ -165,9 +165,10 @@ def test_a_pass_hands_on_what_all_its_drift_samples_give() -> None:
 
 @pytest.mark.parametrize(("slip", "kept"), [(0.0, False), (0.03, True)])
 def test_the_refinement_takes_a_turn_scale_only_beyond_chance(slip: float, kept: bool) -> None:
-    """Turning steps whose matches claim a little less noise than they have (by 15 %): the
-    fitted turn scale rises above its floor, by chance alone. The refinement weighs the turns at
-    the floor then; a robot that slips 3 % in its turns keeps the scale it was fitted."""
+    """Exact turns whose matches err a little more than they claim (by 15 %): the fitted turn
+    scale rises above its floor, though the turns are exact, and the excess is within chance. The
+    refinement weighs the turns at the floor then; a robot that slips 3 % in its turns keeps the
+    scale it was fitted."""
     model = _odometry._OdometryModel()
     sd = math.radians(0.1)
     match = np.diag([1 / 100.0, 1 / 100.0, 1 / sd**2])
