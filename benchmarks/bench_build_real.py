@@ -3,8 +3,8 @@
 The maps of ``bench_build.py`` are ours; real sites look otherwise (clutter, long corridors that
 look alike, a start in a dead end). This drives the simulated robot through real ARIA maps that
 have goals (a tour of the goals and back home, as ``mapkit simulate --loop`` does) with eight
-odometries and lasers, and checks the issue's targets on each log: map median within 5 mm of the floor, p90
-under 60 mm, trajectory RMS under 40 mm and within odometry's + 15 mm.
+odometries and lasers, and checks the issue's targets on each log: map median within 5 mm of the
+floor, p90 under 60 mm, trajectory RMS under 40 mm and within odometry's + 15 mm.
 
     python benchmarks/bench_build_real.py --maps ../shared/sample-data/real
     python benchmarks/bench_build_real.py --maps DIR --seeds 3 --tree OLD   # before/after
