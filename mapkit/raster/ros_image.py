@@ -106,6 +106,7 @@ def _shown(path: Path) -> str:
 
 _PNM_TOKEN = re.compile(rb"(?:\s|#[^\n\r]*[\n\r]?)*([^\s#]{1,32})")
 _HEADER_MAX = 1 << 16  # header bytes read (comments included)
+_PNM_MAGIC = (b"P1", b"P2", b"P3", b"P4", b"P5", b"P6")
 
 
 @dataclass(frozen=True, slots=True)
@@ -403,20 +404,18 @@ class ImageSource:
 def image_size(path: Path | str) -> tuple[int, int] | None:
     """Width and height from a PNM or PNG header, without decoding the image (``None`` for a
     file that is not one, or whose header is bad: :func:`open_image` says what is wrong)."""
+    p = Path(os.fspath(path))
     try:
-        with open(os.fspath(path), "rb") as fh:
+        with open_regular(p, "image file") as fh:  # a pipe or device is not waited on
             head = fh.read(_HEADER_MAX)
-    except OSError:
+        if head[:8] == _PNG_SIGNATURE and head[12:16] == b"IHDR" and len(head) >= 24:
+            w, h = struct.unpack(">II", head[16:24])
+            return int(w), int(h)
+        if head[:2] in _PNM_MAGIC:
+            hd = _pnm_header(head, _shown(p))
+            return hd.width, hd.height
+    except (OSError, RosMapError):
         return None
-    if head[:8] == _PNG_SIGNATURE and head[12:16] == b"IHDR" and len(head) >= 24:
-        w, h = struct.unpack(">II", head[16:24])
-        return int(w), int(h)
-    if head[:2] in (b"P1", b"P2", b"P3", b"P4", b"P5", b"P6"):
-        try:
-            hd = _pnm_header(head, _shown(Path(os.fspath(path))))
-        except RosMapError:
-            return None
-        return hd.width, hd.height
     return None
 
 
@@ -431,7 +430,7 @@ def open_image(path: Path | str) -> ImageSource:
     with open_regular(p, "image file") as fh:
         try:
             head = fh.read(_HEADER_MAX)
-            if head[:2] in (b"P1", b"P2", b"P3", b"P4", b"P5", b"P6"):
+            if head[:2] in _PNM_MAGIC:
                 hd = _pnm_header(head, src)
                 if hd.magic in (b"P4", b"P5", b"P6"):
                     size = os.fstat(fh.fileno()).st_size

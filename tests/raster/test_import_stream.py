@@ -6,6 +6,7 @@ The whole-image path is :func:`grid_to_map` of :func:`read_ros_map`'s grid (the 
 from __future__ import annotations
 
 import math
+import os
 from pathlib import Path
 from typing import Any
 
@@ -175,3 +176,7 @@ def test_the_image_size_is_read_from_the_header_alone(
     (d / "bad.pgm").write_bytes(magic + b" x 1 255\n")
     assert image_size(d / "bad.pgm") is None
     assert image_size(d / "missing.pgm") is None
+    assert image_size(d) is None  # a folder
+    if hasattr(os, "mkfifo") and not (d / "pipe.pgm").exists():
+        os.mkfifo(d / "pipe.pgm")  # read, it would wait for a writer forever
+        assert image_size(d / "pipe.pgm") is None
