@@ -177,6 +177,6 @@ def test_the_image_size_is_read_from_the_header_alone(
     assert image_size(d / "bad.pgm") is None
     assert image_size(d / "missing.pgm") is None
     assert image_size(d) is None  # a folder
-    if hasattr(os, "mkfifo") and not (d / "pipe.pgm").exists():
+    if hasattr(os, "mkfifo"):  # each example has a fresh folder
         os.mkfifo(d / "pipe.pgm")  # read, it would wait for a writer forever
         assert image_size(d / "pipe.pgm") is None
