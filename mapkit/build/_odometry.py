@@ -41,11 +41,6 @@ _MIN_TURNS = 10
 #: The median of chi-square with 1 degree of freedom.
 _CHI2_1_HALF = 0.455
 
-#: Standard errors by which the turning steps must disagree with their matches beyond chance for
-#: the refinement to take the turn's noise scale above its floor (see
-#: :meth:`_OdometryModel.for_refinement`).
-_TURN_SIGNIFICANT = 3.0
-
 
 def _fit_scale(
     D: FloatArray,
@@ -213,34 +208,6 @@ class _OdometryModel:
         turn_var = np.array([self._turn_var[k] for k in turning])
         S[:, 0, 0] += self.scale * (np.array([self._odo_var[k][2] for k in turning]) - turn_var)
         return D, S, turn_var[:, None]
-
-    def for_refinement(self) -> _OdometryModel:
-        """The model the global refinement weighs the odometry with: this one, or this one with
-        the turn's part at its floor when the turning steps of the pass do not disagree with
-        their matches beyond chance.
-
-        The turn's scale is fitted so that the turning steps' median disagreement is what
-        chance gives, and a turn's match is off by a tenth of a degree, so chance alone raises
-        it: on exact odometry (a real ARIA map, 98 turning steps) 59 % of the steps lay beyond
-        chance's median, 1.8 standard errors above half, and the scale came out 0.016 (0.1
-        degrees on a 28 degree step), which let the refinement turn the map a little at every
-        turn (21.5 mm RMS; 18.4 with the floor). Registration keeps the fitted scale: it runs before
-        the log's turns are all seen (a floor taken there while the excess was not yet
-        significant cost the slipping robots 19 -> 30 mm), and its local map lags in a turn.
-        The refinement sees the whole pass, and takes the scale only when more than half the
-        turning steps lie beyond chance's median at the floor by ``_TURN_SIGNIFICANT`` standard
-        errors of a proportion (a slipping robot's do by 6 to 8).
-        """
-        turns = self._turns()
-        if turns is None:
-            return self
-        D, S, V = turns
-        floor = 10.0**_MIN_LOG_TURN_SCALE
-        chi = D[:, 0] ** 2 / (S[:, 0, 0] + floor * V[:, 0])
-        beyond = float(np.mean(chi > _CHI2_1_HALF)) - 0.5
-        if beyond > _TURN_SIGNIFICANT * 0.5 / math.sqrt(len(chi)):
-            return self
-        return _OdometryModel(self.scale, self.calibration, floor)
 
 
 class _Calibration:

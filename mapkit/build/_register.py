@@ -151,8 +151,7 @@ def _refined(
         return est, 0.0
     path = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(odo[:, :2], axis=0).T))))
     steps = np.array([model.calibration.correct(between(a, b)) for a, b in itertools.pairwise(odo)])
-    weigh = model.for_refinement()
-    infos = np.array([weigh.info(math.hypot(s[0], s[1]), float(s[2])) for s in steps])
+    infos = np.array([model.info(math.hypot(s[0], s[1]), float(s[2])) for s in steps])
     found = refine(est, path, *sides, first=first, rounds=_REFINE_ROUNDS, odometry=(steps, infos))
     stats["refined"] = found.matched
     return found.poses, found.drift

@@ -161,35 +161,3 @@ def test_a_pass_hands_on_what_all_its_drift_samples_give() -> None:
     cal.mark()
     cal.settle()
     assert not cal.moved
-
-
-@pytest.mark.parametrize(("slip", "kept"), [(0.0, False), (0.03, True)])
-def test_the_refinement_takes_a_turn_scale_only_beyond_chance(slip: float, kept: bool) -> None:
-    """Exact turns whose matches err a little more than they claim (by 15 %): the fitted turn
-    scale rises above its floor, though the turns are exact, and the excess is within chance. The
-    refinement weighs the turns at the floor then; a robot that slips 3 % in its turns keeps the
-    scale it was fitted."""
-    model = _odometry._OdometryModel()
-    sd = math.radians(0.1)
-    match = np.diag([1 / 100.0, 1 / 100.0, 1 / sd**2])
-    turn = math.radians(25.0)
-    rng = np.random.default_rng(11)
-    for k in range(900):
-        if k % 9 == 0:
-            error = rng.normal(0, 1.15 * sd) + rng.normal(0, slip * turn)
-            model.observe(np.array([0.0, 0.0, error]), match, 0.0, turn)
-        else:
-            model.observe(np.zeros(3), match, 300.0, 0.0)
-    model.settle()
-    floor = 10.0**_odometry._MIN_LOG_TURN_SCALE
-    assert model.turn_scale is not None and model.turn_scale > 10 * floor
-    weigh = model.for_refinement()
-    assert (weigh.turn_scale == model.turn_scale) is kept
-    if not kept:
-        assert weigh.turn_scale == floor and weigh.scale == model.scale
-        assert weigh.calibration is model.calibration
-    # Too few turns to say: the model as fitted.
-    few = _odometry._OdometryModel()
-    for _ in range(_odometry._MIN_TURNS - 1):
-        few.observe(np.array([0.0, 0.0, 0.01]), match, 0.0, turn)
-    assert few.for_refinement() is few
