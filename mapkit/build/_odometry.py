@@ -187,19 +187,9 @@ class _OdometryModel:
         own scale, down to ``_MIN_LOG_TURN_SCALE``; the distance's part of a turning step (drift
         while driving a curve) keeps the straight steps' scale.
         """
-        turns = self._turns()
-        if turns is None:
-            return  # as before (from an earlier pass, or none)
-        D, S, V = turns
-        self.turn_scale = _fit_scale(D, S, V, 50.0, _CHI2_1_HALF, floor=_MIN_LOG_TURN_SCALE)
-
-    def _turns(self) -> tuple[FloatArray, FloatArray, FloatArray] | None:
-        """The turning steps' heading disagreements with their matches ``(n, 1)``, the known
-        noise of each ``(n, 1, 1)`` (the match's and the straight part's) and the turn's part
-        at scale 1 ``(n, 1)``; None while there are fewer than ``_MIN_TURNS``."""
         turning = np.flatnonzero(self._turning)
         if len(turning) < _MIN_TURNS:
-            return None
+            return  # as before (from an earlier pass, or none)
         turning = turning[-_FIT_STEPS:]
         # The heading alone: a turn on the spot hardly moves, what it gets wrong is the angle.
         D = np.array([self._d[k][2:] for k in turning])
@@ -207,7 +197,8 @@ class _OdometryModel:
         S = np.array([self._scan_cov[k][2:, 2:] for k in turning])
         turn_var = np.array([self._turn_var[k] for k in turning])
         S[:, 0, 0] += self.scale * (np.array([self._odo_var[k][2] for k in turning]) - turn_var)
-        return D, S, turn_var[:, None]
+        V = turn_var[:, None]
+        self.turn_scale = _fit_scale(D, S, V, 50.0, _CHI2_1_HALF, floor=_MIN_LOG_TURN_SCALE)
 
 
 class _Calibration:
