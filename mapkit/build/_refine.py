@@ -39,6 +39,10 @@ _K = 8
 #: Path (mm) along which neighbouring scans' matches err together (see :func:`refine`).
 _SHARED_PATH = 1000.0
 
+#: What a turn counts for, as path: this much of the distance its beams' hits slide along the
+#: walls (the scans' median range times the angle turned).
+_TURN_SHARE = 0.3
+
 #: Step (radians per mm: 0.01 deg/m) of the search for a drift the calibration missed.
 _DRIFT_STEP = math.radians(0.01) / 1000.0
 
@@ -130,8 +134,14 @@ def refine(
     # wall as one that scans every metre). Each match counts for its scan's share of
     # ``_SHARED_PATH``; counted in full, a dense log's matches outvoted its odometry and bent the
     # chain with their shared errors.
-    ahead = np.append(path[1:], path[-1])
-    behind = np.insert(path[:-1], 0, path[0])
+    # A turn brings a view of its own too, though less than a drive does: the beams' hits slide
+    # along the walls by their range times the angle turned, and a scan turned on the spot is
+    # counted for ``_TURN_SHARE`` of that (counted as no path at all, the scans of a turn on the
+    # spot, often all a log has of its start, were not heard).
+    reach = _TURN_SHARE * float(np.median(np.hypot(*np.concatenate(pts).T))) if n else 0.0
+    along = path + reach * np.concatenate(([0.0], np.cumsum(np.abs(wrap(np.diff(est[:, 2]))))))
+    ahead = np.append(along[1:], along[-1])
+    behind = np.insert(along[:-1], 0, along[0])
     share = np.clip((ahead - behind) / 2.0, 1.0, _SHARED_PATH) / _SHARED_PATH
     # How far each odometry step goes (a drift is taken out in proportion).
     lengths = [] if odometry is None else [math.hypot(s[0], s[1]) for s in odometry[0]]
@@ -153,8 +163,8 @@ def refine(
                 tgt,
                 tn,
                 x[i],
-                schedule=(80.0, 40.0),
-                max_iter=8,
+                schedule=(80.0, 40.0, 20.0),
+                max_iter=20,
                 cauchy=_CAUCHY,
             )
             if not (r.ok and r.inliers > 0.3 and r.rms < 30.0):
