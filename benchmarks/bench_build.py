@@ -200,7 +200,9 @@ def _with_odometry(log: Any, ids: Any, poses: Any) -> Any:
 
 
 def measure(res: Any, world: Any, ids: Any, truth: Any) -> dict[str, float]:
-    """Distances of the map's points to the true walls and obstacles; trajectory error.
+    """Distances of the map's points to the true walls and obstacles; trajectory error (and
+    ``turn_deg`` / ``rest``: the turn about the start that brings the trajectory best onto the
+    truth, and the RMS left after it).
 
     The logs' odometry starts at 0 0 0, as on a robot: the built map and poses are put in the
     world through the true start pose first (the start is off the 20 mm lattice, so the walls
@@ -221,12 +223,20 @@ def measure(res: Any, world: Any, ids: Any, truth: Any) -> dict[str, float]:
     if len(world.points):
         d = np.minimum(d, cKDTree(world.points.astype(float)).query(pts)[0])
     tr = truth[np.searchsorted(ids, res.scan_ids)]
-    rms, rms_deg = trajectory_rms(compose(start, res.poses), tr)
+    poses = compose(start, res.poses)
+    rms, rms_deg = trajectory_rms(poses, tr)
+    # How much of that is the map turned about the start: the turn that brings the positions
+    # best onto the truth's about it, and the RMS left after it.
+    a, b = poses[:, :2] - start[:2], tr[:, :2] - start[:2]
+    th = np.arctan2(np.sum(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]), np.sum(a * b))
+    turned = a @ np.array([[np.cos(th), np.sin(th)], [-np.sin(th), np.cos(th)]])
     return {
         "median": float(np.median(d)),
         "p90": float(np.percentile(d, 90)),
         "rms": rms,
         "rms_deg": rms_deg,
+        "turn_deg": float(np.degrees(th)),
+        "rest": float(np.sqrt(np.mean(np.sum((turned - b) ** 2, axis=1)))),
         "points": len(res.map.points),
     }
 

@@ -23,7 +23,6 @@ compare on the same logs.
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 import time
 from collections.abc import Iterator
@@ -142,23 +141,6 @@ def logs(
                 yield label, odo_name, world, sim, floor, raw
 
 
-def turn_about_start(res: Any, ids: Any, truth: Any) -> tuple[float, float]:
-    """How much of a built trajectory's error is the map turned about the start: the turn
-    (degrees) that brings its positions best onto the truth's, about the start, and the RMS (mm)
-    left after it. On these logs the rest is a few mm: what misses is how the map sits."""
-    import numpy as np
-
-    from mapkit.model.scan import compose
-
-    at = truth[np.searchsorted(ids, res.scan_ids)]
-    a = compose(truth[0], np.asarray(res.poses))[:, :2] - truth[0, :2]
-    b = at[:, :2] - truth[0, :2]
-    th = math.atan2(float(np.sum(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0])), float(np.sum(a * b)))
-    c, s = math.cos(th), math.sin(th)
-    turned = np.column_stack([c * a[:, 0] - s * a[:, 1], s * a[:, 0] + c * a[:, 1]])
-    return math.degrees(th), float(np.sqrt(np.mean(np.sum((turned - b) ** 2, axis=1))))
-
-
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--maps", required=True, help="folder with the real ARIA maps")
@@ -191,12 +173,11 @@ def main() -> int:
         b = measure(res, world, ids, truth)
         ok = all(targets(floor, raw, b).values())
         per.setdefault(odo_name, []).append((b["rms"], ok))
-        turn, rest = turn_about_start(res, ids, truth)
         print(
             f"{label:28} {len(log.scans):5d} | {floor['median']:5.1f} / {floor['p90']:5.1f}"
             f" | {raw['median']:6.1f} / {raw['p90']:5.0f} {raw['rms']:6.1f} | "
-            f"{b['median']:5.1f} / {b['p90']:4.0f} {b['rms']:5.1f} | {turn:+6.3f} {rest:6.1f} | "
-            f"{cpu:5.1f} | "
+            f"{b['median']:5.1f} / {b['p90']:4.0f} {b['rms']:5.1f} | "
+            f"{b['turn_deg']:+6.3f} {b['rest']:6.1f} | {cpu:5.1f} | "
             f"{'ok' if ok else 'MISS'}",
             flush=True,
         )
