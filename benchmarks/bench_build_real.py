@@ -9,6 +9,7 @@ floor, p90 under 60 mm, trajectory RMS under 40 mm and within odometry's + 15 mm
     python benchmarks/bench_build_real.py --maps ../shared/sample-data/real
     python benchmarks/bench_build_real.py --maps DIR --seeds 3 --tree OLD   # before/after
     python benchmarks/bench_build_real.py --maps DIR --first-seed 10   # fresh draws
+    python benchmarks/bench_build_real.py --maps DIR --seeds 6 --jobs 2   # two logs at once
 
 Draws 1-6 are the ones the rounds so far were measured on (and so, in part, tuned on), draws
 7-9 were fresh for round 11's check; draws from 10 on are logs no round has seen: a round
@@ -23,9 +24,11 @@ compare on the same logs.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import sys
 import time
 from collections.abc import Iterator
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
 
@@ -111,34 +114,74 @@ ODOMETRIES: dict[str, dict[str, Any]] = {
 }
 
 
-def logs(
-    maps: str, seeds: int, only: list[str] | None, first_seed: int = 1
-) -> Iterator[tuple[Any, ...]]:
-    """Each log: ``(label, odometry name, world map, simulated log, floor figures, odometry
-    figures)`` (figures of ``bench_build.measure``), maps by odometries by draws."""
+def draws(seeds: int, only: list[str] | None, first_seed: int = 1) -> list[tuple[str, str, int]]:
+    """Each log's ``(map file name, odometry name, draw)``: maps by odometries by draws."""
+    return [
+        (name, odo_name, seed)
+        for name in MAPS
+        for odo_name in ODOMETRIES
+        if not only or odo_name in only
+        for seed in range(first_seed, first_seed + seeds)
+    ]
+
+
+def one_log(maps: str, name: str, odo_name: str, seed: int) -> tuple[Any, ...]:
+    """One log: ``(label, odometry name, world map, simulated log, floor figures, odometry
+    figures)`` (figures of ``bench_build.measure``)."""
     from bench_build import _with_poses, measure
 
     import mapkit
     from mapkit.build import build_map
     from mapkit.simulate import simulate_log
 
-    for name in MAPS:
-        world = mapkit.load(Path(maps) / name)
-        for odo_name, kw in ODOMETRIES.items():
-            if only and odo_name not in only:
-                continue
-            for seed in range(first_seed, first_seed + seeds):
-                sim = simulate_log(world, loop=True, seed=seed, odometry_origin="zero", **kw)
-                log, ids, truth = sim.log, sim.truth_ids, sim.truth
-                floor = measure(
-                    build_map(_with_poses(log, ids, truth), register=False, lines=False),
-                    world,
-                    ids,
-                    truth,
-                )
-                raw = measure(build_map(log, register=False, lines=False), world, ids, truth)
-                label = f"{name.removesuffix('.map')} {odo_name} {seed}"
-                yield label, odo_name, world, sim, floor, raw
+    world = mapkit.load(Path(maps) / name)
+    sim = simulate_log(world, loop=True, seed=seed, odometry_origin="zero", **ODOMETRIES[odo_name])
+    log, ids, truth = sim.log, sim.truth_ids, sim.truth
+    floor = measure(
+        build_map(_with_poses(log, ids, truth), register=False, lines=False), world, ids, truth
+    )
+    raw = measure(build_map(log, register=False, lines=False), world, ids, truth)
+    label = f"{name.removesuffix('.map')} {odo_name} {seed}"
+    return label, odo_name, world, sim, floor, raw
+
+
+def logs(
+    maps: str, seeds: int, only: list[str] | None, first_seed: int = 1
+) -> Iterator[tuple[Any, ...]]:
+    """Each log of :func:`draws`, as :func:`one_log` gives it."""
+    for name, odo_name, seed in draws(seeds, only, first_seed):
+        yield one_log(maps, name, odo_name, seed)
+
+
+def built(maps: str, name: str, odo_name: str, seed: int) -> tuple[str, float, bool]:
+    """One log simulated and built: ``(its line of figures, its trajectory RMS, whether it met
+    every target)``. The CPU time is the build's own, in the process that built it."""
+    from bench_build import measure, targets
+
+    from mapkit.build import build_map
+
+    label, _, world, sim, floor, raw = one_log(maps, name, odo_name, seed)
+    log, ids, truth = sim.log, sim.truth_ids, sim.truth
+    t = time.process_time()
+    res = build_map(log)
+    cpu = time.process_time() - t
+    b = measure(res, world, ids, truth)
+    ok = all(targets(floor, raw, b).values())
+    line = (
+        f"{label:28} {len(log.scans):5d} | {floor['median']:5.1f} / {floor['p90']:5.1f}"
+        f" | {raw['median']:6.1f} / {raw['p90']:5.0f} {raw['rms']:6.1f} | "
+        f"{b['median']:5.1f} / {b['p90']:4.0f} {b['rms']:5.1f} | "
+        f"{b['turn_deg']:+6.3f} {b['rest']:6.1f} | {cpu:5.1f} | "
+        f"{'ok' if ok else 'MISS'}"
+    )
+    return line, float(b["rms"]), ok
+
+
+def _on_path(paths: list[str]) -> None:
+    """``paths`` first on ``sys.path`` (the tree that builds, and the benchmarks), in this process
+    or a worker."""
+    for p in reversed(paths):
+        sys.path.insert(0, p)
 
 
 def main() -> int:
@@ -148,39 +191,38 @@ def main() -> int:
     ap.add_argument("--seeds", type=int, default=3, help="random draws per map and odometry")
     ap.add_argument("--only", nargs="*", help="odometries to run (names)")
     ap.add_argument("--first-seed", type=int, default=1, help="the first draw (default 1)")
+    ap.add_argument(
+        "--jobs", type=int, default=1, help="logs built at once, each in a process of its own"
+    )
     args = ap.parse_args()
+    paths = [str(Path(__file__).resolve().parent)]
     if args.tree:
-        sys.path.insert(0, str(Path(args.tree).resolve()))
-    sys.path.insert(0, str(Path(__file__).resolve().parent))
-    from bench_build import measure, targets
+        paths.insert(0, str(Path(args.tree).resolve()))
+    _on_path(paths)
 
     import mapkit
-    from mapkit.build import build_map
 
     print(f"mapkit from {Path(mapkit.__file__).parent.parent}")
     print(
         f"{'log':28} {'scans':>5} | {'floor med/p90':>13} | {'odometry med/p90 rms':>21} | "
         f"{'built med/p90 rms':>18} | {'turn / rest':>13} | {'cpu s':>5} | targets"
     )
+    todo = draws(args.seeds, args.only, args.first_seed)
+    names, odometries, seeds = zip(*todo, strict=True) if todo else ((), (), ())
+    maps = [args.maps] * len(todo)
     per: dict[str, list[tuple[float, bool]]] = {}
-    for label, odo_name, world, sim, floor, raw in logs(
-        args.maps, args.seeds, args.only, args.first_seed
-    ):
-        log, ids, truth = sim.log, sim.truth_ids, sim.truth
-        t = time.process_time()
-        res = build_map(log)
-        cpu = time.process_time() - t
-        b = measure(res, world, ids, truth)
-        ok = all(targets(floor, raw, b).values())
-        per.setdefault(odo_name, []).append((b["rms"], ok))
-        print(
-            f"{label:28} {len(log.scans):5d} | {floor['median']:5.1f} / {floor['p90']:5.1f}"
-            f" | {raw['median']:6.1f} / {raw['p90']:5.0f} {raw['rms']:6.1f} | "
-            f"{b['median']:5.1f} / {b['p90']:4.0f} {b['rms']:5.1f} | "
-            f"{b['turn_deg']:+6.3f} {b['rest']:6.1f} | {cpu:5.1f} | "
-            f"{'ok' if ok else 'MISS'}",
-            flush=True,
-        )
+    with contextlib.ExitStack() as stack:
+        if args.jobs > 1:
+            pool = stack.enter_context(
+                ProcessPoolExecutor(args.jobs, initializer=_on_path, initargs=(paths,))
+            )
+            # In order: each as soon as it and those before it are done.
+            results = pool.map(built, maps, names, odometries, seeds)
+        else:
+            results = map(built, maps, names, odometries, seeds)
+        for odo_name, (line, rms, ok) in zip(odometries, results, strict=True):
+            per.setdefault(odo_name, []).append((rms, ok))
+            print(line, flush=True)
     total = sum(ok for runs in per.values() for _, ok in runs)
     print(f"{total} of {sum(len(r) for r in per.values())} logs meet every target")
     for odo_name, runs in per.items():
