@@ -24,10 +24,9 @@ compare on the same logs.
 from __future__ import annotations
 
 import argparse
-import contextlib
 import sys
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
@@ -184,21 +183,50 @@ def _on_path(paths: list[str]) -> None:
         sys.path.insert(0, p)
 
 
-def main() -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def options(ap: argparse.ArgumentParser, seeds: int = 3) -> None:
+    """The options that choose the logs and how they run (``--maps``, ``--tree``, ``--seeds``,
+    ``--only``, ``--first-seed``, ``--jobs``)."""
     ap.add_argument("--maps", required=True, help="folder with the real ARIA maps")
     ap.add_argument("--tree", help="checkout whose mapkit builds")
-    ap.add_argument("--seeds", type=int, default=3, help="random draws per map and odometry")
+    ap.add_argument("--seeds", type=int, default=seeds, help="random draws per map and odometry")
     ap.add_argument("--only", nargs="*", help="odometries to run (names)")
     ap.add_argument("--first-seed", type=int, default=1, help="the first draw (default 1)")
     ap.add_argument(
-        "--jobs", type=int, default=1, help="logs built at once, each in a process of its own"
+        "--jobs", type=int, default=1, help="logs at once, each in a process of its own"
     )
-    args = ap.parse_args()
+
+
+def on_path(args: argparse.Namespace) -> list[str]:
+    """``--tree``'s mapkit (if given) and the benchmarks first on ``sys.path``; the paths put."""
     paths = [str(Path(__file__).resolve().parent)]
     if args.tree:
         paths.insert(0, str(Path(args.tree).resolve()))
     _on_path(paths)
+    return paths
+
+
+def each_log(
+    args: argparse.Namespace, paths: list[str], fn: Callable[..., Any], *more: Any
+) -> Iterator[tuple[str, Any]]:
+    """``(odometry name, fn(maps, map name, odometry name, draw, *more))`` for each log the
+    options choose, in order, in ``--jobs`` processes with ``paths`` (:func:`on_path`) first."""
+    todo = draws(args.seeds, args.only, args.first_seed)
+    n = len(todo)
+    columns = [list(c) for c in zip(*todo, strict=True)] if todo else [[], [], []]
+    call = (fn, [args.maps] * n, *columns, *([m] * n for m in more))
+    if args.jobs > 1:
+        with ProcessPoolExecutor(args.jobs, initializer=_on_path, initargs=(paths,)) as pool:
+            # In order: each as soon as it and those before it are done.
+            yield from zip(columns[1], pool.map(*call), strict=True)
+    else:
+        yield from zip(columns[1], map(*call), strict=True)
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    options(ap)
+    args = ap.parse_args()
+    paths = on_path(args)
 
     import mapkit
 
@@ -207,22 +235,10 @@ def main() -> int:
         f"{'log':28} {'scans':>5} | {'floor med/p90':>13} | {'odometry med/p90 rms':>21} | "
         f"{'built med/p90 rms':>18} | {'turn / rest':>13} | {'cpu s':>5} | targets"
     )
-    todo = draws(args.seeds, args.only, args.first_seed)
-    names, odometries, seeds = zip(*todo, strict=True) if todo else ((), (), ())
-    maps = [args.maps] * len(todo)
     per: dict[str, list[tuple[float, bool]]] = {}
-    with contextlib.ExitStack() as stack:
-        if args.jobs > 1:
-            pool = stack.enter_context(
-                ProcessPoolExecutor(args.jobs, initializer=_on_path, initargs=(paths,))
-            )
-            # In order: each as soon as it and those before it are done.
-            results = pool.map(built, maps, names, odometries, seeds)
-        else:
-            results = map(built, maps, names, odometries, seeds)
-        for odo_name, (line, rms, ok) in zip(odometries, results, strict=True):
-            per.setdefault(odo_name, []).append((rms, ok))
-            print(line, flush=True)
+    for odo_name, (line, rms, ok) in each_log(args, paths, built):
+        per.setdefault(odo_name, []).append((rms, ok))
+        print(line, flush=True)
     total = sum(ok for runs in per.values() for _, ok in runs)
     print(f"{total} of {sum(len(r) for r in per.values())} logs meet every target")
     for odo_name, runs in per.items():

@@ -23,14 +23,13 @@ from __future__ import annotations
 import argparse
 import math
 import sys
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_build_real import ODOMETRIES, _on_path, draws
+from bench_build_real import ODOMETRIES, each_log, on_path, options
 
 
 def _wall_samples(lines: Any, step: float = 5.0) -> tuple[Any, Any]:
@@ -53,9 +52,7 @@ def errors(maps: str, name: str, odo_name: str, seed: int, start: int, stride: i
     import mapkit
     from mapkit.build._common import _world
     from mapkit.build._graph import wrap
-    from mapkit.build._loops import _CAUCHY
-    from mapkit.build._match import icp
-    from mapkit.build._refine import _OtherPasses
+    from mapkit.build._refine import _OtherPasses, match
     from mapkit.build._register import _sides
     from mapkit.build.builder import _scan_arrays
     from mapkit.simulate import simulate_log
@@ -78,18 +75,9 @@ def errors(maps: str, name: str, odo_name: str, seed: int, start: int, stride: i
     walls, wall_nrm = _wall_samples(world.lines)
     wall_tree = cKDTree(walls)
 
-    def match(i: int, tree: Any, t_pts: Any, t_nrm: Any) -> tuple[float, float] | None:
-        r = icp(
-            all_pts[0] if i == 0 else src[i],
-            tree,
-            t_pts,
-            t_nrm,
-            x[i],
-            schedule=(80.0, 40.0, 20.0),
-            max_iter=20,
-            cauchy=_CAUCHY,
-        )
-        if not (r.ok and r.inliers > 0.3 and r.rms < 30.0):
+    def error(i: int, tree: Any, t_pts: Any, t_nrm: Any) -> tuple[float, float] | None:
+        r = match(all_pts[0] if i == 0 else src[i], tree, t_pts, t_nrm, x[i])
+        if r is None:
             return None
         return math.degrees(wrap(r.pose[2] - x[i, 2])), math.hypot(*(r.pose[:2] - x[i, :2]))
 
@@ -103,7 +91,7 @@ def errors(maps: str, name: str, odo_name: str, seed: int, start: int, stride: i
             got = []
             for i in scans_of:
                 others.at = float(path[i])
-                m = match(i, tree, t_pts, t_nrm)
+                m = error(i, tree, t_pts, t_nrm)
                 if m is not None:
                     got.append(m)
             e = np.array(got).reshape(-1, 2)
@@ -118,19 +106,11 @@ def errors(maps: str, name: str, odo_name: str, seed: int, start: int, stride: i
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--maps", required=True, help="folder with the real ARIA maps")
-    ap.add_argument("--tree", help="checkout whose mapkit matches")
-    ap.add_argument("--seeds", type=int, default=1, help="random draws per map and odometry")
-    ap.add_argument("--only", nargs="*", help="odometries to run (names of bench_build_real)")
-    ap.add_argument("--first-seed", type=int, default=1, help="the first draw (default 1)")
+    options(ap, seeds=1)
     ap.add_argument("--start", type=int, default=40, help="scans of the start (default 40)")
     ap.add_argument("--stride", type=int, default=10, help="every Nth scan after (default 10)")
-    ap.add_argument("--jobs", type=int, default=1, help="logs at once, each in a process")
     args = ap.parse_args()
-    paths = [str(Path(__file__).resolve().parent)]
-    if args.tree:
-        paths.insert(0, str(Path(args.tree).resolve()))
-    _on_path(paths)
+    paths = on_path(args)
 
     import mapkit
 
@@ -141,17 +121,8 @@ def main() -> int:
         f"{'log':28} | " + " | ".join(f"{'n':>4} {'mean':>6} {'RMS':>5} {'pos':>4}" for _ in titles)
     )
     print(f"{'':28} | " + " | ".join(f"{'':4} {'heading, deg':>12} {'mm':>4}" for _ in titles))
-    todo = draws(args.seeds, args.only, args.first_seed)
-    columns = [list(c) for c in zip(*todo, strict=True)] if todo else [[], [], []]
-    n = len(todo)
-    call = (errors, [args.maps] * n, *columns, [args.start] * n, [args.stride] * n)
-    if args.jobs > 1:
-        with ProcessPoolExecutor(args.jobs, initializer=_on_path, initargs=(paths,)) as pool:
-            for line in pool.map(*call):
-                print(line, flush=True)
-    else:
-        for line in map(*call):
-            print(line, flush=True)
+    for _, line in each_log(args, paths, errors, args.start, args.stride):
+        print(line, flush=True)
     return 0
 
 

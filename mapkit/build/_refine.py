@@ -22,7 +22,7 @@ import numpy as np
 from mapkit.build._common import FloatArray, _world
 from mapkit.build._graph import PoseGraph, between, sigma_info, wrap
 from mapkit.build._loops import _CAUCHY, _MATCH_POINTS, _MATCH_SIGMA, _edge_info
-from mapkit.build._match import icp
+from mapkit.build._match import MatchResult, icp
 
 #: Scans within this much path (mm) of a scan are its own pass: not matched against.
 _OWN_PASS = 5000.0
@@ -94,6 +94,18 @@ class _OtherPasses:
         return d_out, i_out
 
 
+def match(
+    src: FloatArray, tree: Any, tgt: FloatArray, tn: FloatArray, pose: FloatArray
+) -> MatchResult | None:
+    """A scan's match from ``pose`` as the refinement matches: against ``tree``, the other passes
+    (:class:`_OtherPasses` set to the scan's place on the path) or any KD-tree of ``tgt`` (points,
+    with ``tn`` their normals). None when it found too little."""
+    # Down to a 20 mm reach: matched at the true poses, a match that stopped at 40 mm was 5-30 %
+    # further off in heading (docs/logs.md, round 11).
+    r = icp(src, tree, tgt, tn, pose, schedule=(80.0, 40.0, 20.0), max_iter=20, cauchy=_CAUCHY)
+    return r if r.ok and r.inliers > 0.3 and r.rms < 30.0 else None
+
+
 def refine(
     est: FloatArray,
     path: FloatArray,
@@ -158,19 +170,8 @@ def refine(
         found: list[tuple[int, FloatArray, FloatArray]] = []
         for i in range(n):
             others.at = float(path[i])
-            # Down to a 20 mm reach: matched at the true poses, a match that stopped at 40 mm
-            # was 5-30 % further off in heading (docs/logs.md, round 11).
-            r = icp(
-                src[i] if i else anchor,
-                others,
-                tgt,
-                tn,
-                x[i],
-                schedule=(80.0, 40.0, 20.0),
-                max_iter=20,
-                cauchy=_CAUCHY,
-            )
-            if not (r.ok and r.inliers > 0.3 and r.rms < 30.0):
+            r = match(src[i] if i else anchor, others, tgt, tn, x[i])
+            if r is None:
                 continue
             if math.hypot(*(r.pose[:2] - x[i, :2])) > 150.0:
                 continue
