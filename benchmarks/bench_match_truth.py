@@ -29,18 +29,17 @@ from typing import Any
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_build_real import ODOMETRIES, each_log, on_path, options
+from bench_build_real import ODOMETRIES, each_log, on_path, options, world_map
 
 
 def _wall_samples(lines: Any, step: float = 5.0) -> tuple[Any, Any]:
     """Points every ``step`` mm along each line, and the line's unit normal at each."""
+    from mapkit.simulate.rays import segment_samples
+
     seg = np.asarray(lines, dtype=np.float64).reshape(-1, 4)
     length = np.hypot(seg[:, 2] - seg[:, 0], seg[:, 3] - seg[:, 1])
     seg, length = seg[length > 0], length[length > 0]
-    k = np.ceil(length / step).astype(np.int64) + 1
-    idx = np.repeat(np.arange(len(seg)), k)
-    t = (np.arange(int(k.sum())) - np.repeat(np.cumsum(k) - k, k)) / np.repeat(k - 1, k)
-    pts = seg[idx, :2] + t[:, None] * (seg[idx, 2:] - seg[idx, :2])
+    pts, idx = segment_samples(seg, step)
     d = (seg[:, 2:] - seg[:, :2]) / length[:, None]
     return pts, np.column_stack([-d[idx, 1], d[idx, 0]])
 
@@ -49,7 +48,6 @@ def errors(maps: str, name: str, odo_name: str, seed: int, start: int, stride: i
     """One log's line of figures."""
     from scipy.spatial import cKDTree
 
-    import mapkit
     from mapkit.build._common import _world
     from mapkit.build._graph import wrap
     from mapkit.build._refine import _OtherPasses, match
@@ -57,7 +55,7 @@ def errors(maps: str, name: str, odo_name: str, seed: int, start: int, stride: i
     from mapkit.build.builder import _scan_arrays
     from mapkit.simulate import simulate_log
 
-    world = mapkit.load(Path(maps) / name)
+    world = world_map(maps, name)
     sim = simulate_log(world, loop=True, seed=seed, odometry_origin="zero", **ODOMETRIES[odo_name])
     scans, _, all_pts = _scan_arrays(sim.log, "robot", 16000.0)
     ids = np.asarray(sim.truth_ids)

@@ -8,12 +8,31 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["NO_RETURN", "FloatArray", "ray_cast"]
+__all__ = ["NO_RETURN", "FloatArray", "ray_cast", "segment_samples"]
 
 
 FloatArray = np.ndarray[Any, np.dtype[np.float64]]
 #: What the laser reports for a beam without a return (raw range), as a SICK LMS does.
 NO_RETURN = 32767
+
+
+def segment_samples(
+    segments: FloatArray, step: float
+) -> tuple[FloatArray, np.ndarray[Any, np.dtype[np.int64]]]:
+    """Points along each ``x1 y1 x2 y2`` segment, both ends included and at most ``step`` mm
+    apart (a segment of no length gives its point twice), and the segment each comes from.
+
+    Examples:
+        >>> pts, idx = segment_samples(np.array([[0.0, 0, 100, 0]]), 25.0)
+        >>> pts[:, 0].tolist(), idx.tolist()
+        ([0.0, 25.0, 50.0, 75.0, 100.0], [0, 0, 0, 0, 0])
+    """
+    length = np.hypot(segments[:, 2] - segments[:, 0], segments[:, 3] - segments[:, 1])
+    k = np.maximum(np.ceil(length / step).astype(np.int64), 1) + 1
+    idx = np.repeat(np.arange(len(segments)), k)
+    t = (np.arange(int(k.sum())) - np.repeat(np.cumsum(k) - k, k)) / np.repeat(k - 1, k)
+    pts: FloatArray = segments[idx, :2] + t[:, None] * (segments[idx, 2:] - segments[idx, :2])
+    return pts, idx
 
 
 # -- ray casting -------------------------------------------------------------------------------

@@ -12,7 +12,7 @@ import numpy as np
 
 from mapkit.errors import MapkitError
 from mapkit.model import MapData
-from mapkit.simulate.rays import FloatArray
+from mapkit.simulate.rays import FloatArray, segment_samples
 
 # -- route planning on a coarse grid ---------------------------------------------------------------
 
@@ -51,11 +51,7 @@ def _obstacles(m: MapData) -> FloatArray:
     parts = [m.points.astype(np.float64)]
     lines = m.lines.astype(np.float64)
     if len(lines):
-        length = np.hypot(lines[:, 2] - lines[:, 0], lines[:, 3] - lines[:, 1])
-        k = np.maximum(np.ceil(length / 50.0).astype(np.int64), 1) + 1
-        idx = np.repeat(np.arange(len(lines)), k)
-        t = (np.arange(int(k.sum())) - np.repeat(np.cumsum(k) - k, k)) / np.repeat(k - 1, k)
-        parts.append(lines[idx, :2] + t[:, None] * (lines[idx, 2:] - lines[idx, :2]))
+        parts.append(segment_samples(lines, 50.0)[0])
     return np.concatenate(parts) if parts else np.zeros((0, 2))
 
 

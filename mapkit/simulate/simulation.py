@@ -22,7 +22,7 @@ from mapkit.model.scan import (
     compose,
     relative,
 )
-from mapkit.simulate.rays import NO_RETURN, FloatArray, ray_cast
+from mapkit.simulate.rays import NO_RETURN, FloatArray, ray_cast, segment_samples
 from mapkit.simulate.route import _drive, _Grid, _grid, _plan, _visible
 from mapkit.simulate.truth import SimulatedLog
 
@@ -40,11 +40,7 @@ def _points_off_lines(points: FloatArray, segments: FloatArray, tol: float) -> F
 
     if len(points) == 0 or len(segments) == 0:
         return points
-    length = np.hypot(segments[:, 2] - segments[:, 0], segments[:, 3] - segments[:, 1])
-    k = np.maximum(np.ceil(length / (tol / 2)).astype(np.int64), 1) + 1
-    idx = np.repeat(np.arange(len(segments)), k)
-    t = (np.arange(int(k.sum())) - np.repeat(np.cumsum(k) - k, k)) / np.repeat(k - 1, k)
-    samples = segments[idx, :2] + t[:, None] * (segments[idx, 2:] - segments[idx, :2])
+    samples, _ = segment_samples(segments, tol / 2)
     d, _ = cKDTree(samples).query(points, k=1, distance_upper_bound=tol * 1.2)
     kept: FloatArray = points[~(d <= tol * 1.1)]
     return kept
