@@ -24,6 +24,7 @@ compare on the same logs.
 from __future__ import annotations
 
 import argparse
+import functools
 import sys
 import time
 from collections.abc import Callable, Iterator
@@ -124,16 +125,23 @@ def draws(seeds: int, only: list[str] | None, first_seed: int = 1) -> list[tuple
     ]
 
 
+@functools.cache
+def world_map(maps: str, name: str) -> Any:
+    """A real map, read once per process (every odometry and draw on it is simulated from it)."""
+    import mapkit
+
+    return mapkit.load(Path(maps) / name)
+
+
 def one_log(maps: str, name: str, odo_name: str, seed: int) -> tuple[Any, ...]:
     """One log: ``(label, odometry name, world map, simulated log, floor figures, odometry
     figures)`` (figures of ``bench_build.measure``)."""
     from bench_build import _with_poses, measure
 
-    import mapkit
     from mapkit.build import build_map
     from mapkit.simulate import simulate_log
 
-    world = mapkit.load(Path(maps) / name)
+    world = world_map(maps, name)
     sim = simulate_log(world, loop=True, seed=seed, odometry_origin="zero", **ODOMETRIES[odo_name])
     log, ids, truth = sim.log, sim.truth_ids, sim.truth
     floor = measure(
