@@ -3,7 +3,8 @@
 ``mapkit build``'s refinement (``mapkit/build/_refine.py``) matches each scan against the other
 passes' scans. Here every scan is placed at its true pose and matched from there, twice with the
 refinement's settings: against the other passes' scans (what the refinement has), and against
-the map's true walls (its lines, sampled every 5 mm with their exact normals). What each match
+the map's true walls (its lines, sampled every 5 mm with their exact normals); the first scan
+against the other passes as the refinement matches it, against their local planes. What each match
 moves the scan is its error; the difference between the two is what the other passes, being
 scans themselves (noisy, seen from elsewhere), add to it. The logs are those of
 ``bench_build_real.py`` (real ARIA maps, its odometry classes and draws).
@@ -50,7 +51,7 @@ def errors(maps: str, name: str, odo_name: str, seed: int, start: int, stride: i
 
     from mapkit.build._common import _world
     from mapkit.build._graph import wrap
-    from mapkit.build._refine import _OtherPasses, match
+    from mapkit.build._refine import _OtherPasses, anchor_match, match
     from mapkit.build._register import _sides
     from mapkit.build.builder import _scan_arrays
     from mapkit.simulate import simulate_log
@@ -74,7 +75,10 @@ def errors(maps: str, name: str, odo_name: str, seed: int, start: int, stride: i
     wall_tree = cKDTree(walls)
 
     def error(i: int, tree: Any, t_pts: Any, t_nrm: Any) -> tuple[float, float] | None:
-        r = match(all_pts[0] if i == 0 else src[i], tree, t_pts, t_nrm, x[i])
+        if i == 0 and tree is others:
+            r = anchor_match(all_pts[0], others, t_pts, t_nrm, x[0])
+        else:
+            r = match(all_pts[0] if i == 0 else src[i], tree, t_pts, t_nrm, x[i])
         if r is None:
             return None
         return math.degrees(wrap(r.pose[2] - x[i, 2])), math.hypot(*(r.pose[:2] - x[i, :2]))
