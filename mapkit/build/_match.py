@@ -115,9 +115,14 @@ def _normals_chunk(
     same = scan_of[k0:k1] == scan_of[k0 + w - 1 : e]
     good = same & (l2 < 0.05 * np.maximum(l1, 1e-9)) & (gaps < 0.08 * rng + 60.0) & (span > 20.0)
     # The line's direction, and the normal from it, of the windows that have one.
-    ang = 0.5 * np.arctan2(2 * cxy[good], dxy[good])
-    body[good, 0] = -np.sin(ang)
-    body[good, 1] = np.cos(ang)
+    body[good] = _principal_normal(cxx[good], cyy[good], cxy[good])
+
+
+def _principal_normal(cxx: FloatArray, cyy: FloatArray, cxy: FloatArray) -> FloatArray:
+    """Unit normals of the principal axes of point sets with second moments ``cxx``, ``cyy``,
+    ``cxy`` (the normal of the line each set lies along)."""
+    ang = 0.5 * np.arctan2(2 * cxy, cxx - cyy)
+    return np.column_stack([-np.sin(ang), np.cos(ang)])
 
 
 def local_planes(pts: FloatArray, nrm: FloatArray, m: int = 8) -> tuple[FloatArray, FloatArray]:
@@ -143,8 +148,7 @@ def local_planes(pts: FloatArray, nrm: FloatArray, m: int = 8) -> tuple[FloatArr
     cxx = np.einsum("ij,ij->i", d[..., 0], d[..., 0])
     cyy = np.einsum("ij,ij->i", d[..., 1], d[..., 1])
     cxy = np.einsum("ij,ij->i", d[..., 0], d[..., 1])
-    ang = 0.5 * np.arctan2(2.0 * cxy, cxx - cyy)
-    out = np.column_stack([-np.sin(ang), np.cos(ang)])
+    out = _principal_normal(cxx, cyy, cxy)
     out *= np.where(np.einsum("ij,ij->i", out, nrm) < 0.0, -1.0, 1.0)[:, None]
     return centre, out
 

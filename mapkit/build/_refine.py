@@ -144,7 +144,8 @@ def refine(
     """The poses after ``rounds`` of matching every scan against the other passes' scans.
 
     ``first``: the first scan's points to match (default ``pts[0]``): it alone places the map
-    around the start, so it is matched with all it has.
+    around the start, so it is matched with all it has, against the other passes' planes
+    (:func:`anchor_match`).
 
     ``odometry``: the ``(N - 1, 3)`` odometry steps between neighbouring scans and their
     ``(N - 1, 3, 3)`` information. The neighbours are held by them too: where odometry is
