@@ -116,7 +116,7 @@ def anchor_match(
     within its reach smoothed into local planes (:func:`~mapkit.build._match.local_planes`, over
     ``_ANCHOR_PLANE_POINTS`` each). It alone places the map around the start, and there the other
     passes' range noise is most of its error: matched at the true poses of 72 logs on real ARIA
-    maps, the first scan erred 0.113 degrees RMS against their points and 0.087 against their
+    maps, the first scan erred 0.113 degrees RMS against their points and 0.086 against their
     planes (docs/logs.md, round 13)."""
     from scipy.spatial import cKDTree
 
