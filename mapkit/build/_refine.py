@@ -81,6 +81,12 @@ class _OtherPasses:
         self.n = len(pts)
         self.at = 0.0
 
+    def of_other_passes(self, idx: Any = slice(None)) -> np.ndarray[Any, Any]:
+        """Whether the points ``idx`` (default: all) are of another pass than the scan at
+        ``at``."""
+        other: np.ndarray[Any, Any] = np.abs(self.owner_path[idx] - self.at) > _OWN_PASS
+        return other
+
     def query(
         self, p: FloatArray, k: int = 1, distance_upper_bound: float = np.inf, eps: float = 0.0
     ) -> tuple[FloatArray, np.ndarray[Any, Any]]:
@@ -88,7 +94,7 @@ class _OtherPasses:
         d, idx = self.tree.query(p, k=_K, distance_upper_bound=distance_upper_bound, eps=eps)
         found = idx < self.n
         other = found.copy()
-        other[found] = np.abs(self.owner_path[idx[found]] - self.at) > _OWN_PASS
+        other[found] = self.of_other_passes(idx[found])
         first = np.argmax(other, axis=1)
         rows = np.arange(len(p))
         has = other[rows, first]
@@ -121,9 +127,7 @@ def anchor_match(
     from scipy.spatial import cKDTree
 
     reach = float(np.hypot(first[:, 0], first[:, 1]).max()) + 1000.0 if len(first) else 0.0
-    near = (np.abs(others.owner_path - others.at) > _OWN_PASS) & (
-        np.hypot(tgt[:, 0] - pose[0], tgt[:, 1] - pose[1]) < reach
-    )
+    near = others.of_other_passes() & (np.hypot(tgt[:, 0] - pose[0], tgt[:, 1] - pose[1]) < reach)
     if np.count_nonzero(near) < _ANCHOR_PLANE_POINTS:
         return None
     planes, normals = local_planes(tgt[near], tn[near], _ANCHOR_PLANE_POINTS)
