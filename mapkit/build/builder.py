@@ -3,6 +3,7 @@ grid of hits, with its :class:`BuildResult` report."""
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field
 from typing import Any
@@ -12,6 +13,7 @@ import numpy as np
 from mapkit._typing import PathLike
 from mapkit.build._common import FloatArray, Progress, _deg, _rad
 from mapkit.build._goals import _goals, _obj_pose
+from mapkit.build._lag import Lag, measure as measure_lag, taken_from, velocities
 from mapkit.build._lines import extract_lines
 from mapkit.build._mapping import pass_counts
 from mapkit.build._match import scan_normals_many
@@ -57,6 +59,11 @@ class BuildResult:
             self.poses[:, 0] - self.odometry[:, 0], self.poses[:, 1] - self.odometry[:, 1]
         )
         return d
+
+
+def _ms(seconds: float) -> float | None:
+    """Seconds as milliseconds for the summary (None: not measured)."""
+    return round(seconds * 1000.0, 1) if math.isfinite(seconds) else None
 
 
 def _scan_arrays(
@@ -235,8 +242,15 @@ def build_map(
         "corrections_deg": [],
     }
     t1 = time.perf_counter()
+    lag = Lag(0.0, math.nan, math.nan, 0)
+    taken = odo  # the poses the sweeps were taken from (odo, unless they lag behind it)
+    vel = velocities(scans) if register else None
+    if vel is not None:
+        lag = measure_lag(odo, vel, pts)
+        taken = taken_from(odo, vel, lag.seconds)
+        est = taken.copy()
     if register and n > 1:
-        est = _register(scans, odo, pts, log, issues, stats, loop_closure, progress)
+        est = _register(scans, taken, pts, log, issues, stats, loop_closure, progress)
     elif progress:
         progress(n, n)
     t_reg = time.perf_counter() - t1
@@ -261,7 +275,7 @@ def build_map(
     )
     t_map = time.perf_counter() - t2
     objects = [MapObject("RobotHome", *_obj_pose(est[0]), name="Home")]
-    objects.extend(_goals(log, scans, odo, est, pose_source, merge_goals))
+    objects.extend(_goals(log, scans, taken, est, pose_source, merge_goals))
     scan = Scan.from_arrays(
         points, np.rint(segs).astype(np.int64), resolution=resolution, sort=True
     )
@@ -288,6 +302,10 @@ def build_map(
             "odometry_noise_scale": stats.get("odometry_scale"),
             "odometry_calibration": stats.get("calibration"),
             "refined": stats.get("refined", 0),
+            "scan_lag_ms": _ms(lag.seconds),
+            "scan_lag_fitted_ms": _ms(lag.fitted),
+            "scan_lag_error_ms": _ms(lag.error),
+            "scan_lag_pairs": lag.pairs,
         },
         "loops": {
             "tags": stats["tag_loops"],

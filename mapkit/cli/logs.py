@@ -155,6 +155,13 @@ def _check_output(path: str, force: bool) -> None:
     help="Extra turn odometry reports while turning on the spot (fraction).",
 )
 @click.option(
+    "--scan-lag",
+    type=click.FloatRange(-1.0, 1.0),
+    default=0.0,
+    show_default=True,
+    help="How much older (s) each sweep is than the pose logged with it (negative: newer).",
+)
+@click.option(
     "--outliers",
     type=click.FloatRange(0, 0.9),
     default=0.0,
@@ -195,6 +202,7 @@ def simulate(
     goal_names: str,
     scale_error: float,
     turn_slip: float,
+    scan_lag: float,
     outliers: float,
     people: int,
     seed: int,
@@ -248,6 +256,7 @@ def simulate(
         goal_names=goal_names,
         scale_error=scale_error,
         turn_slip=turn_slip,
+        scan_lag=scan_lag,
         outliers=outliers,
         people=people,
         seed=seed,
@@ -427,6 +436,13 @@ def build(
             f"odometry alone, median residual {reg['median_residual_mm']} mm"
             + (f"; {reg['refined']} refined against the other passes" if reg.get("refined") else "")
         )
+        if reg.get("scan_lag_ms"):
+            click.echo(
+                f"  scan lag: the sweeps are {abs(reg['scan_lag_ms'])} ms "
+                f"{'older' if reg['scan_lag_ms'] > 0 else 'newer'} than the poses logged "
+                f"with them (from {plural(reg['scan_lag_pairs'], 'change')} of turn rate); "
+                "each was placed where the robot was then"
+            )
         click.echo(
             f"  loops: {plural(loops['tags'], 'loop tag')} ({loops['tags_matched']} matched), "
             f"{plural(loops['revisits'], 'revisit')} closed, "

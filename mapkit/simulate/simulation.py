@@ -3,6 +3,7 @@ noise and odometry drift."""
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Sequence
 
@@ -85,6 +86,22 @@ class _Crowd:
         return np.concatenate(out)
 
 
+def _back(
+    recent: list[tuple[float, FloatArray, FloatArray, tuple[float, float]]], at: float, which: int
+) -> FloatArray:
+    """The true pose (``which`` 1) or the odometry (2) at time ``at``, interpolated between the
+    recent steps (the first one's before them)."""
+    for (t0, *a), (t1, *b) in itertools.pairwise(recent):
+        if t0 <= at <= t1:
+            p, q = np.asarray(a[which - 1]), np.asarray(b[which - 1])
+            f = (at - t0) / (t1 - t0) if t1 > t0 else 1.0
+            turn = (q[2] - p[2] + 180.0) % 360.0 - 180.0
+            return np.array([p[0] + f * (q[0] - p[0]), p[1] + f * (q[1] - p[1]), p[2] + f * turn])
+    return np.asarray(
+        recent[0][which] if at < recent[0][0] else recent[-1][which], dtype=np.float64
+    )
+
+
 def _map_home(m: MapData) -> tuple[float, float, float] | None:
     for kind in ("RobotHome", "Dock"):
         for o in m.objects:
@@ -121,6 +138,7 @@ def simulate_log(
     turn_slip: float = 0.0,
     outliers: float = 0.0,
     people: int = 0,
+    scan_lag: float = 0.0,
     seed: int = 0,
 ) -> SimulatedLog:
     """Drive a simulated robot through ``m`` and record a ``.2d`` log with drifting odometry.
@@ -161,6 +179,10 @@ def simulate_log(
             (dust, reflections, a leg in the beam).
         people: Moving people: each walks back and forth between two free places of the map at
             walking pace and blocks the laser as a 400 mm wide body.
+        scan_lag: How much older (s) each sweep is than the pose and velocities logged with it:
+            ARIA stamps a simulated laser's sweep with the robot's pose when its packet arrives,
+            and a real laser's with a latency it is told. Negative: the sweep is newer. The
+            truth is the pose the sweep was taken from.
         seed: Random seed (the same seed gives the same log).
 
     Returns:
@@ -176,6 +198,8 @@ def simulate_log(
         raise ValueError("steps, speeds and laps must be positive")
     if odometry_origin not in ("start", "zero"):
         raise ValueError("odometry_origin is 'start' or 'zero'")
+    if not abs(scan_lag) <= 1.0:
+        raise ValueError("scan_lag is a time in seconds, at most 1 either way")
     if not 0 <= outliers < 1 or people < 0 or abs(scale_error) >= 0.5 or abs(turn_slip) >= 0.5:
         raise ValueError(
             "outliers is a fraction in [0, 1); people >= 0; scale_error and "
@@ -249,9 +273,19 @@ def simulate_log(
     where = (home[0], home[1])
     heading = home[2]
 
+    # (time, true pose, odometry, velocities) of the last steps: what a lagging sweep saw.
+    recent: list[tuple[float, FloatArray, FloatArray, tuple[float, float]]] = []
+
     def log_scan() -> None:
         nonlocal scan_id, last_logged
-        lp = compose(true, laser.pose)
+        seen, logged = true, odo
+        vel = (speed if moving else 0.0, turn_now)
+        if scan_lag > 0:
+            seen = _back(recent, t - scan_lag, 1)
+        elif scan_lag < 0:
+            logged = _back(recent, t + scan_lag, 2)
+            vel = next((v for tv, _, _, v in recent if tv >= t + scan_lag), vel)
+        lp = compose(seen, laser.pose)
         r = ray_cast(lp, angles, segments, points, max_range=max_range, point_size=point_size)
         if crowd is not None:
             body = crowd.bodies(t)
@@ -271,7 +305,7 @@ def simulate_log(
         xy = np.stack([rn * np.cos(a), rn * np.sin(a)], axis=1)
         xy[~hit] = 0.0
         xy = np.rint(xy)
-        pose = Pose2D(round(float(odo[0])), round(float(odo[1])), round(float(odo[2]), 2))
+        pose = Pose2D(round(float(logged[0])), round(float(logged[1])), round(float(logged[2]), 2))
         records.append(
             LaserScan(
                 scan_id=scan_id,
@@ -279,12 +313,12 @@ def simulate_log(
                 robot=pose,
                 robot_global=pose,
                 time=round(t, 3),
-                velocities=(round(speed if moving else 0.0, 2), round(turn_now, 2), 0.0),
+                velocities=(round(vel[0], 2), round(vel[1], 2), 0.0),
                 xy=xy,
                 ranges=np.where(hit, np.rint(rn), NO_RETURN) if raw_ranges else None,
             )
         )
-        truth.append(true.copy())
+        truth.append(np.array(seen, dtype=np.float64))
         truth_ids.append(scan_id)
         truth_times.append(round(t, 3))
         scan_id += 1
@@ -298,6 +332,7 @@ def simulate_log(
 
     moving = False
     turn_now = 0.0
+    recent.append((t, true.copy(), odo.copy(), (0.0, 0.0)))
     log_scan()
     if loop:
         event(loop_event("start", "1", odo_pose(), time=round(t, 3), robot_global=odo_pose()))
@@ -330,6 +365,10 @@ def simulate_log(
             prev = nxt
             distance += d
             t += dt
+            if scan_lag:
+                recent.append((t, true.copy(), odo.copy(), (speed if moving else 0.0, turn_now)))
+                while len(recent) > 2 and recent[1][0] < t - abs(scan_lag) - dt:
+                    recent.pop(0)
             assert last_logged is not None
             moved = relative(last_logged, odo)
             if math.hypot(moved[0], moved[1]) > dist_step or abs(moved[2]) > deg_step:
@@ -355,6 +394,8 @@ def simulate_log(
         elif name is not None:
             goal_no += 1
             t += 0.5
+            if scan_lag:
+                recent.append((t, true.copy(), odo.copy(), (0.0, 0.0)))
             event(
                 goal_event(
                     name or f"goal{goal_no}", odo_pose(), time=round(t, 3), robot_global=odo_pose()
@@ -385,5 +426,6 @@ def simulate_log(
             "turn_slip": turn_slip,
             "outliers": outliers,
             "people": people,
+            "scan_lag": scan_lag,
         },
     )

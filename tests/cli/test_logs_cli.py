@@ -208,3 +208,17 @@ def test_read_poses_names_the_bad_line(tmp_path) -> None:
     bad.write_text("scanId\tx\ty\tth\todo_x\todo_y\todo_th\n0 1 2 3 4 5 6\n1 1 2 x 4 5 6\n")
     with pytest.raises(MapkitError, match=r"p\.tsv:3: expected"):
         read_poses(bad)
+
+
+def test_a_lagging_laser_is_simulated_and_its_lag_measured(runner, tmp_path) -> None:
+    log = _room_log(
+        runner, tmp_path, "--scan-lag", "-0.04", "--trans-error", "0.001", "--rot-error", "0.001"
+    )
+    out = tmp_path / "built.map"
+    res = runner.invoke(cli, ["build", str(log), "-o", str(out), "--no-lines", "--json"])
+    assert res.exit_code == 0, res.output
+    reg = json.loads(res.output)["registration"]
+    assert abs(reg["scan_lag_ms"] + 40.0) < 4.0, reg
+    res = runner.invoke(cli, ["build", str(log), "-o", str(out), "--no-lines", "--force"])
+    assert res.exit_code == 0, res.output
+    assert "ms newer than the poses logged with them" in res.output

@@ -135,3 +135,39 @@ def test_waypoints_and_zero_origin() -> None:
     assert sim.log.scans[0].robot == (0.0, 0.0, 0.0)
     assert [e.name for e in sim.log.events] == ["goal1", "goal2"]
     assert math.hypot(*(sim.truth[0, :2] - [2000, 2500])) < 1.0  # starts at RobotHome
+
+
+@pytest.mark.parametrize("lag", [0.05, -0.05])
+def test_a_lagging_sweep_is_seen_from_where_the_robot_was(lag: float) -> None:
+    """With ``scan_lag`` the sweep is taken ``lag`` seconds before the pose and velocities
+    logged with it (after, when negative), and the truth is where it was taken from: while the
+    robot turns on the spot, the logged heading is the true one plus the turn rate times the
+    lag; the hits lie on the walls seen from the truth."""
+    m = room_map()
+    sim = simulate_log(
+        m, seed=1, translation_error=0, rotation_error=0, drift=0, range_noise=0, scan_lag=lag
+    )
+    laser = sim.log.header.laser(1)
+    logged = sim.log.poses()
+    spins = 0
+    for scan, pose, true in zip(sim.log.scans, logged, sim.truth, strict=True):
+        assert scan.velocities is not None
+        vel, rate = scan.velocities[:2]
+        p = scan.global_points(laser, pose=true)
+        d = np.min(
+            np.stack(
+                [np.abs(p[:, 0]), np.abs(p[:, 0] - 8000), np.abs(p[:, 1]), np.abs(p[:, 1] - 5000)]
+            ),
+            axis=0,
+        )
+        assert d.max() < 2.0
+        if vel == 0 and rate != 0:  # turning on the spot, at the same rate a lag before
+            spins += 1
+            ahead = (pose[2] - true[2] + 180.0) % 360.0 - 180.0
+            assert ahead == pytest.approx(rate * lag, abs=0.02)
+    assert spins >= 3
+    if lag > 0:  # the same robot logs the same poses; only its sweeps are older
+        plain = simulate_log(m, seed=1, translation_error=0, rotation_error=0, drift=0)
+        assert np.allclose(plain.log.poses(), logged, atol=1e-9)
+    with pytest.raises(ValueError, match="scan_lag"):
+        simulate_log(m, scan_lag=2.0)

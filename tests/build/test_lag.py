@@ -1,0 +1,109 @@
+"""The sweeps' lag behind the poses logged with them: measured from the turns, taken out."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+
+from mapkit.build import build_map
+from mapkit.build._lag import _robust_fit, measure, taken_from, velocities
+from mapkit.build.builder import _scan_arrays
+from mapkit.formats.laser2d import read_log, write_log
+from tests.build.test_accuracy import tour
+
+poses = st.tuples(st.floats(-1e5, 1e5), st.floats(-1e5, 1e5), st.floats(-math.pi, math.pi - 1e-9))
+motions = st.tuples(st.floats(-1000.0, 1000.0), st.floats(-3.0, 3.0))
+
+
+@given(st.lists(st.tuples(poses, motions), min_size=1, max_size=20), st.floats(-0.5, 0.5))
+def test_taken_from_moves_back_along_the_motion_and_forward_again(rows, lag: float) -> None:
+    odo = np.array([p for p, _ in rows], dtype=np.float64)
+    vel = np.array([v for _, v in rows], dtype=np.float64)
+    back = taken_from(odo, vel, lag)
+    # Moved by the distance driven and the turn made in the lag...
+    moved = np.hypot(*(back[:, :2] - odo[:, :2]).T)
+    assert np.allclose(moved, np.abs(lag * vel[:, 0]), atol=1e-6)
+    turn = (back[:, 2] - odo[:, 2] + math.pi) % (2 * math.pi) - math.pi
+    assert np.allclose(turn, (-lag * vel[:, 1] + math.pi) % (2 * math.pi) - math.pi, atol=1e-9)
+    # ... and back again by the opposite lag.
+    again = taken_from(back, vel, -lag)
+    assert np.allclose(again[:, :2], odo[:, :2], atol=1e-6)
+    assert np.allclose(np.cos(again[:, 2] - odo[:, 2]), 1.0)
+
+
+@settings(max_examples=50)
+@given(st.floats(-0.2, 0.2), st.floats(-0.03, 0.03), st.integers(0, 2**31 - 1))
+def test_the_fit_finds_the_lag_among_outliers(lag: float, scale: float, seed: int) -> None:
+    """Heading differences of turn scale times the turn minus lag times the change of turn
+    rate, with 0.1 degree of noise and a tenth of the matches wild: the fit finds the lag."""
+    rng = np.random.default_rng(seed)
+    n = 60
+    turn = rng.uniform(-0.5, 0.5, n)
+    change = rng.choice([-1.0, 1.0], n) * rng.uniform(0.2, 0.8, n)
+    a = np.column_stack([turn, -change])
+    e = a @ [scale, lag] + rng.normal(0.0, math.radians(0.1), n)
+    wild = rng.random(n) < 0.1
+    e[wild] += rng.uniform(-0.2, 0.2, wild.sum())
+    fitted, error = _robust_fit(a, e)
+    assert abs(fitted - lag) < max(5.0 * error, 1e-3), (fitted, lag, error)
+    assert error < 0.005
+
+
+@pytest.mark.parametrize("lag", [-0.06, 0.03, 0.08])
+def test_a_lag_is_measured_from_the_turns(lag: float) -> None:
+    sim = tour(3, scan_lag=lag, readings=181, translation_error=0.002, rotation_error=0.002)
+    scans, odo, pts = _scan_arrays(sim.log, "robot", 16000.0)
+    vel = velocities(scans)
+    assert vel is not None
+    found = measure(odo, vel, pts)
+    assert found.seconds == found.fitted
+    assert found.fitted == pytest.approx(lag, abs=0.004), found
+    assert found.pairs >= 8
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_no_lag_is_taken_where_there_is_none(seed: int) -> None:
+    """Odometry that slips in its turns (the slip shows in the same steps as a lag would)."""
+    sim = tour(seed, readings=181, turn_slip=0.03, rotation_error=0.01)
+    scans, odo, pts = _scan_arrays(sim.log, "robot", 16000.0)
+    vel = velocities(scans)
+    assert vel is not None
+    found = measure(odo, vel, pts)
+    assert found.seconds == 0.0
+    assert abs(found.fitted) < 0.004, found
+
+
+def test_the_build_places_the_sweeps_where_they_were_taken(tmp_path) -> None:
+    """Through a file: the velocities logged with each scan carry the motion."""
+    sim = tour(4, scan_lag=0.05, translation_error=0.001, rotation_error=0.001, drift=0.0)
+    path = tmp_path / "lag.2d"
+    write_log(sim.log, path)
+    res = build_map(read_log(path), lines=False)
+    reg = res.summary["registration"]
+    assert reg["scan_lag_ms"] == pytest.approx(50.0, abs=4.0), reg
+    truth = sim.truth[np.searchsorted(sim.truth_ids, res.scan_ids)]
+    turned = (np.asarray(res.poses)[:, 2] - truth[:, 2] + 180.0) % 360.0 - 180.0
+    # While turning, each sweep is 2 degrees (40 deg/s for 50 ms) off its logged heading.
+    assert np.percentile(np.abs(turned), 95) < 0.3, np.percentile(np.abs(turned), 95)
+
+
+def test_a_log_without_velocities_is_built_as_logged() -> None:
+    sim = tour(5, readings=181)
+    scans, _, _ = _scan_arrays(sim.log, "robot", 16000.0)
+    assert velocities(scans) is not None
+    import dataclasses
+
+    from mapkit.model.scan import LaserLog, LaserScan
+
+    bare = LaserLog(
+        header=sim.log.header,
+        records=tuple(
+            dataclasses.replace(r, velocities=None) if isinstance(r, LaserScan) else r
+            for r in sim.log.records
+        ),
+    )
+    reg = build_map(bare, lines=False).summary["registration"]
+    assert reg["scan_lag_ms"] == 0.0 and reg["scan_lag_fitted_ms"] is None
