@@ -353,8 +353,8 @@ def test_sweeps_older_than_their_poses_are_placed_where_they_were_taken(
     every sweep 40 ms older than the pose logged with it, as ARIA stamps a simulated laser's
     sweep. While turning (40 deg/s) each sweep is turned 1.6 degrees against its pose, and the
     steps into and out of every turn disagreed with the odometry by that much: 76.4 mm RMS where
-    odometry is 21.5 (and the map made from it, at the floor). The lag is measured from those
-    steps and each sweep placed where the robot was: 4.6 mm."""
+    odometry is 21.5. The lag is measured from those steps and each sweep placed where the robot
+    was: 4.6 mm."""
     import mapkit.build.builder as builder_module
     from mapkit.build._lag import Lag
 
