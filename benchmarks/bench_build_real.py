@@ -116,6 +116,9 @@ ODOMETRIES: dict[str, dict[str, Any]] = {
 # simulated laser's sweep with the pose of when its packet arrived): while turning, every sweep
 # is turned 1.6 degrees against its pose.
 ODOMETRIES["lag"] = {**ODOMETRIES["good181"], "scan_lag": 0.04}
+# The same lag, varying from sweep to sweep by up to 40 ms either way (packets that arrive early
+# or late in the robot's cycle): each sweep is off its pose by a part of its own.
+ODOMETRIES["jitter"] = {**ODOMETRIES["lag"], "scan_lag_jitter": 0.04}
 
 
 def draws(seeds: int, only: list[str] | None, first_seed: int = 1) -> list[tuple[str, str, int]]:

@@ -39,6 +39,16 @@ def between(a: FloatArray, b: FloatArray) -> FloatArray:
     return np.stack([c * dx + s * dy, -s * dx + c * dy, wrap(b[..., 2] - a[..., 2])], axis=-1)
 
 
+def then(a: FloatArray, b: FloatArray) -> FloatArray:
+    """The pose ``b`` (in ``a``'s frame) moved to the world: ``a`` followed by ``b`` (radians);
+    :func:`between`'s inverse."""
+    c, s = math.cos(a[2]), math.sin(a[2])
+    return np.array(
+        [a[0] + c * b[0] - s * b[1], a[1] + s * b[0] + c * b[1], wrap(a[2] + b[2])],
+        dtype=np.float64,
+    )
+
+
 #: Rounds of the consistency check (each switches off the worst edges and optimises again).
 _REJECT_ROUNDS = 4
 

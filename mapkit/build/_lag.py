@@ -14,12 +14,21 @@ hundredths, and the map is bent at every turn (a 50 ms lag at 40 deg/s: 2 degree
 scan, from the odometry's guess) and fits the lag (and the odometry's turn scale, which also
 shows in those steps) to the heading differences by robust least squares; :func:`taken_from`
 moves each pose back along the robot's motion (the ``velocities:`` logged with it) by the lag.
+
+The lag need not be the same for every sweep (a packet arrives early or late in the robot's
+cycle). Its spread shows in the same steps: they disagree more than the matches of calm steps
+(straight drives and stops, where no lag shows) by the turn rates times each sweep's own part.
+When :func:`measure` finds one, each sweep is taken as off its pose by its speed and turn rate
+times that spread (:func:`sweep_variance`), and odometry is not chained through such sweeps: it
+is taken from the last calm sweep to each of them and across them to the next calm one
+(:func:`bases`), where it is as good as the robot's.
 """
 
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
+from collections.abc import Iterator
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -47,6 +56,18 @@ _NEGLIGIBLE = math.radians(0.1)
 #: Largest lag taken (seconds).
 _LARGEST = 0.5
 
+#: Most calm pairs matched (straight drives and stops: the matches' own noise).
+_MAX_CALM = 100
+
+#: Least spread of the lag taken (s), and least it must turn a sweep by at the log's turn rate
+#: (radians). Logs without one fit up to 6 ms, a robot slipping 2-5 % in its turns up to 10 ms
+#: (its turns' own errors look alike), and taken there it costs.
+_JITTER_LEAST = 0.012
+_JITTER_NEGLIGIBLE = math.radians(0.4)
+
+#: The median of chi-square with one degree of freedom.
+_CHI2_1_MEDIAN = 0.4549
+
 #: Scans further apart than this (mm, radians) are not matched directly.
 _NEAR = (1000.0, math.radians(45.0))
 
@@ -61,6 +82,10 @@ class Lag(NamedTuple):
     error: float
     #: Pairs of scans that it was measured from.
     pairs: int
+    #: How much the lag varies from sweep to sweep (s, a standard deviation): the spread taken
+    #: (0.0 when none was) and the fitted one (nan: not measured).
+    jitter: float = 0.0
+    jitter_fitted: float = math.nan
 
 
 def velocities(scans: list[LaserScan]) -> FloatArray | None:
@@ -79,8 +104,6 @@ def measure(odo: FloatArray, vel: FloatArray, pts: list[FloatArray]) -> Lag:
     """The lag of the sweeps behind the poses ``odo`` (``(N, 3)``, radians) logged with
     velocities ``vel`` (:func:`velocities`), from the scans' points ``pts`` (robot frame, in
     beam order)."""
-    from scipy.spatial import cKDTree
-
     if len(odo) < 2:
         return Lag(0.0, math.nan, math.nan, 0)
     change = np.diff(vel[:, 1])
@@ -91,8 +114,51 @@ def measure(odo: FloatArray, vel: FloatArray, pts: list[FloatArray]) -> Lag:
         return Lag(0.0, math.nan, math.nan, len(cand))
     if len(cand) > _MAX_PAIRS:
         cand = cand[np.linspace(0, len(cand) - 1, _MAX_PAIRS).round().astype(int)]
-    rows, seen = [], []
-    for k in cand:
+    rows, seen, rates = [], [], []
+    for k, turn in _matched(pts, cand, rel):
+        rows.append((rel[k][2], -change[k]))
+        seen.append(turn)
+        rates.append(vel[k, 1] ** 2 + vel[k + 1, 1] ** 2)
+    if len(rows) < _MIN_PAIRS:
+        return Lag(0.0, math.nan, math.nan, len(rows))
+    a = np.array(rows)
+    e = np.array(seen)
+    coef, error, res = _robust_fit(a, e)
+    lag = float(coef[1])
+    turning = np.abs(vel[:, 1][vel[:, 1] != 0.0])
+    rate = float(np.percentile(turning, 90)) if len(turning) else 0.0
+    taken = (
+        abs(lag) > _SIGNIFICANT * error and abs(lag) * rate > _NEGLIGIBLE and abs(lag) <= _LARGEST
+    )
+    # How much the lag varies: the steps into and out of turns disagree more than the calm
+    # steps' matches do (a straight drive's or a stop's, where no lag shows) by the turn rates
+    # times the sweeps' own parts of the lag.
+    calm = np.flatnonzero((vel[:-1, 1] == 0.0) & (vel[1:, 1] == 0.0) & near)
+    if len(calm) > _MAX_CALM:
+        calm = calm[np.linspace(0, len(calm) - 1, _MAX_CALM).round().astype(int)]
+    quiet = np.array([turn - coef[0] * rel[k][2] for k, turn in _matched(pts, calm, rel)])
+    jitter = math.nan
+    if len(quiet) >= _MIN_PAIRS:
+        jitter = _spread(res, np.array(rates), 1.4826 * float(np.median(np.abs(quiet))))
+    vary = jitter > _JITTER_LEAST and jitter * rate > _JITTER_NEGLIGIBLE
+    return Lag(
+        lag if taken else 0.0,
+        lag,
+        error,
+        len(rows),
+        min(jitter, _LARGEST) if vary else 0.0,
+        jitter,
+    )
+
+
+def _matched(
+    pts: list[FloatArray], pairs: np.ndarray[Any, Any], rel: FloatArray
+) -> Iterator[tuple[int, float]]:
+    """Each pair ``k`` (scan ``k`` and ``k + 1``) of ``pairs`` that matches well, and how much
+    more the match turns than the odometry (``rel``: the odometry's steps)."""
+    from scipy.spatial import cKDTree
+
+    for k in pairs:
         nrm = scan_normals(pts[k])
         good = np.isfinite(nrm[:, 0])
         if good.sum() < 20:
@@ -102,26 +168,32 @@ def measure(odo: FloatArray, vel: FloatArray, pts: list[FloatArray]) -> Lag:
         r = icp(
             src, cKDTree(tgt), tgt, nrm[good], rel[k], schedule=(150.0, 60.0, 30.0), cauchy=_CAUCHY
         )
-        if not (r.ok and r.inliers > 0.3 and r.rms < 30.0):
-            continue
-        rows.append((rel[k][2], -change[k]))
-        seen.append(wrap(r.pose[2] - rel[k][2]))
-    if len(rows) < _MIN_PAIRS:
-        return Lag(0.0, math.nan, math.nan, len(rows))
-    a = np.array(rows)
-    e = np.array(seen)
-    lag, error = _robust_fit(a, e)
-    turning = np.abs(vel[:, 1][vel[:, 1] != 0.0])
-    rate = float(np.percentile(turning, 90)) if len(turning) else 0.0
-    taken = (
-        abs(lag) > _SIGNIFICANT * error and abs(lag) * rate > _NEGLIGIBLE and abs(lag) <= _LARGEST
-    )
-    return Lag(lag if taken else 0.0, lag, error, len(rows))
+        if r.ok and r.inliers > 0.3 and r.rms < 30.0:
+            yield int(k), float(wrap(r.pose[2] - rel[k][2]))
 
 
-def _robust_fit(a: FloatArray, e: FloatArray) -> tuple[float, float]:
-    """The lag (the second column's coefficient) of ``e ~ a @ (scale, lag)`` fitted with Cauchy
-    weights (scale from the residuals' median absolute deviation), and its standard error."""
+def _spread(res: FloatArray, rates: FloatArray, calm: float) -> float:
+    """The spread (s, a standard deviation) of the sweeps' lags that makes the residuals ``res``
+    of the steps into and out of turns (``rates``: the sum of both sweeps' squared turn rates)
+    as large as chance gives beside the calm steps' noise ``calm`` (radians): the median of
+    ``res ** 2 / (calm ** 2 + rates * spread ** 2)`` is chi-square's with one degree of freedom."""
+
+    def excess(spread: float) -> float:
+        return float(np.median(res**2 / (calm**2 + rates * spread**2))) - _CHI2_1_MEDIAN
+
+    if not calm > 0.0 or excess(0.0) <= 0.0:
+        return 0.0
+    lo, hi = 0.0, _LARGEST
+    for _ in range(40):
+        mid = (lo + hi) / 2.0
+        lo, hi = (mid, hi) if excess(mid) > 0.0 else (lo, mid)
+    return (lo + hi) / 2.0
+
+
+def _robust_fit(a: FloatArray, e: FloatArray) -> tuple[FloatArray, float, FloatArray]:
+    """The coefficients ``(scale, lag)`` of ``e ~ a @ (scale, lag)`` fitted with Cauchy weights
+    (scale from the residuals' median absolute deviation), the lag's standard error and the
+    residuals."""
     w: FloatArray = np.ones(len(e))
     coef: FloatArray = np.zeros(2)
     sigma = 1.0
@@ -132,7 +204,7 @@ def _robust_fit(a: FloatArray, e: FloatArray) -> tuple[float, float]:
         sigma = max(1.4826 * float(np.median(np.abs(res))), math.radians(0.01))
         w = np.asarray(1.0 / (1.0 + (res / (2.385 * sigma)) ** 2), dtype=np.float64)
     cov = sigma**2 * np.linalg.pinv((a * w[:, None]).T @ a)
-    return float(coef[1]), float(math.sqrt(max(cov[1, 1], 0.0)))
+    return coef, float(math.sqrt(max(cov[1, 1], 0.0))), e - a @ coef
 
 
 def taken_from(odo: FloatArray, vel: FloatArray, lag: float) -> FloatArray:
@@ -147,4 +219,43 @@ def taken_from(odo: FloatArray, vel: FloatArray, lag: float) -> FloatArray:
     out[:, 0] += dist * np.cos(mid)
     out[:, 1] += dist * np.sin(mid)
     out[:, 2] = wrap(odo[:, 2] + turn)
+    return out
+
+
+def sweep_variance(vel: FloatArray, jitter: float) -> FloatArray:
+    """The ``(N, 3)`` variances (forward, sideways, heading) of each sweep about the pose it
+    is logged with when its lag varies by ``jitter`` seconds (a standard deviation) from the
+    lag taken: a sweep is off by its speed and its turn rate times its own part of the lag."""
+    per = np.zeros((len(vel), 3))
+    per[:, 0] = (vel[:, 0] * jitter) ** 2
+    per[:, 2] = (vel[:, 1] * jitter) ** 2
+    return per
+
+
+def step_variance(per: FloatArray) -> FloatArray:
+    """The ``(N - 1, 3)`` variances each step between neighbouring sweeps gets from both ends'
+    (``per``, :func:`sweep_variance`)."""
+    out: FloatArray = per[:-1] + per[1:]
+    return out
+
+
+#: A sweep turned less than this (radians, a standard deviation) by its own part of the lag
+#: is calm: odometry is taken from it.
+_CALM = math.radians(0.05)
+
+
+def bases(per: FloatArray | None, n: int) -> np.ndarray[Any, np.dtype[np.int64]]:
+    """For each scan ``i >= 1``, the scan its odometry is taken from: the last calm one before it
+    (see ``_CALM``; ``per`` from :func:`sweep_variance`, None: every sweep is calm, and each
+    scan's is the one before). Sweeps each off their pose by a part of their own are not
+    chained: the odometry from a calm sweep to each of them, and across them to the next calm
+    one, is as good as the robot's."""
+    out = np.arange(-1, n - 1, dtype=np.int64)
+    if per is None:
+        return out
+    last = 0
+    for i in range(1, n):
+        out[i] = last
+        if per[i, 2] < _CALM**2:
+            last = i
     return out

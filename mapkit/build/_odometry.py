@@ -154,9 +154,21 @@ class _OdometryModel:
         if self._d:
             self._fit()
 
-    def observe(self, d: FloatArray, scan_info: FloatArray, trans: float, turn: float) -> None:
+    def observe(
+        self,
+        d: FloatArray,
+        scan_info: FloatArray,
+        trans: float,
+        turn: float,
+        extra: FloatArray | None = None,
+    ) -> None:
+        """One step's disagreement ``d`` of its scan match (information ``scan_info``) with the
+        odometry over ``trans`` and ``turn``; ``extra``: further variances of the step (x, y,
+        heading) known besides the model's, counted with the match's."""
         self._d.append(d.copy())
         cov: FloatArray = np.linalg.inv(scan_info + _EPS).astype(np.float64)
+        if extra is not None and extra.any():
+            cov = cov + np.diag(extra)
         self._scan_cov.append(cov)
         self._odo_var.append(self.variances(trans, turn))
         s_turn = self.parts(trans, turn)[2]

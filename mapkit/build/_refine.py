@@ -144,6 +144,9 @@ def refine(
     first: FloatArray | None = None,
     rounds: int = 1,
     odometry: tuple[FloatArray, FloatArray] | None = None,
+    odometry_from: np.ndarray[Any, Any] | None = None,
+    anchor_turn: float | None = None,
+    unsure: FloatArray | None = None,
 ) -> Refined:
     """The poses after ``rounds`` of matching every scan against the other passes' scans.
 
@@ -155,6 +158,10 @@ def refine(
     ``(N - 1, 3, 3)`` information. The neighbours are held by them too: where odometry is
     better than a scan's match (a simulator's, a well-kept robot's), the matches' noise does
     not bend the chain.
+
+    ``odometry_from``: the ``(N - 1,)`` scans the odometry steps start from (default: the scan
+    before each; sweeps each off their pose by a part of their own are not chained, see
+    :func:`mapkit.build._lag.bases`).
 
     With ``odometry``, a heading drift the calibration missed is looked for too (see
     :func:`_drift_left`) and taken out of the odometry's steps when the matches show one.
@@ -208,7 +215,7 @@ def refine(
                 continue
             if math.hypot(*(r.pose[:2] - x[i, :2])) > 150.0:
                 continue
-            if i == 0 and abs(wrap(r.pose[2] - x[0, 2])) > _ANCHOR_TURN:
+            if i == 0 and abs(wrap(r.pose[2] - x[0, 2])) > (anchor_turn or _ANCHOR_TURN):
                 continue  # the first scan and the map disagree: one of them is wrong
             info = r.info(sigma=_MATCH_SIGMA, points=_MATCH_POINTS) * share[i]
             # The scan's place in the map (whose frame is that of x, node 0's estimate).
@@ -226,11 +233,17 @@ def refine(
             """The round's pose graph, with ``drift`` taken out of the odometry's steps."""
             g = PoseGraph()
             for i in range(1, n):
-                g.add(i - 1, i, steps[i - 1], step_info)
+                g.add(
+                    i - 1,
+                    i,
+                    steps[i - 1],
+                    step_info if unsure is None else _plus(step_info, unsure[i - 1]),
+                )
                 if odometry is not None:
                     step = odometry[0][i - 1].copy()
                     step[2] += drift * lengths[i - 1]
-                    g.add(i - 1, i, step, odometry[1][i - 1])
+                    a = i - 1 if odometry_from is None else int(odometry_from[i - 1])
+                    g.add(a, i, step, odometry[1][i - 1])
             for i, z, info in found:
                 g.add(frame, i, z, info, robust=True)
             return g
@@ -244,6 +257,13 @@ def refine(
                 solved = graph(drift).optimize(start, iterations=5)
         x = solved[:n]
     return Refined(x, matched, drift)
+
+
+def _plus(info: FloatArray, var: FloatArray) -> FloatArray:
+    """The diagonal information ``info`` with the variances ``var`` added to its own."""
+    if not var.any():
+        return info
+    return np.diag(1.0 / (1.0 / np.diag(info) + var))
 
 
 def _drift_left(graph: Callable[[float], PoseGraph], start: FloatArray) -> tuple[float, FloatArray]:

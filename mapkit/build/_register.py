@@ -11,7 +11,8 @@ import numpy as np
 
 from mapkit.build._calibrate import CalibrationFeed
 from mapkit.build._common import FloatArray, Progress, _Submap
-from mapkit.build._graph import PoseGraph, between, sigma_info, wrap
+from mapkit.build._graph import PoseGraph, between, sigma_info, then, wrap
+from mapkit.build._lag import bases, step_variance
 from mapkit.build._loops import (
     _CAUCHY,
     _close,
@@ -37,13 +38,20 @@ def _register(
     stats: dict[str, Any],
     loop_closure: bool,
     progress: Progress | None,
+    unsure: FloatArray | None = None,
 ) -> FloatArray:
     """The front end (scan-to-local-map ICP) with loop closures and pose-graph optimisation.
 
     The odometry's worth is learnt from the first scans (a warm-up pass over them) so that the
     first metres are not registered with a guess of it.
+
+    ``unsure``: the ``(N, 3)`` variances (forward, sideways, heading) of each sweep about its
+    pose that the odometry's model does not know of (sweeps whose lag varies,
+    :func:`mapkit.build._lag.sweep_variance`); None: none.
     """
     n = len(scans)
+    per = np.zeros((n, 3)) if unsure is None else unsure
+    base = bases(unsure, n)
     model = _OdometryModel()
     warm_up = min(_WARM_UP, n // 2)
     if warm_up >= 20:
@@ -68,6 +76,7 @@ def _register(
                 False,
                 None,
                 model,
+                (per[:warm_up], base[:warm_up]),
             )
             model.settle()
     model.calibration.mark()
@@ -87,7 +96,7 @@ def _register(
     first = fresh()
     sides = _sides(all_pts)
     est = _register_pass(
-        scans, odo, all_pts, sides, log, issues, first, loop_closure, progress, model
+        scans, odo, all_pts, sides, log, issues, first, loop_closure, progress, model, (per, base)
     )
     model.calibration.settle()
 
@@ -99,7 +108,9 @@ def _register(
         model.frozen = True
         stats.clear()
         stats.update(fresh())
-        est = _register_pass(scans, odo, all_pts, sides, log, [], stats, loop_closure, None, model)
+        est = _register_pass(
+            scans, odo, all_pts, sides, log, [], stats, loop_closure, None, model, (per, base)
+        )
         return est, model
 
     if model.calibration.moved and n <= _SECOND_PASS_MAX:
@@ -109,13 +120,13 @@ def _register(
         est, model = again(model, 0.0)
     else:
         stats.update(first)
-    poses, drift = _refined(est, odo, sides, all_pts[0], stats, loop_closure, model)
+    poses, drift = _refined(est, odo, sides, all_pts[0], stats, loop_closure, model, (per, base))
     if drift and n <= _SECOND_PASS_MAX:
         # The refinement found a drift the calibration missed: the registration and the loop
         # closures ran with it and left the passes apart, which the refinement alone cannot
         # undo. Once more with the drift taken out.
         est, model = again(model, drift)
-        poses, _ = _refined(est, odo, sides, all_pts[0], stats, loop_closure, model)
+        poses, _ = _refined(est, odo, sides, all_pts[0], stats, loop_closure, model, (per, base))
     return poses
 
 
@@ -142,6 +153,7 @@ def _refined(
     stats: dict[str, Any],
     loop_closure: bool,
     model: _OdometryModel,
+    sweeps: tuple[FloatArray, np.ndarray[Any, Any]],
 ) -> tuple[FloatArray, float]:
     """The poses after the global refinement (:mod:`mapkit.build._refine`) where a place was
     seen more than once (loops closed), on logs of up to ``_REFINE_MAX`` scans, and the drift
@@ -152,11 +164,26 @@ def _refined(
         return est, 0.0
     path = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(odo[:, :2], axis=0).T))))
     steps = np.array([model.calibration.correct(between(a, b)) for a, b in itertools.pairwise(odo)])
-    infos = np.array([model.info(math.hypot(s[0], s[1]), float(s[2])) for s in steps])
-    found = refine(est, path, *sides, first=first, rounds=_REFINE_ROUNDS, odometry=(steps, infos))
+    per, base = sweeps
+    spans = [_span(steps, per, base, i, model) for i in range(1, len(odo))]
+    found = refine(
+        est,
+        path,
+        *sides,
+        first=first,
+        rounds=_REFINE_ROUNDS,
+        odometry=(np.array([z for z, _ in spans]), np.array([info for _, info in spans])),
+        odometry_from=base[1:],
+        anchor_turn=_ANCHOR_TURN_UNSURE if per.any() else None,
+        unsure=step_variance(per) if per.any() else None,
+    )
     stats["refined"] = found.matched
     return found.poses, found.drift
 
+
+#: How far (radians) the first scan may turn the map about the start when the sweeps' lag
+#: varies (their registration is then less sure of the start's turns than its match is).
+_ANCHOR_TURN_UNSURE = math.radians(0.5)
 
 #: Longest log (scans) refined against the map of all its scans.
 _REFINE_MAX = 5000
@@ -189,8 +216,13 @@ def _register_pass(
     loop_closure: bool,
     progress: Progress | None,
     model: _OdometryModel,
+    sweeps: tuple[FloatArray, np.ndarray[Any, Any]],
 ) -> FloatArray:
     n = len(scans)
+    per, base = sweeps
+    # The odometry from each scan's base (the scan before it, or across sweeps each off their
+    # pose by a part of their own, the last calm one): calibrated, composed step by step.
+    from_base = np.zeros((n, 3))
     est = odo.copy()
     residuals = stats["residual_per_scan"]
     graph = PoseGraph()
@@ -214,21 +246,30 @@ def _register_pass(
     for i in range(1, n):
         raw_step = between(odo[i - 1], odo[i])
         step = model.calibration.correct(raw_step)
-        c, s = math.cos(est[i - 1][2]), math.sin(est[i - 1][2])
-        pred = np.array(
-            [
-                est[i - 1][0] + c * step[0] - s * step[1],
-                est[i - 1][1] + s * step[0] + c * step[1],
-                wrap(est[i - 1][2] + step[2]),
-            ]
-        )
         trans = math.hypot(step[0], step[1])
         path[i] = path[i - 1] + trans
+        a = int(base[i])
+        if a != i - 1:
+            step = then(from_base[i - 1], step)  # i - 1 is not calm: its base is a too
+            trans = path[i] - path[a]
+        from_base[i] = step
+        c, s = math.cos(est[a][2]), math.sin(est[a][2])
+        pred = np.array(
+            [
+                est[a][0] + c * step[0] - s * step[1],
+                est[a][1] + s * step[0] + c * step[1],
+                wrap(est[a][2] + step[2]),
+            ]
+        )
         # Odometry as the evidence it is: its noise grows with distance and turn, scaled to what
         # this log's odometry turns out to be worth (see _OdometryModel).
-        odo_info = model.info(trans, float(step[2]))
-        reach[0][i] = reach[0][i - 1] + 1.0 / odo_info[0, 0] + 1.0 / odo_info[1, 1]
-        reach[1][i] = reach[1][i - 1] + 1.0 / odo_info[2, 2]
+        odo_info = _plus(model.info(trans, float(step[2])), per[a] + per[i])
+        # (Never less than the scan before's: from the base, a sweep off its pose by its own
+        # part of the lag adds variance that the next calm one does not have.)
+        reach[0][i] = max(
+            reach[0][a] + 1.0 / odo_info[0, 0] + 1.0 / odo_info[1, 1], reach[0][i - 1]
+        )
+        reach[1][i] = max(reach[1][a] + 1.0 / odo_info[2, 2], reach[1][i - 1])
         # The scan's own view: matched with only a weak pull to the prediction (which holds the
         # directions the scan cannot fix, a corridor's length), then fused with odometry.
         r = (
@@ -250,7 +291,7 @@ def _register_pass(
         dv = _seen(r, pred, trans)
         if r is not None and dv is not None:
             scan_info = match_info(r)
-            model.observe(dv, scan_info, trans, float(step[2]))
+            model.observe(dv, scan_info, trans, float(step[2]), per[a] + per[i])
             if not model.frozen:
                 feed.step(i, r.pose, scan_info)
             fused, scan_info = _fuse(dv, scan_info, odo_info)
@@ -261,11 +302,11 @@ def _register_pass(
             residuals[i] = r.rms
             # Two edges: the scan's (what it sees) and odometry's.
             seen = pred + dv
-            graph.add(i - 1, i, between(est[i - 1], seen), _edge_info(scan_info, seen))
+            graph.add(a, i, between(est[a], seen), _edge_info(scan_info, seen))
         else:
             est[i] = pred
             stats["odometry_only"] += 1
-        graph.add(i - 1, i, step, odo_info)
+        graph.add(a, i, step, odo_info)
         # Loop closures.
         moved = False
         for s0, _tag in tag_at.get(i, []):
@@ -324,6 +365,26 @@ def _register_pass(
         stats["closures"] = [c for c in stats["closures"] if tuple(c) not in off]
         stats["closures_rejected"] = len(off)
     return est
+
+
+def _plus(info: FloatArray, var: FloatArray) -> FloatArray:
+    """The diagonal information ``info`` with the variances ``var`` added to its own."""
+    if not var.any():
+        return info
+    return np.diag(1.0 / (1.0 / np.diag(info) + var))
+
+
+def _span(
+    steps: FloatArray, per: FloatArray, base: np.ndarray[Any, Any], i: int, model: _OdometryModel
+) -> tuple[FloatArray, FloatArray]:
+    """The odometry from scan ``i``'s base to it (``steps``: the calibrated steps between
+    neighbours) and its information."""
+    a = int(base[i])
+    z = steps[i - 1]
+    for k in range(i - 2, a - 1, -1):
+        z = then(steps[k], z)
+    trans = float(sum(math.hypot(s[0], s[1]) for s in steps[a:i]))
+    return z, _plus(model.info(trans, float(z[2])), per[a] + per[i])
 
 
 def _hint(start: FloatArray, now: FloatArray) -> FloatArray:

@@ -13,7 +13,7 @@ import numpy as np
 from mapkit._typing import PathLike
 from mapkit.build._common import FloatArray, Progress, _deg, _rad
 from mapkit.build._goals import _goals, _obj_pose
-from mapkit.build._lag import Lag, measure as measure_lag, taken_from, velocities
+from mapkit.build._lag import Lag, measure as measure_lag, sweep_variance, taken_from, velocities
 from mapkit.build._lines import extract_lines
 from mapkit.build._mapping import pass_counts
 from mapkit.build._match import scan_normals_many
@@ -245,12 +245,15 @@ def build_map(
     lag = Lag(0.0, math.nan, math.nan, 0)
     taken = odo  # the poses the sweeps were taken from (odo, unless they lag behind it)
     vel = velocities(scans) if register else None
+    unsure = None  # how far each sweep is off its pose, when the lag varies
     if vel is not None:
         lag = measure_lag(odo, vel, pts)
         taken = taken_from(odo, vel, lag.seconds)
         est = taken.copy()
+        if lag.jitter > 0.0:
+            unsure = sweep_variance(vel, lag.jitter)
     if register and n > 1:
-        est = _register(scans, taken, pts, log, issues, stats, loop_closure, progress)
+        est = _register(scans, taken, pts, log, issues, stats, loop_closure, progress, unsure)
     elif progress:
         progress(n, n)
     t_reg = time.perf_counter() - t1
@@ -306,6 +309,8 @@ def build_map(
             "scan_lag_fitted_ms": _ms(lag.fitted),
             "scan_lag_error_ms": _ms(lag.error),
             "scan_lag_pairs": lag.pairs,
+            "scan_lag_jitter_ms": _ms(lag.jitter),
+            "scan_lag_jitter_fitted_ms": _ms(lag.jitter_fitted),
         },
         "loops": {
             "tags": stats["tag_loops"],

@@ -162,6 +162,13 @@ def _check_output(path: str, force: bool) -> None:
     help="How much older (s) each sweep is than the pose logged with it (negative: newer).",
 )
 @click.option(
+    "--scan-lag-jitter",
+    type=click.FloatRange(0.0, 1.0),
+    default=0.0,
+    show_default=True,
+    help="Each sweep's lag varies by up to this much (s) either way.",
+)
+@click.option(
     "--outliers",
     type=click.FloatRange(0, 0.9),
     default=0.0,
@@ -203,6 +210,7 @@ def simulate(
     scale_error: float,
     turn_slip: float,
     scan_lag: float,
+    scan_lag_jitter: float,
     outliers: float,
     people: int,
     seed: int,
@@ -257,6 +265,7 @@ def simulate(
         scale_error=scale_error,
         turn_slip=turn_slip,
         scan_lag=scan_lag,
+        scan_lag_jitter=scan_lag_jitter,
         outliers=outliers,
         people=people,
         seed=seed,
@@ -442,6 +451,11 @@ def build(
                 f"{'older' if reg['scan_lag_ms'] > 0 else 'newer'} than the poses logged "
                 f"with them (from {plural(reg['scan_lag_pairs'], 'change')} of turn rate); "
                 "each was placed where the robot was then"
+            )
+        if reg.get("scan_lag_jitter_ms"):
+            click.echo(
+                f"  scan lag varies by {reg['scan_lag_jitter_ms']} ms from sweep to sweep: "
+                "odometry taken from the calm sweeps on either side of each turn"
             )
         click.echo(
             f"  loops: {plural(loops['tags'], 'loop tag')} ({loops['tags_matched']} matched), "

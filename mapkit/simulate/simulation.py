@@ -139,6 +139,7 @@ def simulate_log(
     outliers: float = 0.0,
     people: int = 0,
     scan_lag: float = 0.0,
+    scan_lag_jitter: float = 0.0,
     seed: int = 0,
 ) -> SimulatedLog:
     """Drive a simulated robot through ``m`` and record a ``.2d`` log with drifting odometry.
@@ -183,6 +184,8 @@ def simulate_log(
             ARIA stamps a simulated laser's sweep with the robot's pose when its packet arrives,
             and a real laser's with a latency it is told. Negative: the sweep is newer. The
             truth is the pose the sweep was taken from.
+        scan_lag_jitter: Each sweep's lag is ``scan_lag`` plus a uniform draw within this many
+            seconds either way (packets that arrive early or late in the robot's cycle).
         seed: Random seed (the same seed gives the same log).
 
     Returns:
@@ -198,8 +201,10 @@ def simulate_log(
         raise ValueError("steps, speeds and laps must be positive")
     if odometry_origin not in ("start", "zero"):
         raise ValueError("odometry_origin is 'start' or 'zero'")
-    if not abs(scan_lag) <= 1.0:
-        raise ValueError("scan_lag is a time in seconds, at most 1 either way")
+    if not (abs(scan_lag) <= 1.0 and 0.0 <= scan_lag_jitter <= 1.0):
+        raise ValueError(
+            "scan_lag is a time in seconds, at most 1 either way; scan_lag_jitter in [0, 1] s"
+        )
     if not 0 <= outliers < 1 or people < 0 or abs(scale_error) >= 0.5 or abs(turn_slip) >= 0.5:
         raise ValueError(
             "outliers is a fraction in [0, 1); people >= 0; scale_error and "
@@ -280,11 +285,14 @@ def simulate_log(
         nonlocal scan_id, last_logged
         seen, logged = true, odo
         vel = (speed if moving else 0.0, turn_now)
-        if scan_lag > 0:
-            seen = _back(recent, t - scan_lag, 1)
-        elif scan_lag < 0:
-            logged = _back(recent, t + scan_lag, 2)
-            vel = next((v for tv, _, _, v in recent if tv >= t + scan_lag), vel)
+        lag = scan_lag + (
+            rng.uniform(-scan_lag_jitter, scan_lag_jitter) if scan_lag_jitter else 0.0
+        )
+        if lag > 0:
+            seen = _back(recent, t - lag, 1)
+        elif lag < 0:
+            logged = _back(recent, t + lag, 2)
+            vel = next((v for tv, _, _, v in recent if tv >= t + lag), vel)
         lp = compose(seen, laser.pose)
         r = ray_cast(lp, angles, segments, points, max_range=max_range, point_size=point_size)
         if crowd is not None:
@@ -365,9 +373,9 @@ def simulate_log(
             prev = nxt
             distance += d
             t += dt
-            if scan_lag:
+            if scan_lag or scan_lag_jitter:
                 recent.append((t, true.copy(), odo.copy(), (speed if moving else 0.0, turn_now)))
-                while len(recent) > 2 and recent[1][0] < t - abs(scan_lag) - dt:
+                while len(recent) > 2 and recent[1][0] < t - abs(scan_lag) - scan_lag_jitter - dt:
                     recent.pop(0)
             assert last_logged is not None
             moved = relative(last_logged, odo)
@@ -394,7 +402,7 @@ def simulate_log(
         elif name is not None:
             goal_no += 1
             t += 0.5
-            if scan_lag:
+            if scan_lag or scan_lag_jitter:
                 recent.append((t, true.copy(), odo.copy(), (0.0, 0.0)))
             event(
                 goal_event(
@@ -427,5 +435,6 @@ def simulate_log(
             "outliers": outliers,
             "people": people,
             "scan_lag": scan_lag,
+            "scan_lag_jitter": scan_lag_jitter,
         },
     )

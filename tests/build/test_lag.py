@@ -9,7 +9,16 @@ import pytest
 from hypothesis import given, settings, strategies as st
 
 from mapkit.build import build_map
-from mapkit.build._lag import _robust_fit, measure, taken_from, velocities
+from mapkit.build._lag import (
+    _CALM,
+    _robust_fit,
+    _spread,
+    bases,
+    measure,
+    sweep_variance,
+    taken_from,
+    velocities,
+)
 from mapkit.build.builder import _scan_arrays
 from mapkit.formats.laser2d import read_log, write_log
 from tests.build.test_accuracy import tour
@@ -47,7 +56,9 @@ def test_the_fit_finds_the_lag_among_outliers(lag: float, scale: float, seed: in
     e = a @ [scale, lag] + rng.normal(0.0, math.radians(0.1), n)
     wild = rng.random(n) < 0.1
     e[wild] += rng.uniform(-0.2, 0.2, wild.sum())
-    fitted, error = _robust_fit(a, e)
+    coef, error, res = _robust_fit(a, e)
+    fitted = coef[1]
+    assert np.allclose(res, e - a @ coef)
     assert abs(fitted - lag) < max(5.0 * error, 1e-3), (fitted, lag, error)
     assert error < 0.005
 
@@ -62,6 +73,7 @@ def test_a_lag_is_measured_from_the_turns(lag: float) -> None:
     assert found.seconds == found.fitted
     assert found.fitted == pytest.approx(lag, abs=0.004), found
     assert found.pairs >= 8
+    assert found.jitter == 0.0, found  # the same lag for every sweep
 
 
 @pytest.mark.parametrize("seed", [1, 2])
@@ -74,6 +86,7 @@ def test_no_lag_is_taken_where_there_is_none(seed: int) -> None:
     found = measure(odo, vel, pts)
     assert found.seconds == 0.0
     assert abs(found.fitted) < 0.004, found
+    assert found.jitter == 0.0, found
 
 
 def test_the_build_places_the_sweeps_where_they_were_taken(tmp_path) -> None:
@@ -107,3 +120,41 @@ def test_a_log_without_velocities_is_built_as_logged() -> None:
     )
     reg = build_map(bare, lines=False).summary["registration"]
     assert reg["scan_lag_ms"] == 0.0 and reg["scan_lag_fitted_ms"] is None
+
+
+@settings(max_examples=40)
+@given(st.floats(0.0, 0.05), st.floats(0.02, 0.3), st.integers(0, 2**31 - 1))
+def test_the_spread_of_the_lag_is_found_beside_the_matches_noise(
+    spread: float, noise_deg: float, seed: int
+) -> None:
+    """Residuals of steps into and out of turns: the matches' noise and each sweep's own part of
+    the lag times its turn rate. The spread comes back within a third, or within 3 ms and what
+    half the matches' noise hides (a spread that turns a sweep by less)."""
+    rng = np.random.default_rng(seed)
+    n = 300
+    noise = math.radians(noise_deg)
+    w0 = rng.choice([0.0, 0.7], n)
+    w1 = np.where(w0 == 0.0, 0.7, 0.0) * rng.choice([-1.0, 1.0], n)
+    res = rng.normal(0.0, noise, n) + w1 * rng.normal(0, spread, n) - w0 * rng.normal(0, spread, n)
+    rates = w0**2 + w1**2
+    found = _spread(res, rates, noise)
+    assert abs(found - spread) < max(spread / 3.0, 0.003, 0.5 * noise / 0.7), (found, spread)
+
+
+@given(
+    st.lists(st.tuples(st.floats(0.0, 800.0), st.sampled_from([0.0, 0.0, 0.3, -0.7])), min_size=1),
+    st.floats(0.0, 0.05),
+)
+def test_odometry_is_taken_from_the_last_calm_sweep(rows, jitter: float) -> None:
+    vel = np.array(rows, dtype=np.float64).reshape(-1, 2)
+    per = sweep_variance(vel, jitter)
+    assert np.allclose(per[:, 2], (vel[:, 1] * jitter) ** 2)
+    base = bases(per, len(vel))
+    calm = per[:, 2] < _CALM**2
+    for i in range(1, len(vel)):
+        a = base[i]
+        assert 0 <= a < i
+        assert calm[a] or a == 0  # the first scan is the map's origin, calm or not
+        assert not calm[a + 1 : i].any()  # nothing calm between
+    # None: every sweep is calm, each scan's base is the one before.
+    assert np.array_equal(bases(None, len(vel)), np.arange(-1, len(vel) - 1))

@@ -222,3 +222,19 @@ def test_a_lagging_laser_is_simulated_and_its_lag_measured(runner, tmp_path) -> 
     res = runner.invoke(cli, ["build", str(log), "-o", str(out), "--no-lines", "--force"])
     assert res.exit_code == 0, res.output
     assert "ms newer than the poses logged with them" in res.output
+
+
+def test_a_lag_that_varies_is_simulated_and_its_spread_reported(runner, tmp_path) -> None:
+    args = ("--scan-lag", "0.04", "--trans-error", "0.001", "--rot-error", "0.001")
+    steady = _room_log(runner, tmp_path, *args)
+    out = tmp_path / "built.map"
+    res = runner.invoke(cli, ["build", str(steady), "-o", str(out), "--no-lines", "--json"])
+    assert res.exit_code == 0, res.output
+    reg = json.loads(res.output)["registration"]
+    assert reg["scan_lag_jitter_ms"] == 0.0, reg  # one lag for every sweep
+    varying = tmp_path / "varying.2d"
+    steady.rename(varying)
+    log = _room_log(runner, tmp_path, *args, "--scan-lag-jitter", "0.06")
+    res = runner.invoke(cli, ["build", str(log), "-o", str(out), "--no-lines", "--force"])
+    assert res.exit_code == 0, res.output
+    assert "ms from sweep to sweep" in res.output, res.output

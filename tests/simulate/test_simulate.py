@@ -171,3 +171,31 @@ def test_a_lagging_sweep_is_seen_from_where_the_robot_was(lag: float) -> None:
         assert np.allclose(plain.log.poses(), logged, atol=1e-9)
     with pytest.raises(ValueError, match="scan_lag"):
         simulate_log(m, scan_lag=2.0)
+
+
+def test_a_sweeps_lag_varies_by_the_jitter() -> None:
+    """With ``scan_lag_jitter`` each sweep's lag is drawn within that much of ``scan_lag``:
+    while turning on the spot, the logged heading runs ahead of the truth by the turn rate times
+    a lag of its own, within the range and not the same for every sweep."""
+    m = room_map()
+    sim = simulate_log(
+        m,
+        seed=2,
+        translation_error=0,
+        rotation_error=0,
+        drift=0,
+        range_noise=0,
+        scan_lag=0.05,
+        scan_lag_jitter=0.04,
+    )
+    lags = []
+    for scan, pose, true in zip(sim.log.scans, sim.log.poses(), sim.truth, strict=True):
+        assert scan.velocities is not None
+        vel, rate = scan.velocities[:2]
+        if vel == 0 and rate != 0:
+            lags.append(((pose[2] - true[2] + 180.0) % 360.0 - 180.0) / rate)
+    assert len(lags) >= 3
+    assert min(lags) >= 0.01 - 1e-3 and max(lags) <= 0.09 + 1e-3, lags
+    assert max(lags) - min(lags) > 0.005, lags
+    with pytest.raises(ValueError, match="scan_lag_jitter"):
+        simulate_log(m, scan_lag_jitter=-0.01)
