@@ -223,11 +223,13 @@ def taken_from(odo: FloatArray, vel: FloatArray, lag: float) -> FloatArray:
 
 
 def sweep_variance(vel: FloatArray, jitter: float) -> FloatArray:
-    """The ``(N, 3)`` variances (forward, sideways, heading) of each sweep about the pose it
-    is logged with when its lag varies by ``jitter`` seconds (a standard deviation) from the
-    lag taken: a sweep is off by its speed and its turn rate times its own part of the lag."""
+    """The ``(N, 3)`` variances (x, y, heading) of each sweep about the pose it is logged with
+    when its lag varies by ``jitter`` seconds (a standard deviation) from the lag taken: a sweep
+    is off by its speed and its turn rate times its own part of the lag. (The speed's part lies
+    along the robot's heading; it is given to x and y alike, so that it holds in any frame, the
+    world's of a match as well as a step's own.)"""
     per = np.zeros((len(vel), 3))
-    per[:, 0] = (vel[:, 0] * jitter) ** 2
+    per[:, 0] = per[:, 1] = (vel[:, 0] * jitter) ** 2
     per[:, 2] = (vel[:, 1] * jitter) ** 2
     return per
 

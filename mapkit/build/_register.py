@@ -45,7 +45,7 @@ def _register(
     The odometry's worth is learnt from the first scans (a warm-up pass over them) so that the
     first metres are not registered with a guess of it.
 
-    ``unsure``: the ``(N, 3)`` variances (forward, sideways, heading) of each sweep about its
+    ``unsure``: the ``(N, 3)`` variances (x, y, heading) of each sweep about its
     pose that the odometry's model does not know of (sweeps whose lag varies,
     :func:`mapkit.build._lag.sweep_variance`); None: none.
     """
