@@ -39,6 +39,14 @@ def between(a: FloatArray, b: FloatArray) -> FloatArray:
     return np.stack([c * dx + s * dy, -s * dx + c * dy, wrap(b[..., 2] - a[..., 2])], axis=-1)
 
 
+def plus_variance(info: FloatArray, var: FloatArray) -> FloatArray:
+    """The diagonal information ``info`` with the variances ``var`` added to its own."""
+    if not var.any():
+        return info
+    out: FloatArray = np.diag(1.0 / (1.0 / np.diag(info) + var))
+    return out
+
+
 def then(a: FloatArray, b: FloatArray) -> FloatArray:
     """The pose ``b`` (in ``a``'s frame) moved to the world: ``a`` followed by ``b`` (radians);
     :func:`between`'s inverse."""

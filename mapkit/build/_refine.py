@@ -20,7 +20,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from mapkit.build._common import FloatArray, _world
-from mapkit.build._graph import PoseGraph, between, sigma_info, wrap
+from mapkit.build._graph import PoseGraph, between, plus_variance, sigma_info, wrap
 from mapkit.build._loops import _CAUCHY, _MATCH_POINTS, _MATCH_SIGMA, _edge_info
 from mapkit.build._match import MatchResult, icp, local_planes
 
@@ -237,7 +237,7 @@ def refine(
                     i - 1,
                     i,
                     steps[i - 1],
-                    step_info if unsure is None else _plus(step_info, unsure[i - 1]),
+                    step_info if unsure is None else plus_variance(step_info, unsure[i - 1]),
                 )
                 if odometry is not None:
                     step = odometry[0][i - 1].copy()
@@ -257,13 +257,6 @@ def refine(
                 solved = graph(drift).optimize(start, iterations=5)
         x = solved[:n]
     return Refined(x, matched, drift)
-
-
-def _plus(info: FloatArray, var: FloatArray) -> FloatArray:
-    """The diagonal information ``info`` with the variances ``var`` added to its own."""
-    if not var.any():
-        return info
-    return np.diag(1.0 / (1.0 / np.diag(info) + var))
 
 
 def _drift_left(graph: Callable[[float], PoseGraph], start: FloatArray) -> tuple[float, FloatArray]:

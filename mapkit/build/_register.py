@@ -11,7 +11,7 @@ import numpy as np
 
 from mapkit.build._calibrate import CalibrationFeed
 from mapkit.build._common import FloatArray, Progress, _Submap
-from mapkit.build._graph import PoseGraph, between, sigma_info, then, wrap
+from mapkit.build._graph import PoseGraph, between, plus_variance, sigma_info, then, wrap
 from mapkit.build._lag import bases, step_variance
 from mapkit.build._loops import (
     _CAUCHY,
@@ -263,7 +263,7 @@ def _register_pass(
         )
         # Odometry as the evidence it is: its noise grows with distance and turn, scaled to what
         # this log's odometry turns out to be worth (see _OdometryModel).
-        odo_info = _plus(model.info(trans, float(step[2])), per[a] + per[i])
+        odo_info = plus_variance(model.info(trans, float(step[2])), per[a] + per[i])
         # (Never less than the scan before's: from the base, a sweep off its pose by its own
         # part of the lag adds variance that the next calm one does not have.)
         reach[0][i] = max(
@@ -367,13 +367,6 @@ def _register_pass(
     return est
 
 
-def _plus(info: FloatArray, var: FloatArray) -> FloatArray:
-    """The diagonal information ``info`` with the variances ``var`` added to its own."""
-    if not var.any():
-        return info
-    return np.diag(1.0 / (1.0 / np.diag(info) + var))
-
-
 def _span(
     steps: FloatArray, per: FloatArray, base: np.ndarray[Any, Any], i: int, model: _OdometryModel
 ) -> tuple[FloatArray, FloatArray]:
@@ -384,7 +377,7 @@ def _span(
     for k in range(i - 2, a - 1, -1):
         z = then(steps[k], z)
     trans = float(sum(math.hypot(s[0], s[1]) for s in steps[a:i]))
-    return z, _plus(model.info(trans, float(z[2])), per[a] + per[i])
+    return z, plus_variance(model.info(trans, float(z[2])), per[a] + per[i])
 
 
 def _hint(start: FloatArray, now: FloatArray) -> FloatArray:

@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
+from hypothesis import given, strategies as st
 
-from mapkit.build._graph import PoseGraph, sigma_info
+from mapkit.build._graph import PoseGraph, between, plus_variance, sigma_info, then
 
 
 def test_the_cost_is_what_the_optimisation_minimises() -> None:
@@ -25,3 +28,24 @@ def test_the_cost_is_what_the_optimisation_minimises() -> None:
     g.rejected.clear()
     # The 30 mm the three edges disagree by, shared equally: each 1 standard deviation off.
     assert g.cost(g.optimize(x)) == pytest.approx(3.0, abs=1e-6)
+
+
+_poses = st.tuples(
+    st.floats(-1e5, 1e5), st.floats(-1e5, 1e5), st.floats(-math.pi, math.pi - 1e-9)
+).map(lambda p: np.array(p, dtype=np.float64))
+
+
+@given(_poses, _poses)
+def test_then_undoes_between(a, b) -> None:
+    back = then(a, between(a, b))
+    assert np.allclose(back[:2], b[:2], atol=1e-6)
+    assert math.cos(back[2] - b[2]) == pytest.approx(1.0)
+
+
+@given(st.lists(st.floats(1e-6, 1e6), min_size=3, max_size=3), st.floats(0.0, 1e6))
+def test_plus_variance_adds_to_the_variances(var, more) -> None:
+    info = np.diag(1.0 / np.array(var))
+    extra = np.array([more, 0.0, more / 2.0])
+    out = plus_variance(info, extra)
+    assert np.allclose(1.0 / np.diag(out), np.array(var) + extra)
+    assert plus_variance(info, np.zeros(3)) is info
