@@ -175,7 +175,7 @@ def _refined(
         odometry=(np.array([z for z, _ in spans]), np.array([info for _, info in spans])),
         odometry_from=base[1:],
         anchor_turn=_ANCHOR_TURN_UNSURE if per.any() else None,
-        unsure=step_variance(per) if per.any() else None,
+        unsure=_turning(step_variance(per)) if per.any() else None,
     )
     stats["refined"] = found.matched
     return found.poses, found.drift
@@ -263,13 +263,16 @@ def _register_pass(
         )
         # Odometry as the evidence it is: its noise grows with distance and turn, scaled to what
         # this log's odometry turns out to be worth (see _OdometryModel).
-        odo_info = plus_variance(model.info(trans, float(step[2])), per[a] + per[i])
-        # (Never less than the scan before's: from the base, a sweep off its pose by its own
-        # part of the lag adds variance that the next calm one does not have.)
-        reach[0][i] = max(
-            reach[0][a] + 1.0 / odo_info[0, 0] + 1.0 / odo_info[1, 1], reach[0][i - 1]
-        )
-        reach[1][i] = max(reach[1][a] + 1.0 / odo_info[2, 2], reach[1][i - 1])
+        own = model.info(trans, float(step[2]))
+        # A sweep off its pose by its own part of a lag that varies: its heading is as unsure
+        # as its turn rate makes it (see _lag.bases). Along its motion, that part is a few mm
+        # and does not add up from sweep to sweep as a step's error does: it is only known noise
+        # when the odometry's worth is fitted (observe), not a looser chain.
+        odo_info = plus_variance(own, _turning(per[a] + per[i]))
+        # How far odometry can be out since an old pose: what adds up, never less than at the
+        # scan before (a span across a turn may net less turn than its steps).
+        reach[0][i] = max(reach[0][a] + 1.0 / own[0, 0] + 1.0 / own[1, 1], reach[0][i - 1])
+        reach[1][i] = max(reach[1][a] + 1.0 / own[2, 2], reach[1][i - 1])
         # The scan's own view: matched with only a weak pull to the prediction (which holds the
         # directions the scan cannot fix, a corridor's length), then fused with odometry.
         r = (
@@ -377,7 +380,16 @@ def _span(
     for k in range(i - 2, a - 1, -1):
         z = then(steps[k], z)
     trans = float(sum(math.hypot(s[0], s[1]) for s in steps[a:i]))
-    return z, plus_variance(model.info(trans, float(z[2])), per[a] + per[i])
+    return z, plus_variance(model.info(trans, float(z[2])), _turning(per[a] + per[i]))
+
+
+def _turning(var: FloatArray) -> FloatArray:
+    """The heading's part of a sweep's variances (see ``_register_pass``)."""
+    out: FloatArray = var * _HEADING
+    return out
+
+
+_HEADING = np.array([0.0, 0.0, 1.0])
 
 
 def _hint(start: FloatArray, now: FloatArray) -> FloatArray:

@@ -129,7 +129,7 @@ def test_the_spread_of_the_lag_is_found_beside_the_matches_noise(
 ) -> None:
     """Residuals of steps into and out of turns: the matches' noise and each sweep's own part of
     the lag times its turn rate. The spread comes back within a third, or within 3 ms and what
-    half the matches' noise hides (a spread that turns a sweep by less)."""
+    nine tenths of the matches' noise hides (a spread that turns a sweep by less)."""
     rng = np.random.default_rng(seed)
     n = 300
     noise = math.radians(noise_deg)
@@ -138,7 +138,7 @@ def test_the_spread_of_the_lag_is_found_beside_the_matches_noise(
     res = rng.normal(0.0, noise, n) + w1 * rng.normal(0, spread, n) - w0 * rng.normal(0, spread, n)
     rates = w0**2 + w1**2
     found = _spread(res, rates, noise)
-    assert abs(found - spread) < max(spread / 3.0, 0.003, 0.5 * noise / 0.7), (found, spread)
+    assert abs(found - spread) < max(spread / 3.0, 0.003, 0.9 * noise / 0.7), (found, spread)
 
 
 @given(
