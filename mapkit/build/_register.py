@@ -223,6 +223,10 @@ def _register_pass(
     # The odometry from each scan's base (the scan before it, or across sweeps each off their
     # pose by a part of their own, the last calm one): calibrated, composed step by step.
     from_base = np.zeros((n, 3))
+    # The sweeps the local map is made of: one off its pose by its own part of a varying lag
+    # stays out of it (the calm sweep after a turn is matched against calm sweeps, not against
+    # the turning ones, each placed by its own match).
+    in_map = np.append(base[1:] == np.arange(n - 1), True)
     est = odo.copy()
     residuals = stats["residual_per_scan"]
     graph = PoseGraph()
@@ -349,7 +353,8 @@ def _register_pass(
             window = [k for k in window if k <= i]
             last_sub = -1
         # The local map: scans within the last 8 m of path (at most 40).
-        window.append(i)
+        if in_map[i]:
+            window.append(i)
         while len(window) > 25 or (path[i] - path[window[0]] > 8000.0 and len(window) > 5):
             window.pop(0)
         # Every third scan; every scan while turning, when each scan brings a new view.
