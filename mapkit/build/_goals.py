@@ -7,7 +7,7 @@ import math
 import numpy as np
 
 from mapkit.build._common import FloatArray, _rad
-from mapkit.build._graph import between, wrap
+from mapkit.build._graph import between, then
 from mapkit.formats.laser2d import goal_fields
 from mapkit.model import MapObject
 from mapkit.model.scan import LaserLog, LaserScan
@@ -43,12 +43,8 @@ def _goals(
         g = _rad(np.array(pose, dtype=np.float64))
         # The goal's pose relative to the nearest scan's odometry, put on that scan's final pose.
         rel = between(odo[last], g)
-        c, s = math.cos(est[last][2]), math.sin(est[last][2])
-        x = est[last][0] + c * rel[0] - s * rel[1]
-        y = est[last][1] + s * rel[0] + c * rel[1]
-        th = wrap(est[last][2] + rel[2])
         typ, desc, _icon, name = goal_fields(rec)
-        out.append(MapObject(typ, *_obj_pose(np.array([x, y, th])), name=name, description=desc))
+        out.append(MapObject(typ, *_obj_pose(then(est[last], rel)), name=name, description=desc))
     return _merge_goals(out) if merge else out
 
 

@@ -257,14 +257,7 @@ def _register_pass(
             step = then(from_base[i - 1], step)  # i - 1 is not calm: its base is a too
             trans = path[i] - path[a]
         from_base[i] = step
-        c, s = math.cos(est[a][2]), math.sin(est[a][2])
-        pred = np.array(
-            [
-                est[a][0] + c * step[0] - s * step[1],
-                est[a][1] + s * step[0] + c * step[1],
-                wrap(est[a][2] + step[2]),
-            ]
-        )
+        pred = then(est[a], step)
         # Odometry as the evidence it is: its noise grows with distance and turn, scaled to what
         # this log's odometry turns out to be worth (see _OdometryModel).
         own = model.info(trans, float(step[2]))
