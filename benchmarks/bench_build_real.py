@@ -10,6 +10,8 @@ floor, p90 under 60 mm, trajectory RMS under 40 mm and within odometry's + 15 mm
     python benchmarks/bench_build_real.py --maps DIR --seeds 3 --tree OLD   # before/after
     python benchmarks/bench_build_real.py --maps DIR --first-seed 10   # fresh draws
     python benchmarks/bench_build_real.py --maps DIR --seeds 6 --jobs 2   # two logs at once
+    python benchmarks/bench_build_real.py --maps DIR --second-laser   # a rear laser too
+    python benchmarks/bench_build_real.py --maps DIR --second-laser apart   # ... matched apart
 
 Draws 1-6 are the ones the rounds so far were measured on (and so, in part, tuned on), draws
 7-9 were fresh for round 11's check; draws from 10 on are logs no round has seen: a round
@@ -140,16 +142,40 @@ def world_map(maps: str, name: str) -> Any:
     return mapkit.load(Path(maps) / name)
 
 
-def one_log(maps: str, name: str, odo_name: str, seed: int) -> tuple[Any, ...]:
+#: Where ``--second-laser`` mounts a rear laser (mm, mm, degrees).
+REAR_LASER = (-200.0, 0.0, 180.0)
+
+
+def one_log(
+    maps: str, name: str, odo_name: str, seed: int, second_laser: str | None = None
+) -> tuple[Any, ...]:
     """One log: ``(label, odometry name, world map, simulated log, floor figures, odometry
-    figures)`` (figures of ``bench_build.measure``)."""
+    figures)`` (figures of ``bench_build.measure``). ``second_laser``: with a rear laser
+    (``REAR_LASER``) too, its sweeps in the front one's cycles (``"cycle"``, as ARIA logs
+    them) or each in a cycle of its own (``"apart"``: the build then matches every sweep as a
+    scan of its own, as it did before it merged a cycle's sweeps)."""
     from bench_build import _with_poses, measure
 
     from mapkit.build import build_map
     from mapkit.simulate import simulate_log
 
     world = world_map(maps, name)
-    sim = simulate_log(world, loop=True, seed=seed, odometry_origin="zero", **ODOMETRIES[odo_name])
+    settings = dict(ODOMETRIES[odo_name])
+    if second_laser:
+        settings["second_laser"] = REAR_LASER
+    sim = simulate_log(world, loop=True, seed=seed, odometry_origin="zero", **settings)
+    if second_laser == "apart":
+        import dataclasses
+
+        from mapkit.model.scan import LaserScan
+
+        records = tuple(
+            dataclasses.replace(r, time=r.time + 0.001)
+            if isinstance(r, LaserScan) and r.laser == 2 and r.time is not None
+            else r
+            for r in sim.log.records
+        )
+        sim = dataclasses.replace(sim, log=dataclasses.replace(sim.log, records=records))
     log, ids, truth = sim.log, sim.truth_ids, sim.truth
     floor = measure(
         build_map(_with_poses(log, ids, truth), register=False, lines=False), world, ids, truth
@@ -167,14 +193,16 @@ def logs(
         yield one_log(maps, name, odo_name, seed)
 
 
-def built(maps: str, name: str, odo_name: str, seed: int) -> tuple[str, float, bool]:
+def built(
+    maps: str, name: str, odo_name: str, seed: int, second_laser: str | None = None
+) -> tuple[str, float, bool]:
     """One log simulated and built: ``(its line of figures, its trajectory RMS, whether it met
     every target)``. The CPU time is the build's own, in the process that built it."""
     from bench_build import measure, targets
 
     from mapkit.build import build_map
 
-    label, _, world, sim, floor, raw = one_log(maps, name, odo_name, seed)
+    label, _, world, sim, floor, raw = one_log(maps, name, odo_name, seed, second_laser)
     log, ids, truth = sim.log, sim.truth_ids, sim.truth
     t = time.process_time()
     res = build_map(log)
@@ -240,6 +268,14 @@ def each_log(
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     options(ap)
+    ap.add_argument(
+        "--second-laser",
+        nargs="?",
+        const="cycle",
+        choices=("cycle", "apart"),
+        help="a rear laser too: its sweeps in the front one's cycles (as ARIA logs them), or "
+        "'apart' (each in a cycle of its own: each sweep matched as a scan of its own)",
+    )
     args = ap.parse_args()
     paths = on_path(args)
 
@@ -251,7 +287,7 @@ def main() -> int:
         f"{'built med/p90 rms':>18} | {'turn / rest':>13} | {'cpu s':>5} | targets"
     )
     per: dict[str, list[tuple[float, bool]]] = {}
-    for odo_name, (line, rms, ok) in each_log(args, paths, built):
+    for odo_name, (line, rms, ok) in each_log(args, paths, built, args.second_laser):
         per.setdefault(odo_name, []).append((rms, ok))
         print(line, flush=True)
     total = sum(ok for runs in per.values() for _, ok in runs)

@@ -91,6 +91,11 @@ def _check_output(path: str, force: bool) -> None:
     "--laser-pose", default="160,0,0", show_default=True, help="Laser mount on the robot 'x,y,th'."
 )
 @click.option(
+    "--second-laser",
+    metavar="X,Y,TH",
+    help="Mount of a second laser of the same kind, e.g. a rear one '-200,0,180' (version 4).",
+)
+@click.option(
     "--trans-error",
     type=click.FloatRange(0),
     default=0.01,
@@ -211,6 +216,7 @@ def simulate(
     turn_slip: float,
     scan_lag: float,
     scan_lag_jitter: float,
+    second_laser: str | None,
     outliers: float,
     people: int,
     seed: int,
@@ -241,6 +247,7 @@ def simulate(
         wps = [_floats(w, (2,), "--waypoints") for w in waypoints.split()]
     st = _floats(start, (2, 3), "--start") if start else None
     lp = _floats(laser_pose, (3,), "--laser-pose")
+    second = _floats(second_laser, (3,), "--second-laser") if second_laser else None
     m = load(str(sample_path(sample)) if sample else map_file)  # type: ignore[arg-type]
     sim = simulate_log(
         m,
@@ -266,6 +273,7 @@ def simulate(
         turn_slip=turn_slip,
         scan_lag=scan_lag,
         scan_lag_jitter=scan_lag_jitter,
+        second_laser=second,
         outliers=outliers,
         people=people,
         seed=seed,
@@ -437,6 +445,12 @@ def build(
     )
     click.echo(
         f"  scans: {s['scans_used']} used of {s['scans_in_log']}, path {s['path_length_m']} m"
+        + (
+            f" ({plural(s['sweeps_merged'], 'sweep')} of further lasers merged into their "
+            "cycle's scan)"
+            if s.get("sweeps_merged")
+            else ""
+        )
     )
     if s["register"]:
         click.echo(

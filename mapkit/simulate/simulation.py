@@ -3,9 +3,11 @@ noise and odometry drift."""
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import math
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
@@ -140,6 +142,7 @@ def simulate_log(
     people: int = 0,
     scan_lag: float = 0.0,
     scan_lag_jitter: float = 0.0,
+    second_laser: Sequence[float] | None = None,
     seed: int = 0,
 ) -> SimulatedLog:
     """Drive a simulated robot through ``m`` and record a ``.2d`` log with drifting odometry.
@@ -186,6 +189,10 @@ def simulate_log(
             truth is the pose the sweep was taken from.
         scan_lag_jitter: Each sweep's lag is ``scan_lag`` plus a uniform draw within this many
             seconds either way (packets that arrive early or late in the robot's cycle).
+        second_laser: The mount pose ``(x mm, y mm, theta degrees)`` of a second laser of the
+            same kind (a rear laser: ``(-200, 0, 180)``), logged as ARIA's logger logs one: in
+            each cycle a sweep of each laser under one ``logTime:``, one ``scanId`` counter for
+            both (the truth has a pose per sweep). None: one laser.
         seed: Random seed (the same seed gives the same log).
 
     Returns:
@@ -209,6 +216,10 @@ def simulate_log(
         raise ValueError(
             "outliers is a fraction in [0, 1); people >= 0; scale_error and "
             "turn_slip are fractions under 0.5"
+        )
+    if second_laser is not None and (version < 4 or len(second_laser) != 3):
+        raise MapkitError(
+            "second_laser is a mount pose (x, y, theta) and is logged by version 4 logs only"
         )
     rng = np.random.default_rng(seed)
     home: tuple[float, float, float] | None = None
@@ -256,9 +267,16 @@ def simulate_log(
         z=0.0,
     )
     angles = laser.angles()
+    lasers: tuple[LaserConfig, ...] = (laser,)
+    if second_laser is not None:
+        lasers += (
+            dataclasses.replace(
+                laser, number=2, pose=Pose2D(*map(float, second_laser)), name="sim_laser_2"
+            ),
+        )
     header = LogHeader(
         version=version,
-        lasers=(laser,),
+        lasers=lasers,
         location_types=("robot", "robotGlobal"),
         comments=("Created by mapkit simulate",),
     )
@@ -281,19 +299,10 @@ def simulate_log(
     # (time, true pose, odometry, velocities) of the last steps: what a lagging sweep saw.
     recent: list[tuple[float, FloatArray, FloatArray, tuple[float, float]]] = []
 
-    def log_scan() -> None:
-        nonlocal scan_id, last_logged
-        seen, logged = true, odo
-        vel = (speed if moving else 0.0, turn_now)
-        lag = scan_lag + (
-            rng.uniform(-scan_lag_jitter, scan_lag_jitter) if scan_lag_jitter else 0.0
-        )
-        if lag > 0:
-            seen = _back(recent, t - lag, 1)
-        elif lag < 0:
-            logged = _back(recent, t + lag, 2)
-            vel = next((v for tv, _, _, v in recent if tv >= t + lag), vel)
-        lp = compose(seen, laser.pose)
+    def _sweep(las: LaserConfig, seen: FloatArray) -> dict[str, Any]:
+        """What laser ``las`` reads from the true pose ``seen``: its points (``xy``) and, with
+        ``raw_ranges``, its ranges."""
+        lp = compose(seen, las.pose)
         r = ray_cast(lp, angles, segments, points, max_range=max_range, point_size=point_size)
         if crowd is not None:
             body = crowd.bodies(t)
@@ -312,24 +321,40 @@ def simulate_log(
         a = np.radians(angles)
         xy = np.stack([rn * np.cos(a), rn * np.sin(a)], axis=1)
         xy[~hit] = 0.0
-        xy = np.rint(xy)
-        pose = Pose2D(round(float(logged[0])), round(float(logged[1])), round(float(logged[2]), 2))
-        records.append(
-            LaserScan(
-                scan_id=scan_id,
-                laser=1,
-                robot=pose,
-                robot_global=pose,
-                time=round(t, 3),
-                velocities=(round(vel[0], 2), round(vel[1], 2), 0.0),
-                xy=xy,
-                ranges=np.where(hit, np.rint(rn), NO_RETURN) if raw_ranges else None,
-            )
+        return {
+            "xy": np.rint(xy),
+            "ranges": np.where(hit, np.rint(rn), NO_RETURN) if raw_ranges else None,
+        }
+
+    def log_scan() -> None:
+        nonlocal scan_id, last_logged
+        seen, logged = true, odo
+        vel = (speed if moving else 0.0, turn_now)
+        lag = scan_lag + (
+            rng.uniform(-scan_lag_jitter, scan_lag_jitter) if scan_lag_jitter else 0.0
         )
-        truth.append(np.array(seen, dtype=np.float64))
-        truth_ids.append(scan_id)
-        truth_times.append(round(t, 3))
-        scan_id += 1
+        if lag > 0:
+            seen = _back(recent, t - lag, 1)
+        elif lag < 0:
+            logged = _back(recent, t + lag, 2)
+            vel = next((v for tv, _, _, v in recent if tv >= t + lag), vel)
+        pose = Pose2D(round(float(logged[0])), round(float(logged[1])), round(float(logged[2]), 2))
+        for las in lasers:
+            records.append(
+                LaserScan(
+                    scan_id=scan_id,
+                    laser=las.number,
+                    robot=pose,
+                    robot_global=pose,
+                    time=round(t, 3),
+                    velocities=(round(vel[0], 2), round(vel[1], 2), 0.0),
+                    **_sweep(las, seen),
+                )
+            )
+            truth.append(np.array(seen, dtype=np.float64))
+            truth_ids.append(scan_id)
+            truth_times.append(round(t, 3))
+            scan_id += 1
         last_logged = odo.copy()
 
     def event(ev: LogEvent) -> None:

@@ -238,3 +238,38 @@ def test_a_lag_that_varies_is_simulated_and_its_spread_reported(runner, tmp_path
     res = runner.invoke(cli, ["build", str(log), "-o", str(out), "--no-lines", "--force"])
     assert res.exit_code == 0, res.output
     assert "ms from sweep to sweep" in res.output, res.output
+
+
+def test_a_second_lasers_sweeps_are_merged_into_their_cycles_scan(runner, tmp_path) -> None:
+    """`simulate --second-laser` logs a rear laser beside the front one, as ARIA's logger does
+    (a sweep of each per ``logTime:``); `build` matches each cycle's two sweeps as one scan and
+    says so. A second laser needs a version 4 log."""
+    from mapkit.formats.laser2d import read_log
+
+    path = _room_log(runner, tmp_path, "--second-laser", "-200,0,180")
+    log = read_log(path)
+    assert [las.number for las in log.header.lasers] == [1, 2]
+    assert log.header.lasers[1].pose == (-200.0, 0.0, 180.0)
+    text = path.read_text()
+    assert text.count("logTime:") == text.count("scan2:") == text.count("scan1:")
+    n = len(log.scans) // 2
+    out = tmp_path / "built.map"
+    res = runner.invoke(cli, ["build", str(path), "-o", str(out), "--no-lines"])
+    assert res.exit_code == 0, res.output
+    assert f"scans: {n} used of {2 * n}" in res.output, res.output
+    assert f"({n} sweeps of further lasers merged into their cycle's scan)" in res.output
+    room = tmp_path / "world.map"
+    res = runner.invoke(
+        cli,
+        [
+            "simulate",
+            str(room),
+            "-o",
+            str(tmp_path / "v3.2d"),
+            "--version",
+            "3",
+            "--second-laser",
+            "-200,0,180",
+        ],
+    )
+    assert res.exit_code != 0 and "version 4" in res.output, res.output

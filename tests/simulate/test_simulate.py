@@ -199,3 +199,45 @@ def test_a_sweeps_lag_varies_by_the_jitter() -> None:
     assert max(lags) - min(lags) > 0.005, lags
     with pytest.raises(ValueError, match="scan_lag_jitter"):
         simulate_log(m, scan_lag_jitter=-0.01)
+
+
+def test_a_second_laser_sweeps_in_the_same_cycle() -> None:
+    """With ``second_laser`` each cycle logs a sweep of each laser under the same pose, time and
+    velocities (one ``scanId`` counter for both), the second laser's from its own mount: a rear
+    laser's hits lie on the walls behind the robot, seen from the truth. The front laser's log
+    is the one-laser log's draw for draw only in its poses (the noise draws interleave)."""
+    m = room_map()
+    sim = simulate_log(
+        m, seed=3, translation_error=0, rotation_error=0, drift=0, second_laser=(-200, 0, 180)
+    )
+    scans = sim.log.scans
+    assert [s.laser for s in scans[:4]] == [1, 2, 1, 2]
+    assert [s.scan_id for s in scans[:4]] == [0, 1, 2, 3]
+    assert len(sim.truth) == len(scans)
+    behind = 0
+    for front, rear, t_front, t_rear in zip(
+        scans[::2], scans[1::2], sim.truth[::2], sim.truth[1::2], strict=True
+    ):
+        assert (front.robot, front.time, front.velocities) == (
+            rear.robot,
+            rear.time,
+            rear.velocities,
+        )
+        assert np.array_equal(t_front, t_rear)
+        p = rear.global_points(sim.log.header.laser(2), pose=t_rear)
+        d = np.min(
+            np.stack(
+                [np.abs(p[:, 0]), np.abs(p[:, 0] - 8000), np.abs(p[:, 1]), np.abs(p[:, 1] - 5000)]
+            ),
+            axis=0,
+        )
+        assert np.median(d) < 30.0  # 10 mm of range noise
+        # Behind the robot: the rear laser's hits are on the far side of its centre.
+        th = math.radians(t_rear[2])
+        ahead = (p[:, 0] - t_rear[0]) * math.cos(th) + (p[:, 1] - t_rear[1]) * math.sin(th)
+        behind += int(np.all(ahead < 0.0))
+    assert behind == len(scans) // 2
+    one = simulate_log(m, seed=3, translation_error=0, rotation_error=0, drift=0)
+    assert np.allclose(one.log.poses(), sim.log.poses()[::2])
+    with pytest.raises(MapkitError, match="version 4"):
+        simulate_log(m, version=3, second_laser=(-200, 0, 180))
