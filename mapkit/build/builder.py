@@ -96,9 +96,9 @@ def _cycles(log: LaserLog, pose_source: str, max_range: float) -> _Cycles:
 
     The sweeps of one logging cycle (one ``logTime:``, a sweep of each laser: a front and a rear
     laser, say) are one scan: their points, in the first sweep's robot frame, see all round.
-    Matched as scans of their own, each laser's sweep met a local map that was half the other
-    laser's view, and a two-laser log built worse than either laser alone (11.7 mm RMS against
-    6.7 and 2.7, ``docs/logs.md``)."""
+    Matched as scans of their own, each laser's sweep met a local map half made of the other
+    laser's view: on 30 two-laser logs of real ARIA maps, 10.9 mm RMS on average against 9.0
+    merged, worst 27.9 against 22.0, in 2.4 times the CPU (docs/logs.md, round 16)."""
     scans: list[LaserScan] = []
     odo: list[Any] = []
     pts: list[FloatArray] = []

@@ -204,8 +204,8 @@ def test_a_sweeps_lag_varies_by_the_jitter() -> None:
 def test_a_second_laser_sweeps_in_the_same_cycle() -> None:
     """With ``second_laser`` each cycle logs a sweep of each laser under the same pose, time and
     velocities (one ``scanId`` counter for both), the second laser's from its own mount: a rear
-    laser's hits lie on the walls behind the robot, seen from the truth. The front laser's log
-    is the one-laser log's draw for draw only in its poses (the noise draws interleave)."""
+    laser's hits lie on the walls behind the robot, seen from the truth. The poses are the
+    one-laser log's (its ranges are not: the two lasers' noise draws interleave)."""
     m = room_map()
     sim = simulate_log(
         m, seed=3, translation_error=0, rotation_error=0, drift=0, second_laser=(-200, 0, 180)
