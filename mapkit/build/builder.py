@@ -116,13 +116,14 @@ def _cycles(log: LaserLog, pose_source: str, max_range: float) -> _Cycles:
         if not group:
             return
         first = group[0]
-        at = _rad(np.array([pose_of(s) for s in group], dtype=np.float64))
+        # The sweeps' poses, for the later ones (a one-laser log has none: no work per scan).
+        at = _rad(np.array([pose_of(s) for s in group], dtype=np.float64)) if group[1:] else None
         parts, mounts = [], []
         for k, s in enumerate(group):
             las = log.header.laser(s.laser)
             p = s.robot_points(las, max_range=max_range)
             mount = np.array(las.pose[:2], dtype=np.float64)
-            if k:
+            if at is not None and k:
                 # Into the first sweep's frame (the robot may have moved between the sweeps).
                 rel = between(at[0], at[k])
                 p = transform(p, rel)

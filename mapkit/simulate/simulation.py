@@ -7,7 +7,6 @@ import dataclasses
 import itertools
 import math
 from collections.abc import Sequence
-from typing import Any
 
 import numpy as np
 
@@ -299,8 +298,8 @@ def simulate_log(
     # (time, true pose, odometry, velocities) of the last steps: what a lagging sweep saw.
     recent: list[tuple[float, FloatArray, FloatArray, tuple[float, float]]] = []
 
-    def _sweep(las: LaserConfig, seen: FloatArray) -> dict[str, Any]:
-        """What laser ``las`` reads from the true pose ``seen``: its points (``xy``) and, with
+    def sweep(las: LaserConfig, seen: FloatArray) -> tuple[FloatArray, FloatArray | None]:
+        """What laser ``las`` reads from the true pose ``seen``: its points and, with
         ``raw_ranges``, its ranges."""
         lp = compose(seen, las.pose)
         r = ray_cast(lp, angles, segments, points, max_range=max_range, point_size=point_size)
@@ -321,10 +320,7 @@ def simulate_log(
         a = np.radians(angles)
         xy = np.stack([rn * np.cos(a), rn * np.sin(a)], axis=1)
         xy[~hit] = 0.0
-        return {
-            "xy": np.rint(xy),
-            "ranges": np.where(hit, np.rint(rn), NO_RETURN) if raw_ranges else None,
-        }
+        return np.rint(xy), np.where(hit, np.rint(rn), NO_RETURN) if raw_ranges else None
 
     def log_scan() -> None:
         nonlocal scan_id, last_logged
@@ -340,6 +336,7 @@ def simulate_log(
             vel = next((v for tv, _, _, v in recent if tv >= t + lag), vel)
         pose = Pose2D(round(float(logged[0])), round(float(logged[1])), round(float(logged[2]), 2))
         for las in lasers:
+            xy, ranges = sweep(las, seen)
             records.append(
                 LaserScan(
                     scan_id=scan_id,
@@ -348,7 +345,8 @@ def simulate_log(
                     robot_global=pose,
                     time=round(t, 3),
                     velocities=(round(vel[0], 2), round(vel[1], 2), 0.0),
-                    **_sweep(las, seen),
+                    xy=xy,
+                    ranges=ranges,
                 )
             )
             truth.append(np.array(seen, dtype=np.float64))
