@@ -30,8 +30,12 @@ _OWN_PASS = 5000.0
 #: What the registration's relative pose of neighbouring scans is worth (mm, mm, radians).
 _STEP_SIGMA = (3.0, 3.0, math.radians(0.07))
 
-#: Most the first scan's match may turn the map about the start (radians).
-_ANCHOR_TURN = math.radians(0.15)
+#: Most the first scan's match may turn the map about the start (radians): beyond it the first
+#: scan and the map disagree by more than the first scan's match can err (0.06-0.16 degrees,
+#: one standard deviation, on real ARIA maps), and one of them is wrong (a match on the wrong
+#: walls). At 0.15 degrees it also refused the first scan where the start's turn on the spot had
+#: gone 0.2 degrees wrong by odometry (two of its standard deviations, docs/logs.md, round 17).
+_ANCHOR_TURN = math.radians(0.5)
 
 #: Points of the other passes each local plane the first scan is matched against is fitted to.
 _ANCHOR_PLANE_POINTS = 8
@@ -145,7 +149,6 @@ def refine(
     rounds: int = 1,
     odometry: tuple[FloatArray, FloatArray] | None = None,
     odometry_from: np.ndarray[Any, Any] | None = None,
-    anchor_turn: float | None = None,
     unsure: FloatArray | None = None,
 ) -> Refined:
     """The poses after ``rounds`` of matching every scan against the other passes' scans.
@@ -215,7 +218,7 @@ def refine(
                 continue
             if math.hypot(*(r.pose[:2] - x[i, :2])) > 150.0:
                 continue
-            if i == 0 and abs(wrap(r.pose[2] - x[0, 2])) > (anchor_turn or _ANCHOR_TURN):
+            if i == 0 and abs(wrap(r.pose[2] - x[0, 2])) > _ANCHOR_TURN:
                 continue  # the first scan and the map disagree: one of them is wrong
             info = r.info(sigma=_MATCH_SIGMA, points=_MATCH_POINTS) * share[i]
             # The scan's place in the map (whose frame is that of x, node 0's estimate).

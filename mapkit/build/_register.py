@@ -174,16 +174,11 @@ def _refined(
         rounds=_REFINE_ROUNDS,
         odometry=(np.array([z for z, _ in spans]), np.array([info for _, info in spans])),
         odometry_from=base[1:],
-        anchor_turn=_ANCHOR_TURN_UNSURE if per.any() else None,
         unsure=_turning(step_variance(per)) if per.any() else None,
     )
     stats["refined"] = found.matched
     return found.poses, found.drift
 
-
-#: How far (radians) the first scan may turn the map about the start when the sweeps' lag
-#: varies (their registration is then less sure of the start's turns than its match is).
-_ANCHOR_TURN_UNSURE = math.radians(0.5)
 
 #: Longest log (scans) refined against the map of all its scans.
 _REFINE_MAX = 5000
