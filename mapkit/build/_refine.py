@@ -197,8 +197,12 @@ def refine(
     share = np.clip((ahead - behind) / 2.0, 1.0, _SHARED_PATH) / _SHARED_PATH
     # How far each odometry step goes (a drift is taken out in proportion).
     lengths = [] if odometry is None else [math.hypot(s[0], s[1]) for s in odometry[0]]
+    calm = _calm(odometry_from, n)
     for _ in range(rounds):
-        parts = [_world(p, q, e) for p, q, e in zip(pts, nrm, x, strict=True)]
+        parts = [
+            _world(p, q, e) if keep else (p[:0], q[:0])
+            for p, q, e, keep in zip(pts, nrm, x, calm, strict=True)
+        ]
         sizes = np.array([len(a) for a, _ in parts])
         tgt = np.concatenate([a for a, _ in parts])
         tn = np.concatenate([b for _, b in parts])
@@ -208,6 +212,8 @@ def refine(
         others = _OtherPasses(tgt, owner, path)
         found: list[tuple[int, FloatArray, FloatArray]] = []
         for i in range(n):
+            if not calm[i]:
+                continue
             others.at = float(path[i])
             r = (
                 match(src[i], others, tgt, tn, x[i])
@@ -260,6 +266,26 @@ def refine(
                 solved = graph(drift).optimize(start, iterations=5)
         x = solved[:n]
     return Refined(x, matched, drift)
+
+
+def _calm(odometry_from: np.ndarray[Any, Any] | None, n: int) -> np.ndarray[Any, Any]:
+    """Whether each of ``n`` scans is calm: the odometry of the scan after it starts from it
+    (``odometry_from``, see :func:`mapkit.build._lag.bases`; None: every scan is). The others
+    are sweeps each off their pose by their own part of a lag that varies.
+
+    The refinement neither matches them nor matches against them (registration keeps them out
+    of its local maps too). Their poses are registration's within a degree or two (a turn rate
+    times their part of the lag), and a match from there stops in a minimum near where it
+    started: on the first turn on the spot of AMROffice ``jitter`` 3 the matches of three of
+    them erred 0.2-1.0 degrees where they claimed 0.07. The odometry holds such a scan only as
+    loosely as its part of the lag (0.8-1.2 degrees there), so nothing outvoted its match, and
+    together they turned the whole map about the start by 0.4 degrees (docs/logs.md, round 18).
+    Left to the registration's steps and the odometry from the calm scans around them, they
+    follow the calm scans."""
+    if odometry_from is None:
+        return np.ones(n, dtype=bool)
+    out: np.ndarray[Any, Any] = np.append(odometry_from == np.arange(n - 1), True)
+    return out
 
 
 def _drift_left(graph: Callable[[float], PoseGraph], start: FloatArray) -> tuple[float, FloatArray]:
