@@ -277,7 +277,7 @@ def _calm(odometry_from: np.ndarray[Any, Any] | None, n: int) -> np.ndarray[Any,
     of its local maps too). Their poses are registration's within a degree or two (a turn rate
     times their part of the lag), and a match from there stops in a minimum near where it
     started: on the first turn on the spot of AMROffice ``jitter`` 3 the matches of three of
-    them erred 0.2-1.0 degrees where they claimed 0.07. The odometry holds such a scan only as
+    them erred 0.3-1.0 degrees where they claimed 0.07-0.10. The odometry holds such a scan only as
     loosely as its part of the lag (0.8-1.2 degrees there), so nothing outvoted its match, and
     together they turned the whole map about the start by 0.4 degrees (docs/logs.md, round 18).
     Left to the registration's steps and the odometry from the calm scans around them, they
