@@ -261,3 +261,15 @@ def bases(per: FloatArray | None, n: int) -> np.ndarray[Any, np.dtype[np.int64]]
         if per[i, 2] < _CALM**2:
             last = i
     return out
+
+
+def calm(odometry_from: np.ndarray[Any, Any]) -> np.ndarray[Any, np.dtype[np.bool_]]:
+    """Whether each scan is calm, from ``odometry_from`` (``bases(...)[1:]``, the scan each
+    later one's odometry is taken from): a scan is calm when the scan after it takes its
+    odometry from it (the last scan counts as calm). The others are sweeps each off their pose
+    by their own part of a varying lag, which registration keeps out of its local maps and the
+    refinement leaves out (see :func:`mapkit.build._refine.refine`)."""
+    out: np.ndarray[Any, np.dtype[np.bool_]] = np.append(
+        odometry_from == np.arange(len(odometry_from)), True
+    )
+    return out

@@ -21,6 +21,7 @@ import numpy as np
 
 from mapkit.build._common import FloatArray, _world
 from mapkit.build._graph import PoseGraph, between, plus_variance, sigma_info, wrap
+from mapkit.build._lag import calm
 from mapkit.build._loops import _CAUCHY, _MATCH_POINTS, _MATCH_SIGMA, _edge_info
 from mapkit.build._match import MatchResult, icp, local_planes
 
@@ -164,7 +165,8 @@ def refine(
 
     ``odometry_from``: the ``(N - 1,)`` scans the odometry steps start from (default: the scan
     before each; sweeps each off their pose by a part of their own are not chained, see
-    :func:`mapkit.build._lag.bases`).
+    :func:`mapkit.build._lag.bases`, and are neither matched nor matched against, see
+    :func:`_calm`).
 
     With ``odometry``, a heading drift the calibration missed is looked for too (see
     :func:`_drift_left`) and taken out of the odometry's steps when the matches show one.
@@ -277,15 +279,14 @@ def _calm(odometry_from: np.ndarray[Any, Any] | None, n: int) -> np.ndarray[Any,
     of its local maps too). Their poses are registration's within a degree or two (a turn rate
     times their part of the lag), and a match from there stops in a minimum near where it
     started: on the first turn on the spot of AMROffice ``jitter`` 3 the matches of three of
-    them erred 0.3-1.0 degrees where they claimed 0.07-0.10. The odometry holds such a scan only as
-    loosely as its part of the lag (0.8-1.2 degrees there), so nothing outvoted its match, and
-    together they turned the whole map about the start by 0.4 degrees (docs/logs.md, round 18).
-    Left to the registration's steps and the odometry from the calm scans around them, they
+    them erred 0.3-1.0 degrees where they claimed 0.07-0.10. The odometry holds such a scan only
+    as loosely as its part of the lag (0.8-1.2 degrees there), so nothing outvoted its match,
+    and together they turned the whole map about the start by 0.4 degrees (docs/logs.md, round
+    18). Left to the registration's steps and the odometry from the calm scans around them, they
     follow the calm scans."""
     if odometry_from is None:
         return np.ones(n, dtype=bool)
-    out: np.ndarray[Any, Any] = np.append(odometry_from == np.arange(n - 1), True)
-    return out
+    return calm(odometry_from)
 
 
 def _drift_left(graph: Callable[[float], PoseGraph], start: FloatArray) -> tuple[float, FloatArray]:

@@ -12,7 +12,7 @@ import numpy as np
 from mapkit.build._calibrate import CalibrationFeed
 from mapkit.build._common import FloatArray, Progress, _Submap
 from mapkit.build._graph import PoseGraph, between, plus_variance, sigma_info, then, wrap
-from mapkit.build._lag import bases, step_variance
+from mapkit.build._lag import bases, calm, step_variance
 from mapkit.build._loops import (
     _CAUCHY,
     _close,
@@ -221,7 +221,7 @@ def _register_pass(
     # The sweeps the local map is made of: one off its pose by its own part of a varying lag
     # stays out of it (the calm sweep after a turn is matched against calm sweeps, not against
     # the turning ones, each placed by its own match).
-    in_map = np.append(base[1:] == np.arange(n - 1), True)
+    in_map = calm(base[1:])
     est = odo.copy()
     residuals = stats["residual_per_scan"]
     graph = PoseGraph()
