@@ -39,6 +39,7 @@ def _register(
     loop_closure: bool,
     progress: Progress | None,
     unsure: FloatArray | None = None,
+    turn_error: float | None = None,
 ) -> FloatArray:
     """The front end (scan-to-local-map ICP) with loop closures and pose-graph optimisation.
 
@@ -48,11 +49,14 @@ def _register(
     ``unsure``: the ``(N, 3)`` variances (x, y, heading) of each sweep about its
     pose that the odometry's model does not know of (sweeps whose lag varies,
     :func:`mapkit.build._lag.sweep_variance`); None: none.
+
+    ``turn_error``: how far the robot's turns err, as a fraction of the turn, when it is known
+    (see :meth:`_OdometryModel.stated_as`); None: fitted from the log.
     """
     n = len(scans)
     per = np.zeros((n, 3)) if unsure is None else unsure
     base = bases(unsure, n)
-    model = _OdometryModel()
+    model = _OdometryModel.stated_as(turn_error)
     warm_up = min(_WARM_UP, n // 2)
     if warm_up >= 20:
         warm_sides = _sides(all_pts[:warm_up])
@@ -352,6 +356,8 @@ def _register_pass(
         if progress and (i % report_every == 0 or i == n - 1):
             progress(i + 1, n)
     stats["odometry_scale"] = round(float(model.scale), 4)
+    stats["turn_error"] = model.turn_error
+    stats["turn_error_stated"] = model.turn_stated
     stats["calibration"] = model.calibration.summary()
     if loop_closure and (stats["revisits"] or stats["tag_loops"]):
         est = graph.optimize(est, iterations=20, reject=_REJECT)

@@ -351,6 +351,14 @@ class _Bar:
     help="One goal per cairn: event (default: goals of one name merged at their mean pose).",
 )
 @click.option(
+    "--turn-error",
+    type=click.FloatRange(0.0, 1.0, max_open=True),
+    default=None,
+    help="How far the robot's odometry errs in its turns, as a fraction of each turn (0.001: "
+    "0.1 %), when known (a calibration, or several logs' odometry_turn_error in --json); "
+    "default: fitted from this log.",
+)
+@click.option(
     "--poses",
     "poses_file",
     type=click.Path(dir_okay=False),
@@ -377,6 +385,7 @@ def build(
     no_lines: bool,
     tolerant: bool,
     keep_all_tags: bool,
+    turn_error: float | None,
     poses_file: str | None,
     report_file: str | None,
     force: bool,
@@ -414,6 +423,7 @@ def build(
             lines=not no_lines,
             strict=not tolerant,
             merge_goals=not keep_all_tags,
+            turn_error=turn_error,
             progress=bar,
         )
     finally:
@@ -465,6 +475,11 @@ def build(
                 f"{'older' if reg['scan_lag_ms'] > 0 else 'newer'} than the poses logged "
                 f"with them (from {plural(reg['scan_lag_pairs'], 'change')} of turn rate); "
                 "each was placed where the robot was then"
+            )
+        if reg.get("odometry_turn_error_ruled_out"):
+            click.echo(
+                f"  turn error: this log's turns rule out the one stated; fitted as "
+                f"{reg['odometry_turn_error']} of each turn instead"
             )
         if reg.get("scan_lag_jitter_ms"):
             click.echo(

@@ -40,6 +40,45 @@ def test_turns_get_their_own_noise_scale() -> None:
     assert nxt.turn_scale == model.turn_scale
 
 
+def _turns_seen(model: _odometry._OdometryModel, slip: float, seed: int) -> None:
+    """300 steps, every tenth a 25 degree turn on the spot whose odometry slips by ``slip`` of
+    it (normal) against a match of 0.1 degrees; the straight steps agree with theirs."""
+    turn = math.radians(25.0)
+    match = np.diag([1 / 100.0, 1 / 100.0, 1 / math.radians(0.1) ** 2])
+    rng = np.random.default_rng(seed)
+    for k in range(300):
+        if k % 10 == 0:
+            d = rng.normal(0.0, math.radians(0.1)) + rng.normal(0.0, slip * turn)
+            model.observe(np.array([0.0, 0.0, d]), match, 0.0, turn)
+        else:
+            model.observe(np.zeros(3), match, 300.0, 0.0)
+    model.settle()
+
+
+def test_a_stated_turn_error_is_kept_unless_the_turns_rule_it_out() -> None:
+    """The robot's turn error as its owner states it (0.1 % of the turn). Turns that agree
+    with it within what their matches can tell (exact, or 0.3 %) keep it, in this pass and the
+    next, where the fit alone finds what their matches' noise makes of them. Turns that slip
+    2 % rule it out (stated too low, the odometry would outvote every scan that saw the slip:
+    metres off on the benchmark's slipping robot), and the log's own fit is taken."""
+    for slip in (0.0, 0.003):
+        for seed in (1, 2, 3):
+            model = _odometry._OdometryModel.stated_as(0.001)
+            _turns_seen(model, slip, seed)
+            assert model.turn_stated and model.turn_error == pytest.approx(0.001)
+            assert model.fresh().turn_error == pytest.approx(0.001)
+    slipping = _odometry._OdometryModel.stated_as(0.001)
+    _turns_seen(slipping, 0.02, 1)
+    assert not slipping.turn_stated
+    assert slipping.turn_error is not None and slipping.turn_error > 0.01
+    fitted = _odometry._OdometryModel()
+    _turns_seen(fitted, 0.02, 1)
+    assert slipping.turn_scale == fitted.turn_scale
+    # Stated as none: the fit's floor (odometry is never taken as exact).
+    floor = _odometry._OdometryModel.stated_as(0.0)
+    assert floor.turn_scale == pytest.approx(10.0**_odometry._MIN_LOG_TURN_SCALE)
+
+
 def test_calibration_keeps_what_an_earlier_pass_learnt_until_it_has_samples() -> None:
     """A pass starts from the factors the pass before learnt (the warm-up's, say), and keeps them
     until it has samples enough of its own; it used to fall back to no correction at its first

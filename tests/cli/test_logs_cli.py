@@ -42,6 +42,24 @@ def test_simulate_build_and_info(runner, tmp_path) -> None:
     summary = json.loads(res.output)
     assert summary["points"] == mapkit.load(out).scan.num_points
     assert summary["loops"]["tags_matched"] == 1
+    fitted = summary["registration"]["odometry_turn_error"]
+    assert fitted is not None and not summary["registration"]["odometry_turn_error_stated"]
+    # The robot's turn error stated (as its owner knows it; this robot's logged turns err
+    # 0.8 %): taken as stated, not fitted; stated eight times too low, the turns rule it out.
+    res = runner.invoke(
+        cli, ["build", str(log), "-o", str(out), "--force", "--json", "--turn-error", "0.008"]
+    )
+    assert res.exit_code == 0, res.output
+    stated = json.loads(res.output)["registration"]
+    assert stated["odometry_turn_error"] == 0.008 and stated["odometry_turn_error_stated"]
+    assert not stated["odometry_turn_error_ruled_out"]
+    res = runner.invoke(
+        cli, ["build", str(log), "-o", str(out), "--force", "--turn-error", "0.001"]
+    )
+    assert res.exit_code == 0, res.output
+    assert "this log's turns rule out the one stated" in res.output
+    res = runner.invoke(cli, ["build", str(log), "-o", str(out), "--force", "--turn-error", "-1"])
+    assert res.exit_code == 2 and "--turn-error" in res.output
     res = runner.invoke(cli, ["build", str(log), "-o", str(out)])
     assert res.exit_code == 2 and "--force" in res.output
     res = runner.invoke(
