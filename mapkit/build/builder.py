@@ -390,8 +390,8 @@ def build_map(
             ),
             "odometry_turn_error_stated": stats.get("turn_error_stated", False),
             "odometry_turn_error_ruled_out": turn_error is not None
-            and register
-            and not stats.get("turn_error_stated", False),
+            and "turn_error_stated" in stats
+            and not stats["turn_error_stated"],
             "refined": stats.get("refined", 0),
             "scan_lag_ms": _ms(lag.seconds),
             "scan_lag_fitted_ms": _ms(lag.fitted),
