@@ -24,6 +24,9 @@ _MIN_DRIFT = 25
 #: Least noise scale (log10): odometry is never trusted as exact, so scans keep a say.
 _MIN_LOG_SCALE = -2.0
 
+#: Largest noise scale (log10) either fit searches.
+_MAX_LOG_SCALE = 2.0
+
 #: Least noise scale (log10) of the turn's part of the heading noise: 0.03 % of the turn (a
 #: simulator's turns, or a well-kept robot's on a hard floor, are that good).
 _MIN_LOG_TURN_SCALE = -4.0
@@ -65,7 +68,7 @@ def _fit_scale(
         x = np.linalg.solve(C, D[..., None])[..., 0]
         return float(np.percentile(np.einsum("ni,ni->n", D, x), pct))
 
-    lo, hi = floor, 2.0  # log10 of the scale, never below the floor
+    lo, hi = floor, _MAX_LOG_SCALE  # log10 of the scale, never below the floor
     if chi(10**lo) <= target:
         return float(10**lo)
     if chi(10**hi) >= target:
@@ -83,6 +86,9 @@ def _fit_scale(
 #: one to rule it out (e^10: over four standard deviations).
 _RULED_OUT = 10.0
 
+#: Steps (log10) of the search for the turning steps' likeliest noise scale.
+_RULE_OUT_STEP = 0.025
+
 #: Degrees of freedom of the Student t the turning steps' disagreements are taken as (a few
 #: matches of a turn go wrong by far more than they claim).
 _TURN_NU = 4.0
@@ -96,13 +102,14 @@ def _ruled_out(D: FloatArray, S: FloatArray, V: FloatArray, stated: float) -> bo
     """Whether turning steps whose headings disagree with their matches by ``D`` (known
     variances ``S``: the match's and the straight part's; ``V``: the turn's at scale 1) rule out
     the turn scale ``stated``: their likelihood under it is ``_RULED_OUT`` (log) below that
-    under their likeliest scale (searched on a grid of log10 steps of 0.025), each taken as a
+    under their likeliest scale (searched on a grid of ``_RULE_OUT_STEP``), each taken as a
     Student t (robust to a few matches gone wrong).
 
     On 60 logs of ten classes a simulator's 0.1 % (0.0011) was within 4.5 of the likeliest on
     every class but the robot slipping 2 % in its turns (36-137): one log's turns resolve their
     noise only coarsely, but tell a slipping robot from a good one (docs/logs.md, round 19)."""
-    ks = np.append(10.0 ** np.arange(_MIN_LOG_TURN_SCALE, 2.0 + 0.0125, 0.025), stated)
+    grid = np.arange(_MIN_LOG_TURN_SCALE, _MAX_LOG_SCALE + _RULE_OUT_STEP / 2, _RULE_OUT_STEP)
+    ks = np.append(10.0**grid, stated)
     var = _TURN_T_SCALE * (S[None, :] + ks[:, None] * V[None, :])
     cost = np.sum(
         0.5 * np.log(var) + (_TURN_NU + 1.0) / 2.0 * np.log1p(D * D / (_TURN_NU * var)), 1
@@ -177,6 +184,11 @@ class _OdometryModel:
     def turn_stated(self) -> bool:
         """Whether the turns' scale is the stated one (not ruled out by the log's turns)."""
         return self.stated is not None and self.turn_scale == self.stated
+
+    @property
+    def turn_ruled_out(self) -> bool:
+        """Whether a turns' scale was stated and the log's turns ruled it out."""
+        return self.stated is not None and not self.turn_stated
 
     @property
     def turn_error(self) -> float | None:

@@ -358,6 +358,7 @@ def _register_pass(
     stats["odometry_scale"] = round(float(model.scale), 4)
     stats["turn_error"] = model.turn_error
     stats["turn_error_stated"] = model.turn_stated
+    stats["turn_error_ruled_out"] = model.turn_ruled_out
     stats["calibration"] = model.calibration.summary()
     if loop_closure and (stats["revisits"] or stats["tag_loops"]):
         est = graph.optimize(est, iterations=20, reject=_REJECT)

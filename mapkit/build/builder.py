@@ -389,9 +389,7 @@ def build_map(
                 None if stats.get("turn_error") is None else round(stats["turn_error"], 5)
             ),
             "odometry_turn_error_stated": stats.get("turn_error_stated", False),
-            "odometry_turn_error_ruled_out": turn_error is not None
-            and "turn_error_stated" in stats
-            and not stats["turn_error_stated"],
+            "odometry_turn_error_ruled_out": stats.get("turn_error_ruled_out", False),
             "refined": stats.get("refined", 0),
             "scan_lag_ms": _ms(lag.seconds),
             "scan_lag_fitted_ms": _ms(lag.fitted),
