@@ -43,7 +43,9 @@ from mapkit.build._lines import extract_lines
 from mapkit.build._reader import _register_reader as _register_reader  # registers the .2d reader
 from mapkit.build.builder import (
     BuildResult,
+    TurnEvidence,
     build_map,
+    robot_turn_error,
 )
 
-__all__ = ["BuildResult", "build_map", "extract_lines"]
+__all__ = ["BuildResult", "TurnEvidence", "build_map", "extract_lines", "robot_turn_error"]

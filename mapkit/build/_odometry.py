@@ -7,7 +7,8 @@ Poses and steps are ``(x mm, y mm, theta radians)`` numpy arrays; see :class:`_O
 from __future__ import annotations
 
 import math
-from typing import Any
+from collections.abc import Iterable
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -115,6 +116,49 @@ def _ruled_out(D: FloatArray, S: FloatArray, V: FloatArray, stated: float) -> bo
         0.5 * np.log(var) + (_TURN_NU + 1.0) / 2.0 * np.log1p(D * D / (_TURN_NU * var)), 1
     )
     return bool(cost[-1] - cost.min() > _RULED_OUT)
+
+
+class TurnEvidence(NamedTuple):
+    """What a log's turning steps say of how far the robot's odometry errs in its turns: per
+    step (a turn of more than 5 degrees), in radians and radians squared."""
+
+    #: How far the step's scan match turned it from its odometry (heading).
+    disagreement: FloatArray
+    #: The variance of that known besides the turn's own noise: the match's and the straight
+    #: part's of the odometry.
+    known: FloatArray
+    #: The turn's own variance at noise scale 1 (the model's shape, 3 % of the turn).
+    shape: FloatArray
+
+
+def _turn_scale(turns: TurnEvidence) -> float:
+    """The scale of the turns' noise for which the median turning step disagrees with its
+    match as much as chance gives (floored at ``_MIN_LOG_TURN_SCALE``)."""
+    return _fit_scale(
+        turns.disagreement[:, None],
+        turns.known[:, None, None],
+        turns.shape[:, None],
+        50.0,
+        _CHI2_1_HALF,
+        floor=_MIN_LOG_TURN_SCALE,
+    )
+
+
+def pooled_turn_error(evidence: Iterable[TurnEvidence]) -> float | None:
+    """How far a robot's turns err (a fraction of the turn, standard deviation), fitted on the
+    turning steps of several of its logs at once, as :meth:`_OdometryModel._fit_turns` fits one
+    log's; None when they have fewer than ``_MIN_TURNS`` turning steps in all.
+
+    One log's few dozen turns resolve it only coarsely (a robot whose turns err 0.1 % gets
+    0.03-0.4 % from one log, docs/logs.md, round 19); a robot's turns are the robot's, and the
+    steps of several logs pin them down."""
+    turns = list(evidence)
+    pooled = TurnEvidence(
+        *(np.concatenate([t[i] for t in turns]) if turns else np.zeros(0) for i in range(3))
+    )
+    if len(pooled.disagreement) < _MIN_TURNS:
+        return None
+    return _TURN_SHAPE * math.sqrt(_turn_scale(pooled))
 
 
 class _OdometryModel:
@@ -275,21 +319,31 @@ class _OdometryModel:
         A stated scale (:meth:`stated_as`) is kept unless the turning steps rule it out
         (:func:`_ruled_out`); then they are fitted as when none is stated.
         """
-        turning = np.flatnonzero(self._turning)
-        if len(turning) < _MIN_TURNS:
+        turns = self.turns()
+        if len(turns.disagreement) < _MIN_TURNS:
             return  # as before (from an earlier pass, or none)
-        turning = turning[-_FIT_STEPS:]
-        # The heading alone: a turn on the spot hardly moves, what it gets wrong is the angle.
-        D = np.array([self._d[k][2:] for k in turning])
-        # What is not the turn's own part is known noise: the match's and the straight part.
-        S = np.array([self._scan_cov[k][2:, 2:] for k in turning])
-        turn_var = np.array([self._turn_var[k] for k in turning])
-        S[:, 0, 0] += self.scale * (np.array([self._odo_var[k][2] for k in turning]) - turn_var)
-        V = turn_var[:, None]
-        if self.stated is not None and not _ruled_out(D[:, 0], S[:, 0, 0], turn_var, self.stated):
+        if self.stated is not None and not _ruled_out(*turns, self.stated):
             self.turn_scale = self.stated
             return
-        self.turn_scale = _fit_scale(D, S, V, 50.0, _CHI2_1_HALF, floor=_MIN_LOG_TURN_SCALE)
+        self.turn_scale = _turn_scale(turns)
+
+    @property
+    def observed(self) -> int:
+        """How many steps were observed (:meth:`observe`)."""
+        return len(self._d)
+
+    def turns(self, since: int | None = None) -> TurnEvidence:
+        """What the turning steps say of the turns' noise: the latest ``_FIT_STEPS`` (what the
+        fit takes), or all observed from step ``since`` on."""
+        turning = np.flatnonzero(self._turning)
+        turning = turning[-_FIT_STEPS:] if since is None else turning[turning >= since]
+        # The heading alone: a turn on the spot hardly moves, what it gets wrong is the angle.
+        D = np.array([self._d[k][2] for k in turning], dtype=np.float64)
+        # What is not the turn's own part is known noise: the match's and the straight part.
+        turn_var = np.array([self._turn_var[k] for k in turning], dtype=np.float64)
+        S = np.array([self._scan_cov[k][2, 2] for k in turning], dtype=np.float64)
+        S += self.scale * (np.array([self._odo_var[k][2] for k in turning]) - turn_var)
+        return TurnEvidence(D, S, turn_var)
 
 
 class _Calibration:

@@ -219,6 +219,7 @@ def _register_pass(
 ) -> FloatArray:
     n = len(scans)
     per, base = sweeps
+    observed = model.observed  # the steps of earlier passes (the warm-up's) are not this one's
     # The odometry from each scan's base (the scan before it, or across sweeps each off their
     # pose by a part of their own, the last calm one): calibrated, composed step by step.
     from_base = np.zeros((n, 3))
@@ -359,6 +360,7 @@ def _register_pass(
     stats["turn_error"] = model.turn_error
     stats["turn_error_stated"] = model.turn_stated
     stats["turn_error_ruled_out"] = model.turn_ruled_out
+    stats["turns"] = model.turns(since=observed)
     stats["calibration"] = model.calibration.summary()
     if loop_closure and (stats["revisits"] or stats["tag_loops"]):
         est = graph.optimize(est, iterations=20, reject=_REJECT)

@@ -165,6 +165,10 @@ COMMANDS: dict[str, tuple[str, str]] = {
         "mapkit.cli.edit:transform_cmd",
         "Move the whole map: points, lines and every object together; headings follow.",
     ),
+    "turn-error": (
+        "mapkit.cli.logs:turn_error",
+        "Learn how far a robot's odometry errs in its turns from several of its .2d logs.",
+    ),
     "validate": (
         "mapkit.cli.validate:validate",
         "Check MAP_FILE and list every finding with a stable code (mapkit codes lists them).",

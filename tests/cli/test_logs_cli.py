@@ -291,3 +291,58 @@ def test_a_second_lasers_sweeps_are_merged_into_their_cycles_scan(runner, tmp_pa
         ],
     )
     assert res.exit_code != 0 and "version 4" in res.output, res.output
+
+
+def test_a_robots_turn_error_learnt_from_several_logs(runner, tmp_path) -> None:
+    """mapkit turn-error registers each log and fits their turns at once: what the API's
+    robot_turn_error gives for the same logs, printed with each log's own fit and the build
+    command to use it with; a robot that slips 2 % in its turns is told from one that errs
+    0.1 %."""
+    from mapkit.build import build_map, robot_turn_error
+
+    def logs(rot_error: str) -> list[str]:
+        paths = []
+        for seed in ("1", "2"):
+            path = tmp_path / f"office-{rot_error}-{seed}.2d"
+            res = runner.invoke(
+                cli,
+                [
+                    *("simulate", "--sample", "office", "-o", str(path), "--seed", seed),
+                    *("--rot-error", rot_error, "--drift", "0", "--readings", "181"),
+                ],
+            )
+            assert res.exit_code == 0, res.output
+            paths.append(str(path))
+        return paths
+
+    good, slipping = logs("0.001"), logs("0.02")
+    res = runner.invoke(cli, ["turn-error", *good, "--json"])
+    assert res.exit_code == 0, res.output
+    found = json.loads(res.output)
+    builds = [build_map(p, lines=False) for p in good]
+    assert found["turn_error"] == round(robot_turn_error(builds), 5)
+    assert [e["turning_steps"] for e in found["logs"]] == [
+        len(b.turns.disagreement) for b in builds
+    ]
+    assert found["turning_steps"] == sum(e["turning_steps"] for e in found["logs"]) > 20
+    assert found["turn_error"] < 0.004
+    res = runner.invoke(cli, ["turn-error", *slipping])
+    assert res.exit_code == 0, res.output
+    lines = [line for line in res.output.splitlines() if not line.startswith("registering")]
+    assert lines[0].startswith(f"{slipping[0]}: ") and "this log alone:" in lines[0]
+    assert lines[2].startswith("the robot's turns err ") and "in 2 logs" in lines[2]
+    stated = float(lines[3].rsplit("--turn-error ", 1)[1])
+    assert stated > 3 * found["turn_error"], (stated, found["turn_error"])
+    # A log without turns: nothing to learn from, said so.
+    room, straight = tmp_path / "world.map", tmp_path / "straight.2d"
+    room.write_text(ROOM)
+    res = runner.invoke(
+        cli,
+        [
+            *("simulate", str(room), "-o", str(straight), "--waypoints", "6500,2500"),
+            *("--start", "1500,2500,0", "--readings", "181"),
+        ],
+    )
+    assert res.exit_code == 0, res.output
+    res = runner.invoke(cli, ["turn-error", str(straight)])
+    assert res.exit_code == 1 and "too few to learn the turns' error from" in res.output
