@@ -70,11 +70,12 @@ class BuildResult:
         return d
 
 
-def robot_turn_error(builds: Iterable[BuildResult]) -> float | None:
+def robot_turn_error(builds: Iterable[BuildResult | TurnEvidence]) -> float | None:
     """How far a robot's odometry errs in its turns (a fraction of each turn, standard
-    deviation), learnt from the builds of several of its logs at once: the value to give
-    :func:`build_map` as ``turn_error`` for this robot's logs. None when the logs have fewer
-    than 10 turning steps in all.
+    deviation), learnt from the builds of several of its logs at once (or their
+    :attr:`BuildResult.turns`, kept from earlier builds): the value to give :func:`build_map` as
+    ``turn_error`` for this robot's logs. None when the logs have fewer than 10 turning steps
+    in all.
 
     Each build fits its own log's turns too (``odometry_turn_error`` in its summary), but a
     log's few dozen turns resolve them only coarsely: on 18 simulated logs each of robots
@@ -94,7 +95,7 @@ def robot_turn_error(builds: Iterable[BuildResult]) -> float | None:
         >>> 0.0 <= error < 0.05
         True
     """
-    return pooled_turn_error(b.turns for b in builds)
+    return pooled_turn_error(b.turns if isinstance(b, BuildResult) else b for b in builds)
 
 
 def _ms(seconds: float) -> float | None:
