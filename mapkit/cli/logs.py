@@ -518,6 +518,11 @@ def build(
         )
 
 
+#: Fewer turning steps than this in all, and ``mapkit turn-error`` says what so few were worth
+#: on the benchmark (docs/logs.md, round 20).
+_FEW_TURNING_STEPS = 1000
+
+
 def _percent(fraction: float | None) -> str:
     return "not seen" if fraction is None else f"{100 * fraction:.2g} %"
 
@@ -612,6 +617,11 @@ def turn_error(
             f"the robot's turns err {_percent(pooled)} of each turn "
             f"({plural(steps, 'turning step')} in {plural(len(logs), 'log')})"
         )
+        if steps < _FEW_TURNING_STEPS:
+            click.echo(
+                "  few turning steps: on the benchmark 300-400 (three logs) did no better than "
+                "each log's own fit, 1,800-2,000 did"
+            )
         click.echo(f"  build its logs with: mapkit build LOG -o MAP --turn-error {pooled:.2g}")
 
 
