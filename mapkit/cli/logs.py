@@ -284,6 +284,30 @@ def simulate(
         err(f"mapkit: no path to {', '.join(sim.skipped)}: left out of the route")
 
 
+#: ``--pose`` and ``--max-range``: how ``mapkit build`` and ``mapkit turn-error`` read the scans.
+def _pose_options(f: Any) -> Any:
+    f = click.option(
+        "--max-range",
+        type=click.FloatRange(100),
+        default=16000.0,
+        show_default=True,
+        help="Ignore readings this far or farther (mm).",
+    )(f)
+    return click.option(
+        "--pose",
+        "pose_source",
+        type=click.Choice(["robot", "robotGlobal"]),
+        default="robot",
+        show_default=True,
+        help="Pose of each scan: odometry (robot:) or the corrected one (robotGlobal:).",
+    )(f)
+
+
+_tolerant_option = click.option(
+    "--tolerant", is_flag=True, help="Skip bad records (and report them) instead of failing."
+)
+
+
 class _Bar:
     """A click progress bar on stderr, opened on the first report."""
 
@@ -320,21 +344,7 @@ class _Bar:
 )
 @click.option("--no-register", is_flag=True, help="No scan matching: the raw odometry map.")
 @click.option("--no-loops", is_flag=True, help="Register scans but close no loops.")
-@click.option(
-    "--pose",
-    "pose_source",
-    type=click.Choice(["robot", "robotGlobal"]),
-    default="robot",
-    show_default=True,
-    help="Pose of each scan: odometry (robot:) or the corrected one (robotGlobal:).",
-)
-@click.option(
-    "--max-range",
-    type=click.FloatRange(100),
-    default=16000.0,
-    show_default=True,
-    help="Ignore readings this far or farther (mm).",
-)
+@_pose_options
 @click.option(
     "--min-hits",
     type=click.IntRange(1),
@@ -343,9 +353,7 @@ class _Bar:
     help="Laser hits a map point needs.",
 )
 @click.option("--no-lines", is_flag=True, help="Do not fit line segments.")
-@click.option(
-    "--tolerant", is_flag=True, help="Skip bad records (and report them) instead of failing."
-)
+@_tolerant_option
 @click.option(
     "--keep-all-tags",
     is_flag=True,
@@ -529,24 +537,8 @@ def _percent(fraction: float | None) -> str:
 
 @click.command("turn-error")
 @click.argument("log_files", nargs=-1, required=True, type=InputFile())
-@click.option(
-    "--pose",
-    "pose_source",
-    type=click.Choice(["robot", "robotGlobal"]),
-    default="robot",
-    show_default=True,
-    help="Pose of each scan: odometry (robot:) or the corrected one (robotGlobal:).",
-)
-@click.option(
-    "--max-range",
-    type=click.FloatRange(100),
-    default=16000.0,
-    show_default=True,
-    help="Ignore readings this far or farther (mm).",
-)
-@click.option(
-    "--tolerant", is_flag=True, help="Skip bad records (and report them) instead of failing."
-)
+@_pose_options
+@_tolerant_option
 @json_option
 def turn_error(
     log_files: tuple[str, ...], pose_source: str, max_range: float, tolerant: bool, as_json: bool
