@@ -531,8 +531,11 @@ def build(
 _FEW_TURNING_STEPS = 1000
 
 
-def _percent(fraction: float | None) -> str:
-    return "not seen" if fraction is None else f"{100 * fraction:.2g} %"
+def _alone(fraction: float | None) -> str:
+    """A log's own fit of its turn error, as ``mapkit turn-error`` prints it."""
+    if fraction is None:
+        return "too few turns to fit"
+    return f"{100 * fraction:.2g} % of each turn"
 
 
 @click.command("turn-error")
@@ -596,7 +599,7 @@ def turn_error(
         for entry in logs:
             click.echo(
                 f"{entry['file']}: {plural(int(entry['turning_steps']), 'turning step')}; "
-                f"this log alone: {_percent(entry['turn_error'])} of each turn"
+                f"this log alone: {_alone(entry['turn_error'])}"
             )
     if pooled is None:
         raise CommandError(
@@ -606,7 +609,7 @@ def turn_error(
         )
     if not as_json:
         click.echo(
-            f"the robot's turns err {_percent(pooled)} of each turn "
+            f"the robot's turns err {100 * pooled:.2g} % of each turn "
             f"({plural(steps, 'turning step')} in {plural(len(logs), 'log')})"
         )
         if steps < _FEW_TURNING_STEPS:

@@ -347,3 +347,4 @@ def test_a_robots_turn_error_learnt_from_several_logs(runner, tmp_path) -> None:
     assert res.exit_code == 0, res.output
     res = runner.invoke(cli, ["turn-error", str(straight)])
     assert res.exit_code == 1 and "too few to learn the turns' error from" in res.output
+    assert f"{straight}: 0 turning steps; this log alone: too few turns to fit" in res.output
