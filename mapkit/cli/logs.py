@@ -560,7 +560,7 @@ def turn_error(
     from mapkit.build import build_map, robot_turn_error
     from mapkit.cli.main import EXIT_FAILED, CommandError
 
-    builds = []
+    turns = []  # each log's turning steps (not its map: many long logs stay small)
     logs = []
     for path in log_files:
         bar = _Bar(f"registering {path}", enabled=not as_json)
@@ -577,7 +577,7 @@ def turn_error(
             bar.close()
         for issue in result.issues:
             err(str(issue))
-        builds.append(result)
+        turns.append(result.turns)
         logs.append(
             {
                 "file": path,
@@ -585,7 +585,7 @@ def turn_error(
                 "turn_error": result.summary["registration"]["odometry_turn_error"],
             }
         )
-    pooled = robot_turn_error(builds)
+    pooled = robot_turn_error(turns)
     steps = sum(int(entry["turning_steps"]) for entry in logs)
     if as_json:
         echo_json(
