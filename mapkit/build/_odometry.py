@@ -130,6 +130,11 @@ class TurnEvidence(NamedTuple):
     #: The turn's own variance at noise scale 1 (the model's shape, 3 % of the turn).
     shape: FloatArray
 
+    @classmethod
+    def none(cls) -> TurnEvidence:
+        """No turning steps (a log not registered, or no logs)."""
+        return cls(np.zeros(0), np.zeros(0), np.zeros(0))
+
 
 def _turn_scale(turns: TurnEvidence) -> float:
     """The scale of the turns' noise for which the median turning step disagrees with its
@@ -153,8 +158,10 @@ def pooled_turn_error(evidence: Iterable[TurnEvidence]) -> float | None:
     0.03-0.4 % from one log, docs/logs.md, round 19); a robot's turns are the robot's, and the
     steps of several logs pin them down."""
     turns = list(evidence)
-    pooled = TurnEvidence(
-        *(np.concatenate([t[i] for t in turns]) if turns else np.zeros(0) for i in range(3))
+    pooled = (
+        TurnEvidence(*(np.concatenate(parts) for parts in zip(*turns, strict=True)))
+        if turns
+        else TurnEvidence.none()
     )
     if len(pooled.disagreement) < _MIN_TURNS:
         return None

@@ -57,9 +57,7 @@ class BuildResult:
     issues: tuple[Issue, ...] = ()
     residuals: FloatArray = field(default_factory=lambda: np.zeros(0))
     closures: np.ndarray[Any, Any] = field(default_factory=lambda: np.zeros((0, 2), dtype=np.int64))
-    turns: TurnEvidence = field(
-        default_factory=lambda: TurnEvidence(np.zeros(0), np.zeros(0), np.zeros(0))
-    )
+    turns: TurnEvidence = field(default_factory=TurnEvidence.none)
 
     @property
     def moved(self) -> FloatArray:
@@ -407,7 +405,7 @@ def build_map(
     per_scan = stats.pop("residual_per_scan")
     closures = np.array(stats.pop("closures"), dtype=np.int64).reshape(-1, 2)
     cm, cd = stats.pop("corrections_mm"), stats.pop("corrections_deg")
-    turns = stats.pop("turns", None)
+    turns = stats.pop("turns") if "turns" in stats else TurnEvidence.none()
     length = float(np.sum(np.hypot(*np.diff(odo[:, :2], axis=0).T))) if n > 1 else 0.0
     summary = {
         "source": log.source,
@@ -462,5 +460,5 @@ def build_map(
         issues=tuple(issues),
         residuals=per_scan,
         closures=closures,
-        **({} if turns is None else {"turns": turns}),
+        turns=turns,
     )

@@ -284,8 +284,9 @@ def simulate(
         err(f"mapkit: no path to {', '.join(sim.skipped)}: left out of the route")
 
 
-#: ``--pose`` and ``--max-range``: how ``mapkit build`` and ``mapkit turn-error`` read the scans.
 def _pose_options(f: Any) -> Any:
+    """``--pose`` and ``--max-range``: how ``mapkit build`` and ``mapkit turn-error`` read the
+    scans."""
     f = click.option(
         "--max-range",
         type=click.FloatRange(100),
@@ -561,7 +562,7 @@ def turn_error(
     from mapkit.cli.main import EXIT_FAILED, CommandError
 
     turns = []  # each log's turning steps (not its map: many long logs stay small)
-    logs = []
+    logs: list[dict[str, Any]] = []
     for path in log_files:
         bar = _Bar(f"registering {path}", enabled=not as_json)
         try:
@@ -586,7 +587,7 @@ def turn_error(
             }
         )
     pooled = robot_turn_error(turns)
-    steps = sum(int(entry["turning_steps"]) for entry in logs)
+    steps = sum(len(t.disagreement) for t in turns)
     if as_json:
         echo_json(
             {
@@ -598,7 +599,7 @@ def turn_error(
     else:
         for entry in logs:
             click.echo(
-                f"{entry['file']}: {plural(int(entry['turning_steps']), 'turning step')}; "
+                f"{entry['file']}: {plural(entry['turning_steps'], 'turning step')}; "
                 f"this log alone: {_alone(entry['turn_error'])}"
             )
     if pooled is None:
