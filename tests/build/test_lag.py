@@ -160,7 +160,7 @@ def test_odometry_is_taken_from_the_last_calm_sweep(rows, jitter: float) -> None
     assert np.array_equal(bases(None, len(vel)), np.arange(-1, len(vel) - 1))
 
 
-@pytest.mark.parametrize("lag", [0.04])
+@pytest.mark.parametrize("lag", [0.04, 0.0])
 def test_a_lag_is_measured_in_a_wide_hall(lag: float, shared_dir) -> None:
     """An LD's showroom (a real map: a wide hall of posts and displays). Most beams end far
     apart or on posts, with no wall (no normal) of their own: the pairs' matches were right but
