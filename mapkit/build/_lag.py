@@ -152,6 +152,8 @@ def measure(odo: FloatArray, vel: FloatArray, pts: list[FloatArray]) -> Lag:
     if noise >= 0.0:
         jitter = _spread(res, np.array(rates), noise)
     vary = jitter > _JITTER_LEAST and jitter * rate > _JITTER_NEGLIGIBLE
+    # The spread is measured about the fitted lag: taken, it is taken with that lag.
+    taken = taken or (vary and abs(lag) * rate > _NEGLIGIBLE and abs(lag) <= _LARGEST)
     return Lag(
         lag if taken else 0.0,
         lag,
