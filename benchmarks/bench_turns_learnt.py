@@ -24,7 +24,7 @@ import statistics
 import sys
 from typing import Any
 
-from bench_build_real import draws, each_log, on_path, options
+from bench_build_real import chosen, each_log, on_path, options
 
 Key = tuple[str, str, int]
 
@@ -73,12 +73,12 @@ def main() -> int:
         """Each log's turns, from its build with the turn error fitted."""
         out: dict[Key, Any] = {}
         for key, (_, (_, _, _, turns, _)) in zip(
-            draws(a.seeds, a.only, a.first_seed), each_log(a, paths, built, {}), strict=True
+            chosen(a), each_log(a, paths, built, {}), strict=True
         ):
             out[key] = turns
         return out
 
-    keys = draws(args.seeds, args.only, args.first_seed)
+    keys = chosen(args)
     teachers = None
     if args.learn_seeds:
         teach = argparse.Namespace(**{**vars(args), "seeds": args.learn_seeds, "first_seed": 1})
