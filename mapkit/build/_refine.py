@@ -36,7 +36,12 @@ _STEP_SIGMA = (3.0, 3.0, math.radians(0.07))
 #: one standard deviation, on real ARIA maps), and one of them is wrong (a match on the wrong
 #: walls). At 0.15 degrees it also refused the first scan where the start's turn on the spot had
 #: gone 0.2 degrees wrong by odometry (two of its standard deviations, docs/logs.md, round 17).
+#: The start's own odometry widens it (:func:`_anchor_turn`): a robot that slips in its turns
+#: turned a map 0.6 degrees in its first turn on the spot (round 21).
 _ANCHOR_TURN = math.radians(0.5)
+
+#: Path (mm) from the start whose odometry widens that bar.
+_START = 1000.0
 
 #: Points of the other passes each local plane the first scan is matched against is fitted to.
 _ANCHOR_PLANE_POINTS = 8
@@ -200,6 +205,7 @@ def refine(
     # How far each odometry step goes (a drift is taken out in proportion).
     lengths = [] if odometry is None else [math.hypot(s[0], s[1]) for s in odometry[0]]
     calm = _calm(odometry_from, n)
+    anchor_turn = _anchor_turn(path, odometry, calm)
     for _ in range(rounds):
         parts = [
             _world(p, q, e) if keep else (p[:0], q[:0])
@@ -226,7 +232,7 @@ def refine(
                 continue
             if math.hypot(*(r.pose[:2] - x[i, :2])) > 150.0:
                 continue
-            if i == 0 and abs(wrap(r.pose[2] - x[0, 2])) > _ANCHOR_TURN:
+            if i == 0 and abs(wrap(r.pose[2] - x[0, 2])) > anchor_turn:
                 continue  # the first scan and the map disagree: one of them is wrong
             info = r.info(sigma=_MATCH_SIGMA, points=_MATCH_POINTS) * share[i]
             # The scan's place in the map (whose frame is that of x, node 0's estimate).
@@ -268,6 +274,23 @@ def refine(
                 solved = graph(drift).optimize(start, iterations=5)
         x = solved[:n]
     return Refined(x, matched, drift)
+
+
+def _anchor_turn(
+    path: FloatArray,
+    odometry: tuple[FloatArray, FloatArray] | None,
+    calm: np.ndarray[Any, Any],
+) -> float:
+    """The most the first scan's match may turn the map about the start (radians):
+    ``_ANCHOR_TURN``, and three standard deviations more of what the odometry over the start's
+    first ``_START`` mm of path may have turned it by (its steps to the calm scans there: each
+    turning sweep's own part of a lag that varies does not add up). A robot that slips in its
+    turns may turn the map by more than ``_ANCHOR_TURN`` in its first turn on the spot alone."""
+    if odometry is None or len(path) < 2:
+        return _ANCHOR_TURN
+    at_start = (path[1:] <= _START) & calm[1:]
+    var = float(np.sum(1.0 / odometry[1][at_start, 2, 2]))
+    return _ANCHOR_TURN + 3.0 * math.sqrt(var)
 
 
 def _calm(odometry_from: np.ndarray[Any, Any] | None, n: int) -> np.ndarray[Any, Any]:

@@ -7,6 +7,7 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, strategies as st
 
 import mapkit.build._refine as refine_module
 from mapkit.build._graph import between, sigma_info
@@ -246,3 +247,35 @@ def test_a_drift_the_calibration_missed_is_found_and_taken_out(
     kept = refine(truth.copy(), path, src, pts, nrm, odometry=(drifting, infos), rounds=2)
     assert kept.drift == 0.0
     _assert_less_turned(found.poses, kept.poses, truth, 0.5)
+
+
+@given(
+    st.lists(
+        st.tuples(st.floats(0.0, 800.0), st.floats(0.001, 3.0), st.booleans()),
+        min_size=1,
+        max_size=30,
+    )
+)
+def test_the_first_scans_bar_widens_with_the_starts_odometry(rows) -> None:
+    """The most the first scan may turn the map: ``_ANCHOR_TURN`` and three standard deviations
+    of the heading the odometry's steps to the calm scans within the start's first metre add up
+    to; steps further on, or to sweeps off their poses by their own part of a lag, add nothing."""
+    from mapkit.build._refine import _ANCHOR_TURN, _START, _anchor_turn
+
+    steps = np.array([r[0] for r in rows])
+    sigma = np.radians([r[1] for r in rows])
+    calm = np.array([True] + [r[2] for r in rows])
+    path = np.concatenate(([0.0], np.cumsum(steps)))
+    info = np.array([np.diag([1.0, 1.0, 1.0 / s**2]) for s in sigma])
+    odometry = (np.zeros((len(rows), 3)), info)
+    counted = (path[1:] <= _START) & calm[1:]
+    want = _ANCHOR_TURN + 3.0 * math.sqrt(float(np.sum(sigma[counted] ** 2)))
+    assert _anchor_turn(path, odometry, calm) == pytest.approx(want)
+    assert _anchor_turn(path, None, calm) == _ANCHOR_TURN
+    # A turn on the spot more at the start (to a calm scan) only widens it.
+    more = (
+        np.concatenate(([0.0], path)),
+        (np.zeros((len(rows) + 1, 3)), np.concatenate([[np.diag([1.0, 1.0, 1e4])], info])),
+        np.concatenate(([True], calm)),
+    )
+    assert _anchor_turn(*more) >= _anchor_turn(path, odometry, calm) - 1e-12
