@@ -206,13 +206,9 @@ def bench_odometry(name: str) -> dict[str, Any]:
     return dict(_bench().ODOMETRIES[name])
 
 
-def bench_log(
-    shared_dir: Any, site: str, odometry: str, seed: int, **build: Any
-) -> tuple[Any, float]:
+def bench_sim(shared_dir: Any, site: str, odometry: str, seed: int) -> Any:
     """One log of ``benchmarks/bench_build_real.py`` (a real ARIA map, an odometry class, a draw;
-    a map of its ``--held-out`` ones toured through free places as it tours them) built
-    (``build``: further arguments of ``build_map``): the result and its trajectory RMS against
-    the truth (mm)."""
+    a map of its ``--held-out`` ones toured through free places as it tours them), simulated."""
     import mapkit
 
     world = mapkit.load(shared_dir / "real" / site)
@@ -220,7 +216,15 @@ def bench_log(
     if site not in _bench().MAPS:
         start, stops = _bench().free_tour(world, seed)
         settings.update(start=start, waypoints=stops)
-    sim = simulate_log(world, loop=True, seed=seed, odometry_origin="zero", **settings)
+    return simulate_log(world, loop=True, seed=seed, odometry_origin="zero", **settings)
+
+
+def bench_log(
+    shared_dir: Any, site: str, odometry: str, seed: int, **build: Any
+) -> tuple[Any, float]:
+    """One log of :func:`bench_sim` built (``build``: further arguments of ``build_map``): the
+    result and its trajectory RMS against the truth (mm)."""
+    sim = bench_sim(shared_dir, site, odometry, seed)
     res = build_map(sim.log, lines=False, **build)
     truth = sim.truth[np.searchsorted(sim.truth_ids, res.scan_ids)]
     # The odometry starts at 0 0 0 (as on a robot): the poses go in the world through the truth's

@@ -11,6 +11,7 @@ from hypothesis import given, settings, strategies as st
 from mapkit.build import build_map
 from mapkit.build._lag import (
     _CALM,
+    Lag,
     _robust_fit,
     _spread,
     bases,
@@ -21,7 +22,7 @@ from mapkit.build._lag import (
 )
 from mapkit.build.builder import _scan_arrays
 from mapkit.formats.laser2d import read_log, write_log
-from tests.build.test_accuracy import tour
+from tests.build.test_accuracy import bench_sim, tour
 
 poses = st.tuples(st.floats(-1e5, 1e5), st.floats(-1e5, 1e5), st.floats(-math.pi, math.pi - 1e-9))
 motions = st.tuples(st.floats(-1000.0, 1000.0), st.floats(-3.0, 3.0))
@@ -160,37 +161,23 @@ def test_odometry_is_taken_from_the_last_calm_sweep(rows, jitter: float) -> None
     assert np.array_equal(bases(None, len(vel)), np.arange(-1, len(vel) - 1))
 
 
-@pytest.mark.parametrize("lag", [0.04, 0.0])
-def test_a_lag_is_measured_in_a_wide_hall(lag: float, shared_dir) -> None:
-    """An LD's showroom (a real map: a wide hall of posts and displays). Most beams end far
-    apart or on posts, with no wall (no normal) of their own: the pairs' matches were right but
-    counted those as misses, and 3 of 21 pairs were kept, too few to measure the lag from.
-    Without a lag, the 17 pairs of this log agree more closely than the matches' noise (that of
-    the calm steps) allows, and a lag of -3.8 ms was taken where there is none."""
-    import mapkit
-    from mapkit.simulate import simulate_log
-
-    hall = mapkit.load(shared_dir / "real" / "omron-ld-showroom-ex4.map")
-    stops = [(8140, 980), (23340, -6320), (15440, 580), (18540, 1580), (11840, 1080)]
-    sim = simulate_log(
-        hall,
-        waypoints=stops,
-        start=(21540, 780, -40),
-        loop=True,
-        seed=2,
-        odometry_origin="zero",
-        readings=181,
-        translation_error=0.001,
-        rotation_error=0.001,
-        drift=0.0,
-        range_noise=15.0,
-        dist_step=150.0,
-        scan_lag=lag,
-    )
+def held_out_lag(shared_dir, site: str, odometry: str, seed: int) -> Lag:
+    """The lag measured on a log of ``benchmarks/bench_build_real.py --held-out``."""
+    sim = bench_sim(shared_dir, site, odometry, seed)
     scans, odo, pts = _scan_arrays(sim.log, "robot", 16000.0)
     vel = velocities(scans)
     assert vel is not None
-    found = measure(odo, vel, pts)
+    return measure(odo, vel, pts)
+
+
+@pytest.mark.parametrize(("odometry", "lag"), [("lag", 0.04), ("good181", 0.0)])
+def test_a_lag_is_measured_in_a_wide_hall(odometry: str, lag: float, shared_dir) -> None:
+    """An LD's showroom (a real map: a wide hall of posts and displays), draw 2. Most beams end
+    far apart or on posts, with no wall (no normal) of their own: the pairs' matches were right
+    but counted those as misses, and 3 of 21 pairs were kept, too few to measure the lag from.
+    Without a lag, the 17 pairs of this log agree more closely than the matches' noise (that of
+    the calm steps) allows, and a lag of -3.8 ms was taken where there is none."""
+    found = held_out_lag(shared_dir, "omron-ld-showroom-ex4.map", odometry, seed=2)
     assert found.pairs >= 12, found
     if lag:
         assert found.seconds == pytest.approx(lag, abs=0.006), found
@@ -200,35 +187,11 @@ def test_a_lag_is_measured_in_a_wide_hall(lag: float, shared_dir) -> None:
 
 
 def test_a_lag_that_varies_is_taken_with_its_spread(shared_dir) -> None:
-    """A short tour of a lab (12 pairs into and out of turns) with sweeps 40 ms old, give or
-    take up to 40 ms: the lag (35 +- 12 ms) falls short of its bar, the spread about it (36 ms)
-    does not. The spread is measured about the fitted lag, so it is taken with it: taken about
-    none, every turning sweep was placed a lag's turn off (1.4 degrees at 40 deg/s)."""
-    import mapkit
-    from mapkit.simulate import simulate_log
-
-    lab = mapkit.load(shared_dir / "real" / "aria-ActivMediaLab.map")
-    stops = [(9900, 1200), (9500, 3900), (9600, 2500), (11500, 4400), (10400, 3300)]
-    sim = simulate_log(
-        lab,
-        waypoints=stops,
-        start=(11300, 3200, -40),
-        loop=True,
-        seed=2,
-        odometry_origin="zero",
-        readings=181,
-        translation_error=0.001,
-        rotation_error=0.001,
-        drift=0.0,
-        range_noise=15.0,
-        dist_step=150.0,
-        scan_lag=0.04,
-        scan_lag_jitter=0.04,
-    )
-    scans, odo, pts = _scan_arrays(sim.log, "robot", 16000.0)
-    vel = velocities(scans)
-    assert vel is not None
-    found = measure(odo, vel, pts)
+    """A short tour of a lab (12 pairs into and out of turns), draw 2, with sweeps 40 ms old,
+    give or take up to 40 ms: the lag (35 +- 12 ms) falls short of its bar, the spread about it
+    (36 ms) does not. The spread is measured about the fitted lag, so it is taken with it: taken
+    about none, every turning sweep was placed a lag's turn off (1.4 degrees at 40 deg/s)."""
+    found = held_out_lag(shared_dir, "aria-ActivMediaLab.map", "jitter", seed=2)
     assert found.jitter > 0.0, found
     assert abs(found.fitted) < 4.0 * found.error, found  # short of the bar on its own
     assert found.seconds == found.fitted == pytest.approx(0.04, abs=0.015), found
