@@ -186,6 +186,17 @@ def free_tour(
     return start, [(float(x), float(y)) for x, y in chosen[1:]]
 
 
+def simulation(world: Any, name: str, odo_name: str, seed: int) -> dict[str, Any]:
+    """The ``simulate_log`` arguments of one log on ``world`` (the map ``name``) besides its
+    draw: its odometry's, and on a map without goals to tour (not in ``MAPS``) the
+    :func:`free_tour` of that draw."""
+    settings = dict(ODOMETRIES[odo_name])
+    if name not in MAPS:
+        start, stops = free_tour(world, seed)
+        settings.update(start=start, waypoints=stops)
+    return settings
+
+
 #: Where ``--second-laser`` mounts a rear laser (mm, mm, degrees).
 REAR_LASER = (-200.0, 0.0, 180.0)
 
@@ -204,12 +215,9 @@ def one_log(
     from mapkit.simulate import simulate_log
 
     world = world_map(maps, name)
-    settings = dict(ODOMETRIES[odo_name])
+    settings = simulation(world, name, odo_name, seed)
     if second_laser:
         settings["second_laser"] = REAR_LASER
-    if name not in MAPS:
-        start, stops = free_tour(world, seed)
-        settings.update(start=start, waypoints=stops)
     sim = simulate_log(world, loop=True, seed=seed, odometry_origin="zero", **settings)
     if second_laser == "apart":
         import dataclasses

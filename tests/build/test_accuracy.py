@@ -212,10 +212,7 @@ def bench_sim(shared_dir: Any, site: str, odometry: str, seed: int) -> Any:
     import mapkit
 
     world = mapkit.load(shared_dir / "real" / site)
-    settings = bench_odometry(odometry)
-    if site not in _bench().MAPS:
-        start, stops = _bench().free_tour(world, seed)
-        settings.update(start=start, waypoints=stops)
+    settings = _bench().simulation(world, site, odometry, seed)
     return simulate_log(world, loop=True, seed=seed, odometry_origin="zero", **settings)
 
 
