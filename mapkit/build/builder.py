@@ -405,7 +405,7 @@ def build_map(
     per_scan = stats.pop("residual_per_scan")
     closures = np.array(stats.pop("closures"), dtype=np.int64).reshape(-1, 2)
     cm, cd = stats.pop("corrections_mm"), stats.pop("corrections_deg")
-    turns = stats.pop("turns") if "turns" in stats else TurnEvidence.none()
+    turns = stats.pop("turns", TurnEvidence.none())
     length = float(np.sum(np.hypot(*np.diff(odo[:, :2], axis=0).T))) if n > 1 else 0.0
     summary = {
         "source": log.source,
