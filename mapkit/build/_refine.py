@@ -40,7 +40,8 @@ _STEP_SIGMA = (3.0, 3.0, math.radians(0.07))
 #: turned a map 0.6 degrees in its first turn on the spot (round 21).
 _ANCHOR_TURN = math.radians(0.5)
 
-#: Path (mm) from the start whose odometry widens that bar.
+#: Path (mm) from the start whose odometry widens that bar: the start's first metre, as
+#: registration takes it (``_register._START_PATH``, matched with all its points).
 _START = 1000.0
 
 #: Points of the other passes each local plane the first scan is matched against is fitted to.
