@@ -13,6 +13,8 @@ floor, p90 under 60 mm, trajectory RMS under 40 mm and within odometry's + 15 mm
     python benchmarks/bench_build_real.py --maps DIR --second-laser   # a rear laser too
     python benchmarks/bench_build_real.py --maps DIR --second-laser apart   # ... matched apart
     python benchmarks/bench_build_real.py --maps DIR --held-out --seeds 2 --jobs 2
+    # a laser on a slow line, its sweeps 120 ms old (any simulate_log argument, for every log):
+    python benchmarks/bench_build_real.py --maps DIR --held-out --only lag --simulate scan_lag=0.12
 
 Draws 1-6 are the ones the rounds so far were measured on (and so, in part, tuned on), draws
 7-9 were fresh for round 11's check; draws from 10 on are logs no round has seen: a round
@@ -30,6 +32,7 @@ from __future__ import annotations
 
 import argparse
 import functools
+import json
 import sys
 import time
 from collections.abc import Callable, Iterator
@@ -202,20 +205,26 @@ REAR_LASER = (-200.0, 0.0, 180.0)
 
 
 def one_log(
-    maps: str, name: str, odo_name: str, seed: int, second_laser: str | None = None
+    maps: str,
+    name: str,
+    odo_name: str,
+    seed: int,
+    second_laser: str | None = None,
+    more: dict[str, Any] | None = None,
 ) -> tuple[Any, ...]:
     """One log: ``(label, odometry name, world map, simulated log, floor figures, odometry
     figures)`` (figures of ``bench_build.measure``). ``second_laser``: with a rear laser
     (``REAR_LASER``) too, its sweeps in the front one's cycles (``"cycle"``, as ARIA logs
     them) or each in a cycle of its own (``"apart"``: the build then matches every sweep as a
-    scan of its own, as it did before it merged a cycle's sweeps)."""
+    scan of its own, as it did before it merged a cycle's sweeps). ``more``: ``simulate_log``
+    arguments that differ from the odometry's (``--simulate``)."""
     from bench_build import _with_poses, measure
 
     from mapkit.build import build_map
     from mapkit.simulate import simulate_log
 
     world = world_map(maps, name)
-    settings = simulation(world, name, odo_name, seed)
+    settings = {**simulation(world, name, odo_name, seed), **(more or {})}
     if second_laser:
         settings["second_laser"] = REAR_LASER
     sim = simulate_log(world, loop=True, seed=seed, odometry_origin="zero", **settings)
@@ -249,7 +258,12 @@ def logs(
 
 
 def built(
-    maps: str, name: str, odo_name: str, seed: int, second_laser: str | None = None
+    maps: str,
+    name: str,
+    odo_name: str,
+    seed: int,
+    second_laser: str | None = None,
+    more: dict[str, Any] | None = None,
 ) -> tuple[str, float, bool]:
     """One log simulated and built: ``(its line of figures, its trajectory RMS, whether it met
     every target)``. The CPU time is the build's own, in the process that built it."""
@@ -257,7 +271,7 @@ def built(
 
     from mapkit.build import build_map
 
-    label, _, world, sim, floor, raw = one_log(maps, name, odo_name, seed, second_laser)
+    label, _, world, sim, floor, raw = one_log(maps, name, odo_name, seed, second_laser, more)
     log, ids, truth = sim.log, sim.truth_ids, sim.truth
     t = time.process_time()
     res = build_map(log)
@@ -341,8 +355,17 @@ def main() -> int:
         help="a rear laser too: its sweeps in the front one's cycles (as ARIA logs them), or "
         "'apart' (each in a cycle of its own: each sweep matched as a scan of its own)",
     )
+    ap.add_argument(
+        "--simulate",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="a simulate_log argument for every log, over its odometry's (e.g. scan_lag=0.12 "
+        "with --only lag jitter, or people=8); may be given more than once",
+    )
     args = ap.parse_args()
     paths = on_path(args)
+    more = {k: json.loads(v) for k, _, v in (a.partition("=") for a in args.simulate)}
 
     import mapkit
 
@@ -352,7 +375,7 @@ def main() -> int:
         f"{'built med/p90 rms':>18} | {'turn / rest':>13} | {'cpu s':>5} | targets"
     )
     per: dict[str, list[tuple[float, bool]]] = {}
-    for odo_name, (line, rms, ok) in each_log(args, paths, built, args.second_laser):
+    for odo_name, (line, rms, ok) in each_log(args, paths, built, args.second_laser, more):
         per.setdefault(odo_name, []).append((rms, ok))
         print(line, flush=True)
     total = sum(ok for runs in per.values() for _, ok in runs)

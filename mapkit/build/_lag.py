@@ -11,9 +11,11 @@ rate. Left in, those steps disagree by a degree or two with odometry that is oth
 hundredths, and the map is bent at every turn (a 50 ms lag at 40 deg/s: 2 degrees).
 
 :func:`measure` matches the scans on either side of every change of turn rate directly (scan to
-scan, from the odometry's guess) and fits the lag (and the odometry's turn scale, which also
-shows in those steps) to the heading differences by robust least squares; :func:`taken_from`
-moves each pose back along the robot's motion (the ``velocities:`` logged with it) by the lag.
+scan, from the odometry's guess, turned by the lag most of the sharpest of those steps match
+from: a long lag turns a sweep by degrees) and fits the lag (and the odometry's turn scale,
+which also shows in those steps) to the heading differences by robust least squares;
+:func:`taken_from` moves each pose back along the robot's motion (the ``velocities:`` logged
+with it) by the lag.
 
 The lag need not be the same for every sweep (a packet arrives early or late in the robot's
 cycle). Its spread shows in the same steps: they disagree more than the matches of calm steps
@@ -35,7 +37,7 @@ import numpy as np
 from mapkit.build._common import FloatArray
 from mapkit.build._graph import between, wrap
 from mapkit.build._loops import _CAUCHY
-from mapkit.build._match import icp, scan_normals
+from mapkit.build._match import MatchResult, icp, scan_normals
 from mapkit.model.scan import LaserScan
 
 #: Least change of turn rate (radians per second) between two scans for their match to count.
@@ -117,8 +119,12 @@ def measure(odo: FloatArray, vel: FloatArray, pts: list[FloatArray]) -> Lag:
         return Lag(0.0, math.nan, math.nan, len(cand))
     if len(cand) > _MAX_PAIRS:
         cand = cand[np.linspace(0, len(cand) - 1, _MAX_PAIRS).round().astype(int)]
+    # Matched from the odometry turned by the lag the sharpest changes of turn rate match from
+    # best (none, unless another lets clearly more of them match): a long lag turns a sweep by
+    # degrees, and matches started that far off fail.
+    start = _start(pts, cand, rel, change)
     rows, seen, rates = [], [], []
-    for k, turn in _matched(pts, cand, rel):
+    for k, turn in _matched(pts, cand, rel, -start * change[cand]):
         rows.append((rel[k][2], -change[k]))
         seen.append(turn)
         rates.append(vel[k, 1] ** 2 + vel[k + 1, 1] ** 2)
@@ -161,11 +167,64 @@ def measure(odo: FloatArray, vel: FloatArray, pts: list[FloatArray]) -> Lag:
     )
 
 
-def _matched(
-    pts: list[FloatArray], pairs: np.ndarray[Any, Any], rel: FloatArray
-) -> Iterator[tuple[int, float]]:
-    """Each pair ``k`` (scan ``k`` and ``k + 1``) of ``pairs`` that matches well, and how much
-    more the match turns than the odometry (``rel``: the odometry's steps)."""
+def _start(
+    pts: list[FloatArray], cand: np.ndarray[Any, Any], rel: FloatArray, change: FloatArray
+) -> float:
+    """The lag (s) whose turn the pairs into and out of turns ``cand`` are matched from: the
+    one of a grid up to ``_LARGEST`` either way (steps that turn the sharpest of them by
+    ``_START_STEP``) from which the most of their ``_START_PAIRS`` sharpest match, when that is
+    ``_START_MORE`` more than match from the odometry itself; else none.
+
+    A sweep that lags by 120 ms is turned 4.8 degrees at 40 deg/s: started from the odometry,
+    matches of a showroom's and a triangular hall's steps into and out of turns failed (7 of
+    22 and 7 of 13 kept) and no lag was measured. At 40 ms they held (19 and 8)."""
+    sharp = cand[np.argsort(-np.abs(change[cand]), kind="stable")[:_START_PAIRS]]
+    ready = list(_prepared(pts, sharp))
+    turn = -change[[k for k, *_ in ready]]
+
+    def matching(lag: float) -> int:
+        return sum(
+            _kept(one, rel[one[0]] + (0.0, 0.0, lag * t)) is not None
+            for one, t in zip(ready, turn, strict=True)
+        )
+
+    best, most = 0.0, matching(0.0)
+    bar = most + _START_MORE  # what another lag must let match
+    if bar > len(ready):
+        return 0.0  # nothing to gain
+    step = _START_STEP / float(np.max(np.abs(turn)))
+    for lag in np.arange(step, _LARGEST + step / 2.0, step):
+        for signed in (float(lag), -float(lag)):
+            found = matching(signed)
+            if found > most and found >= bar:
+                best, most = signed, found
+                if most == len(ready):
+                    return best  # all match: none can do better
+    return best
+
+
+#: Pairs into and out of turns (the sharpest changes of turn rate) :func:`_start` matches.
+_START_PAIRS = 16
+
+#: Most that one of :func:`_start`'s steps turns a pair's start (radians): within the reach of a
+#: match's first correspondences (150 mm) at 8 m.
+_START_STEP = math.radians(1.0)
+
+#: How many more of :func:`_start`'s pairs a lag must let match than none does to be started from.
+_START_MORE = 2
+
+#: A pair of scans prepared to match: ``(k, the later scan's points, KD-tree of the earlier
+#: scan's, those points, their normals)``.
+_Pair = tuple[int, FloatArray, Any, FloatArray, FloatArray]
+
+
+def _prepared(pts: list[FloatArray], pairs: np.ndarray[Any, Any]) -> Iterator[_Pair]:
+    """Each pair ``k`` (scan ``k`` and ``k + 1``) of ``pairs`` with points enough to match.
+
+    Like with like: only the points on walls (with a normal of their own) are matched, as only
+    those are matched against. In a wide hall most beams end far apart or on posts and shelving,
+    and the rest, counted as misses, failed the inlier bar of matches that were right (a
+    showroom's log: 3 pairs of 21 kept, no lag found)."""
     from scipy.spatial import cKDTree
 
     for k in pairs:
@@ -173,20 +232,38 @@ def _matched(
         good = np.isfinite(nrm[:, 0])
         if good.sum() < 20:
             continue
-        tgt = pts[k][good]
-        # Like with like: only the points on walls (with a normal of their own) are matched,
-        # as only those are matched against. In a wide hall most beams end far apart or on
-        # posts and shelving, and the rest, counted as misses, failed the inlier bar of matches
-        # that were right (a showroom's log: 3 pairs of 21 kept, no lag found).
         own = pts[k + 1][np.isfinite(scan_normals(pts[k + 1])[:, 0])]
         if len(own) < 20:
             continue
-        src = own[:: max(1, len(own) // 120)]
-        r = icp(
-            src, cKDTree(tgt), tgt, nrm[good], rel[k], schedule=(150.0, 60.0, 30.0), cauchy=_CAUCHY
-        )
-        if r.ok and r.inliers > 0.3 and r.rms < 30.0:
-            yield int(k), float(wrap(r.pose[2] - rel[k][2]))
+        tgt = pts[k][good]
+        yield int(k), own[:: max(1, len(own) // 120)], cKDTree(tgt), tgt, nrm[good]
+
+
+def _kept(pair: _Pair, guess: FloatArray) -> MatchResult | None:
+    """The pair's match from ``guess`` (the later scan's pose in the earlier's frame), when it
+    matches well."""
+    _, src, tree, tgt, nrm = pair
+    r = icp(src, tree, tgt, nrm, guess, schedule=(150.0, 60.0, 30.0), cauchy=_CAUCHY)
+    return r if r.ok and r.inliers > 0.3 and r.rms < 30.0 else None
+
+
+def _matched(
+    pts: list[FloatArray],
+    pairs: np.ndarray[Any, Any],
+    rel: FloatArray,
+    ahead: FloatArray | None = None,
+) -> Iterator[tuple[int, float]]:
+    """Each pair ``k`` (scan ``k`` and ``k + 1``) of ``pairs`` that matches well, and how much
+    more the match turns than the odometry (``rel``: the odometry's steps); ``ahead``: how much
+    more (radians) each pair's match starts turned than the odometry (in the order of ``pairs``;
+    None: none)."""
+    at = {int(k): n for n, k in enumerate(pairs)}
+    for pair in _prepared(pts, pairs):
+        k = pair[0]
+        guess = rel[k] if ahead is None else rel[k] + (0.0, 0.0, ahead[at[k]])
+        r = _kept(pair, guess)
+        if r is not None:
+            yield k, float(wrap(r.pose[2] - rel[k][2]))
 
 
 def _spread(res: FloatArray, rates: FloatArray, calm: float) -> float:

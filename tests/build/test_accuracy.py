@@ -206,13 +206,14 @@ def bench_odometry(name: str) -> dict[str, Any]:
     return dict(_bench().ODOMETRIES[name])
 
 
-def bench_sim(shared_dir: Any, site: str, odometry: str, seed: int) -> Any:
+def bench_sim(shared_dir: Any, site: str, odometry: str, seed: int, **more: Any) -> Any:
     """One log of ``benchmarks/bench_build_real.py`` (a real ARIA map, an odometry class, a draw;
-    a map of its ``--held-out`` ones toured through free places as it tours them), simulated."""
+    a map of its ``--held-out`` ones toured through free places as it tours them), simulated
+    (``more``: ``simulate_log`` arguments that differ from the class's)."""
     import mapkit
 
     world = mapkit.load(shared_dir / "real" / site)
-    settings = _bench().simulation(world, site, odometry, seed)
+    settings = {**_bench().simulation(world, site, odometry, seed), **more}
     return simulate_log(world, loop=True, seed=seed, odometry_origin="zero", **settings)
 
 
