@@ -49,9 +49,13 @@ class CalibrationFeed:
         path: FloatArray,
         src: list[FloatArray],
         all_pts: list[FloatArray],
+        noise: float = 0.0,
     ) -> None:
         self.cal, self.odo, self.path = calibration, odo, path
         self.src, self.all_pts = src, all_pts
+        #: The laser's own scatter about the walls (mm): the least a match's residual is taken
+        #: as (see :func:`~mapkit.build._loops.match_info`).
+        self.noise = noise
         self._matches: list[tuple[int, FloatArray, FloatArray]] = []
         self._trees: dict[int, tuple[Any, FloatArray, FloatArray]] = {}
         self._last_drift = -DRIFT_EVERY
@@ -131,6 +135,6 @@ class CalibrationFeed:
         r = icp(self.src[i], tree, p, n, guess, schedule=(150.0, 60.0, 40.0), cauchy=_CAUCHY)
         if not (r.ok and r.inliers > 0.3 and r.rms < 30.0):
             return None
-        info = match_info(r)
+        info = match_info(r, self.noise)
         var = np.asarray(np.linalg.inv(info + _EPS), dtype=np.float64)
         return r.pose, var

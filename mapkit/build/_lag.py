@@ -37,7 +37,7 @@ import numpy as np
 from mapkit.build._common import FloatArray
 from mapkit.build._graph import between, wrap
 from mapkit.build._loops import _CAUCHY
-from mapkit.build._match import MatchResult, icp, scan_normals
+from mapkit.build._match import MatchResult, icp, scan_normals, widened
 from mapkit.model.scan import LaserScan
 
 #: Least change of turn rate (radians per second) between two scans for their match to count.
@@ -105,10 +105,11 @@ def velocities(scans: list[LaserScan]) -> FloatArray | None:
     return out
 
 
-def measure(odo: FloatArray, vel: FloatArray, pts: list[FloatArray]) -> Lag:
+def measure(odo: FloatArray, vel: FloatArray, pts: list[FloatArray], noise: float = 0.0) -> Lag:
     """The lag of the sweeps behind the poses ``odo`` (``(N, 3)``, radians) logged with
     velocities ``vel`` (:func:`velocities`), from the scans' points ``pts`` (robot frame, in
-    beam order)."""
+    beam order); ``noise``: the laser's scatter about the walls (mm,
+    :func:`~mapkit.build._match.surface_noise`: a noisier laser's matches reach further)."""
     if len(odo) < 2:
         return Lag(0.0, math.nan, math.nan, 0)
     change = np.diff(vel[:, 1])
@@ -122,9 +123,10 @@ def measure(odo: FloatArray, vel: FloatArray, pts: list[FloatArray]) -> Lag:
     # Matched from the odometry turned by the lag the sharpest changes of turn rate match from
     # best (none, unless another lets clearly more of them match): a long lag turns a sweep by
     # degrees, and matches started that far off fail.
-    start = _start(pts, cand, rel, change)
+    widen = widened(noise)
+    start = _start(pts, cand, rel, change, widen)
     rows, seen, rates = [], [], []
-    for k, turn in _matched(pts, cand, rel, -start * change[cand]):
+    for k, turn in _matched(pts, cand, rel, -start * change[cand], widen):
         rows.append((rel[k][2], -change[k]))
         seen.append(turn)
         rates.append(vel[k, 1] ** 2 + vel[k + 1, 1] ** 2)
@@ -141,7 +143,9 @@ def measure(odo: FloatArray, vel: FloatArray, pts: list[FloatArray]) -> Lag:
     calm = np.flatnonzero((vel[:-1, 1] == 0.0) & (vel[1:, 1] == 0.0) & near)
     if len(calm) > _MAX_CALM:
         calm = calm[np.linspace(0, len(calm) - 1, _MAX_CALM).round().astype(int)]
-    quiet = np.array([turn - coef[0] * rel[k][2] for k, turn in _matched(pts, calm, rel)])
+    quiet = np.array(
+        [turn - coef[0] * rel[k][2] for k, turn in _matched(pts, calm, rel, None, widen)]
+    )
     noise = _scatter(quiet) if len(quiet) >= _MIN_PAIRS else math.nan
     # The steps into and out of turns match no better than calm ones: where a few of them
     # agree more closely than that by chance, the lag's error is from the calm steps' noise
@@ -168,7 +172,11 @@ def measure(odo: FloatArray, vel: FloatArray, pts: list[FloatArray]) -> Lag:
 
 
 def _start(
-    pts: list[FloatArray], cand: np.ndarray[Any, Any], rel: FloatArray, change: FloatArray
+    pts: list[FloatArray],
+    cand: np.ndarray[Any, Any],
+    rel: FloatArray,
+    change: FloatArray,
+    widen: float = 1.0,
 ) -> float:
     """The lag (s) whose turn the pairs into and out of turns ``cand`` are matched from: the
     one of a grid up to ``_LARGEST`` either way (steps that turn the sharpest of them by
@@ -184,7 +192,7 @@ def _start(
 
     def matching(lag: float) -> int:
         return sum(
-            _kept(one, rel[one[0]] + (0.0, 0.0, lag * t)) is not None
+            _kept(one, rel[one[0]] + (0.0, 0.0, lag * t), widen) is not None
             for one, t in zip(ready, turn, strict=True)
         )
 
@@ -239,12 +247,13 @@ def _prepared(pts: list[FloatArray], pairs: np.ndarray[Any, Any]) -> Iterator[_P
         yield int(k), own[:: max(1, len(own) // 120)], cKDTree(tgt), tgt, nrm[good]
 
 
-def _kept(pair: _Pair, guess: FloatArray) -> MatchResult | None:
+def _kept(pair: _Pair, guess: FloatArray, widen: float = 1.0) -> MatchResult | None:
     """The pair's match from ``guess`` (the later scan's pose in the earlier's frame), when it
-    matches well."""
+    matches well; ``widen``: its last reach and residual bar that many times further (a noisy
+    laser's, :func:`~mapkit.build._match.widened`)."""
     _, src, tree, tgt, nrm = pair
-    r = icp(src, tree, tgt, nrm, guess, schedule=(150.0, 60.0, 30.0), cauchy=_CAUCHY)
-    return r if r.ok and r.inliers > 0.3 and r.rms < 30.0 else None
+    r = icp(src, tree, tgt, nrm, guess, schedule=(150.0, 60.0, 30.0 * widen), cauchy=_CAUCHY)
+    return r if r.ok and r.inliers > 0.3 and r.rms < 30.0 * widen else None
 
 
 def _matched(
@@ -252,16 +261,17 @@ def _matched(
     pairs: np.ndarray[Any, Any],
     rel: FloatArray,
     ahead: FloatArray | None = None,
+    widen: float = 1.0,
 ) -> Iterator[tuple[int, float]]:
     """Each pair ``k`` (scan ``k`` and ``k + 1``) of ``pairs`` that matches well, and how much
     more the match turns than the odometry (``rel``: the odometry's steps); ``ahead``: how much
     more (radians) each pair's match starts turned than the odometry (in the order of ``pairs``;
-    None: none)."""
+    None: none); ``widen``: as :func:`_kept` takes it."""
     at = {int(k): n for n, k in enumerate(pairs)}
     for pair in _prepared(pts, pairs):
         k = pair[0]
         guess = rel[k] if ahead is None else rel[k] + (0.0, 0.0, ahead[at[k]])
-        r = _kept(pair, guess)
+        r = _kept(pair, guess, widen)
         if r is not None:
             yield k, float(wrap(r.pose[2] - rel[k][2]))
 

@@ -29,6 +29,48 @@ def rotate(v: FloatArray, th: float) -> FloatArray:
     return v @ np.array([[c, s], [-s, c]])  # type: ignore[no-any-return]
 
 
+def surface_noise(scans: list[FloatArray], most: int = 400, reach: float = 300.0) -> float:
+    """How far (mm, a standard deviation) the scans' points scatter about the surfaces they hit,
+    along the surfaces' normals: what a point-to-line match sees of the laser's range noise.
+
+    Each point's distance from the chord between its neighbours about a degree either side
+    (``len // 180`` beams: a dense laser's next beams are closer than its noise, and the chord's
+    own direction would be noise) counts, where both lie within ``reach``; the median's robust
+    standard deviation, over the chord's own share (the ends' noise: a half), keeps corners and
+    edges out. At most ``most`` scans, evenly spread, are looked at. On simulated logs of 181 to
+    683 beams it reads 5.0-6.0 mm for a 5 mm laser, 9.1-10.5 for 10 mm, 12.5-14.4 for 15 and
+    20.6-23.6 for 30 (at a slant, a beam's range noise is less across the wall). 0.0: no scans
+    to tell."""
+    step = max(1, len(scans) // most)
+    found = []
+    for p in scans[::step]:
+        k = max(1, round(len(p) / 180))
+        if len(p) < 2 * k + 1:
+            continue
+        a, b, c = p[: -2 * k], p[k:-k], p[2 * k :]
+        chord = c - a
+        length = np.hypot(chord[:, 0], chord[:, 1])
+        ok = (length > 0) & (np.hypot(*(b - a).T) < reach) & (np.hypot(*(c - b).T) < reach)
+        ab = b[ok] - a[ok]
+        found.append(np.abs(ab[:, 0] * chord[ok, 1] - ab[:, 1] * chord[ok, 0]) / length[ok])
+    d = np.concatenate(found) if found else np.zeros(0)
+    return 1.4826 * float(np.median(d)) / math.sqrt(1.5) if len(d) else 0.0
+
+
+#: The laser's scatter about the walls (mm, :func:`surface_noise`) up to which the matches'
+#: reaches and residual bars hold as they are set: 2.5 of its standard deviations fit within
+#: registration's last reach, 40 mm.
+_NOISE_HELD = 16.0
+
+
+def widened(noise: float) -> float:
+    """How many times further than set a match reaches, and how much more residual it allows,
+    for a laser that scatters ``noise`` (mm) about the walls: 1 up to ``_NOISE_HELD``, in
+    proportion beyond. A 30 mm laser's points (23 mm about the walls) fell out of registration's
+    40 mm: a third of a slipping robot's matches failed, where a tenth of a 10 mm one's did."""
+    return max(1.0, noise / _NOISE_HELD)
+
+
 def scan_normals(pts: FloatArray, window: int = 3) -> FloatArray:
     """Unit normals of beam-ordered scan points by PCA over ``2*window+1`` neighbours.
 

@@ -22,7 +22,7 @@ from mapkit.build._loops import (
     _revisit_candidate,
     match_info,
 )
-from mapkit.build._match import MatchResult, icp, scan_normals_many
+from mapkit.build._match import MatchResult, icp, scan_normals_many, widened
 from mapkit.build._odometry import _OdometryModel
 from mapkit.build._refine import refine
 from mapkit.diagnostics import Issue, IssueCode
@@ -40,6 +40,7 @@ def _register(
     progress: Progress | None,
     unsure: FloatArray | None = None,
     turn_error: float | None = None,
+    noise: float = 0.0,
 ) -> FloatArray:
     """The front end (scan-to-local-map ICP) with loop closures and pose-graph optimisation.
 
@@ -52,6 +53,10 @@ def _register(
 
     ``turn_error``: how far the robot's turns err, as a fraction of the turn, when it is known
     (see :meth:`_OdometryModel.stated_as`); None: fitted from the log.
+
+    ``noise``: the laser's own scatter about the walls (mm,
+    :func:`~mapkit.build._match.surface_noise`): no match's residual is taken as less, and a
+    noisier laser's matches reach further (:func:`~mapkit.build._match.widened`).
     """
     n = len(scans)
     per = np.zeros((n, 3)) if unsure is None else unsure
@@ -81,6 +86,7 @@ def _register(
                 None,
                 model,
                 (per[:warm_up], base[:warm_up]),
+                noise,
             )
             model.settle()
     model.calibration.mark()
@@ -100,7 +106,18 @@ def _register(
     first = fresh()
     sides = _sides(all_pts)
     est = _register_pass(
-        scans, odo, all_pts, sides, log, issues, first, loop_closure, progress, model, (per, base)
+        scans,
+        odo,
+        all_pts,
+        sides,
+        log,
+        issues,
+        first,
+        loop_closure,
+        progress,
+        model,
+        (per, base),
+        noise,
     )
     model.calibration.settle()
 
@@ -113,7 +130,18 @@ def _register(
         stats.clear()
         stats.update(fresh())
         est = _register_pass(
-            scans, odo, all_pts, sides, log, [], stats, loop_closure, None, model, (per, base)
+            scans,
+            odo,
+            all_pts,
+            sides,
+            log,
+            [],
+            stats,
+            loop_closure,
+            None,
+            model,
+            (per, base),
+            noise,
         )
         return est, model
 
@@ -216,7 +244,11 @@ def _register_pass(
     progress: Progress | None,
     model: _OdometryModel,
     sweeps: tuple[FloatArray, np.ndarray[Any, Any]],
+    noise: float = 0.0,
 ) -> FloatArray:
+    """One pass of registration over ``scans``; ``noise``: the laser's own scatter about the
+    walls (mm, :func:`~mapkit.build._match.surface_noise`), the least a match's residual is
+    taken as."""
     n = len(scans)
     per, base = sweeps
     observed = model.observed  # the steps of earlier passes (the warm-up's) are not this one's
@@ -246,7 +278,8 @@ def _register_pass(
     last_sub = 0
     report_every = max(1, n // 200)
     weak_prior = sigma_info(300.0, 300.0, math.radians(10.0))
-    feed = CalibrationFeed(model.calibration, odo, path, src, all_pts)
+    feed = CalibrationFeed(model.calibration, odo, path, src, all_pts, noise)
+    last_reach = _REACH * widened(noise)  # further for a noisy laser
     for i in range(1, n):
         raw_step = between(odo[i - 1], odo[i])
         step = model.calibration.correct(raw_step)
@@ -281,7 +314,7 @@ def _register_pass(
                 pred,
                 prior=pred,
                 prior_info=weak_prior,
-                schedule=(250.0, 100.0, 40.0),
+                schedule=(250.0, 100.0, last_reach),
                 max_iter=12,
                 cauchy=_CAUCHY,
             )
@@ -290,7 +323,7 @@ def _register_pass(
         )
         dv = _seen(r, pred, trans)
         if r is not None and dv is not None:
-            scan_info = match_info(r)
+            scan_info = match_info(r, noise)
             model.observe(dv, scan_info, trans, float(step[2]), per[a] + per[i])
             if not model.frozen:
                 feed.step(i, r.pose, scan_info)
@@ -418,6 +451,9 @@ def _seen(r: MatchResult | None, pred: FloatArray, trans: float) -> FloatArray |
         return None
     return dv
 
+
+#: The last reach (mm) of registration's matches (each point's nearest point of the local map).
+_REACH = 40.0
 
 #: A step turning more than this (radians) rebuilds the local map at once.
 _TURNING = math.radians(10.0)

@@ -18,7 +18,7 @@ from mapkit.build._graph import between
 from mapkit.build._lag import Lag, measure as measure_lag, sweep_variance, taken_from, velocities
 from mapkit.build._lines import extract_lines
 from mapkit.build._mapping import pass_counts
-from mapkit.build._match import scan_normals_many, transform
+from mapkit.build._match import scan_normals_many, surface_noise, transform
 from mapkit.build._odometry import TurnEvidence, pooled_turn_error
 from mapkit.build._register import _register
 from mapkit.diagnostics import Issue
@@ -361,15 +361,19 @@ def build_map(
     taken = odo  # the poses the sweeps were taken from (odo, unless they lag behind it)
     vel = velocities(scans) if register else None
     unsure = None  # how far each sweep is off its pose, when the lag varies
+    # How far the laser's points scatter about the walls: no match is taken as better, and a
+    # noisier laser's matches reach further.
+    noise = surface_noise(pts) if register else 0.0
+    stats["surface_noise"] = noise if register else None
     if vel is not None:
-        lag = measure_lag(odo, vel, pts)
+        lag = measure_lag(odo, vel, pts, noise)
         taken = taken_from(odo, vel, lag.seconds)
         est = taken.copy()
         if lag.jitter > 0.0:
             unsure = sweep_variance(vel, lag.jitter)
     if register and n > 1:
         est = _register(
-            scans, taken, pts, log, issues, stats, loop_closure, progress, unsure, turn_error
+            scans, taken, pts, log, issues, stats, loop_closure, progress, unsure, turn_error, noise
         )
     elif progress:
         progress(n, n)
@@ -420,6 +424,9 @@ def build_map(
             "registered": stats["registered"],
             "odometry_only": stats["odometry_only"],
             "median_residual_mm": round(float(np.median(res)), 2) if res else None,
+            "laser_noise_mm": (
+                None if stats.get("surface_noise") is None else round(stats["surface_noise"], 1)
+            ),
             "odometry_noise_scale": stats.get("odometry_scale"),
             "odometry_calibration": stats.get("calibration"),
             "odometry_turn_error": (
