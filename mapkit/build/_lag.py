@@ -105,10 +105,12 @@ def velocities(scans: list[LaserScan]) -> FloatArray | None:
     return out
 
 
-def measure(odo: FloatArray, vel: FloatArray, pts: list[FloatArray], noise: float = 0.0) -> Lag:
+def measure(
+    odo: FloatArray, vel: FloatArray, pts: list[FloatArray], laser_noise: float = 0.0
+) -> Lag:
     """The lag of the sweeps behind the poses ``odo`` (``(N, 3)``, radians) logged with
     velocities ``vel`` (:func:`velocities`), from the scans' points ``pts`` (robot frame, in
-    beam order); ``noise``: the laser's scatter about the walls (mm,
+    beam order); ``laser_noise``: the laser's scatter about the walls (mm,
     :func:`~mapkit.build._match.surface_noise`: a noisier laser's matches reach further)."""
     if len(odo) < 2:
         return Lag(0.0, math.nan, math.nan, 0)
@@ -123,7 +125,7 @@ def measure(odo: FloatArray, vel: FloatArray, pts: list[FloatArray], noise: floa
     # Matched from the odometry turned by the lag the sharpest changes of turn rate match from
     # best (none, unless another lets clearly more of them match): a long lag turns a sweep by
     # degrees, and matches started that far off fail.
-    widen = widened(noise)
+    widen = widened(laser_noise)
     start = _start(pts, cand, rel, change, widen)
     rows, seen, rates = [], [], []
     for k, turn in _matched(pts, cand, rel, -start * change[cand], widen):
@@ -181,7 +183,8 @@ def _start(
     """The lag (s) whose turn the pairs into and out of turns ``cand`` are matched from: the
     one of a grid up to ``_LARGEST`` either way (steps that turn the sharpest of them by
     ``_START_STEP``) from which the most of their ``_START_PAIRS`` sharpest match, when that is
-    ``_START_MORE`` more than match from the odometry itself; else none.
+    ``_START_MORE`` more than match from the odometry itself; else none. ``widen``: as
+    :func:`_kept` takes it.
 
     A sweep that lags by 120 ms is turned 4.8 degrees at 40 deg/s: started from the odometry,
     matches of a showroom's and a triangular hall's steps into and out of turns failed (7 of

@@ -248,7 +248,7 @@ def _register_pass(
 ) -> FloatArray:
     """One pass of registration over ``scans``; ``noise``: the laser's own scatter about the
     walls (mm, :func:`~mapkit.build._match.surface_noise`), the least a match's residual is
-    taken as."""
+    taken as (a noisier laser's matches reach further too)."""
     n = len(scans)
     per, base = sweeps
     observed = model.observed  # the steps of earlier passes (the warm-up's) are not this one's
