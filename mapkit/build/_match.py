@@ -67,7 +67,7 @@ def widened(noise: float) -> float:
     """How many times further than set a match reaches, and how much more residual it allows,
     for a laser that scatters ``noise`` (mm) about the walls: 1 up to ``_NOISE_HELD``, in
     proportion beyond. A 30 mm laser's points (23 mm about the walls) fell out of registration's
-    40 mm: a third of a slipping robot's matches failed, where a tenth of a 10 mm one's did."""
+    40 mm: 15 % of a slipping robot's matches failed, where 4 % of a 10 mm one's did."""
     return max(1.0, noise / _NOISE_HELD)
 
 
