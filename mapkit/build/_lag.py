@@ -29,7 +29,7 @@ is taken from the last calm sweep to each of them and across them to the next ca
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -37,7 +37,7 @@ import numpy as np
 from mapkit.build._common import FloatArray
 from mapkit.build._graph import between, wrap
 from mapkit.build._loops import _CAUCHY
-from mapkit.build._match import MatchResult, icp, scan_normals, widened
+from mapkit.build._match import MatchResult, icp, scan_normals, scatter, widened
 from mapkit.model.scan import LaserScan
 
 #: Least change of turn rate (radians per second) between two scans for their match to count.
@@ -126,9 +126,10 @@ def measure(
     # best (none, unless another lets clearly more of them match): a long lag turns a sweep by
     # degrees, and matches started that far off fail.
     widen = widened(laser_noise)
-    start = _start(pts, cand, rel, change, widen)
+    ready = list(_prepared(pts, cand))
+    start = _start(ready, cand, rel, change, widen)
     rows, seen, rates = [], [], []
-    for k, turn in _matched(pts, cand, rel, -start * change[cand], widen):
+    for k, turn in _matched(ready, rel, -start * change, widen):
         rows.append((rel[k][2], -change[k]))
         seen.append(turn)
         rates.append(vel[k, 1] ** 2 + vel[k + 1, 1] ** 2)
@@ -146,15 +147,15 @@ def measure(
     if len(calm) > _MAX_CALM:
         calm = calm[np.linspace(0, len(calm) - 1, _MAX_CALM).round().astype(int)]
     quiet = np.array(
-        [turn - coef[0] * rel[k][2] for k, turn in _matched(pts, calm, rel, None, widen)]
+        [turn - coef[0] * rel[k][2] for k, turn in _matched(_prepared(pts, calm), rel, None, widen)]
     )
-    noise = _scatter(quiet) if len(quiet) >= _MIN_PAIRS else math.nan
+    noise = scatter(quiet) if len(quiet) >= _MIN_PAIRS else math.nan
     # The steps into and out of turns match no better than calm ones: where a few of them
     # agree more closely than that by chance, the lag's error is from the calm steps' noise
     # (a showroom's log without a lag: its 17 steps scattered 0.11 degrees where 81 calm ones
     # scattered 0.23, and a lag of -3.8 +- 0.8 ms was taken).
     if noise > 0.0:
-        error *= max(1.0, noise / max(_scatter(res), _LEAST_SIGMA))
+        error *= max(1.0, noise / max(scatter(res), _LEAST_SIGMA))
     # How much the lag varies: the steps into and out of turns disagree more than the calm
     # steps' matches do by the turn rates times the sweeps' own parts of the lag.
     jitter = math.nan if math.isnan(noise) else _spread(res, np.array(rates), noise)
@@ -174,23 +175,23 @@ def measure(
 
 
 def _start(
-    pts: list[FloatArray],
+    ready: list[_Pair],
     cand: np.ndarray[Any, Any],
     rel: FloatArray,
     change: FloatArray,
     widen: float = 1.0,
 ) -> float:
-    """The lag (s) whose turn the pairs into and out of turns ``cand`` are matched from: the
-    one of a grid up to ``_LARGEST`` either way (steps that turn the sharpest of them by
-    ``_START_STEP``) from which the most of their ``_START_PAIRS`` sharpest match, when that is
-    ``_START_MORE`` more than match from the odometry itself; else none. ``widen``: as
-    :func:`_kept` takes it.
+    """The lag (s) whose turn the pairs into and out of turns ``cand`` (``ready``: those of
+    them :func:`_prepared` to match) are matched from: the one of a grid up to ``_LARGEST``
+    either way (steps that turn the sharpest of them by ``_START_STEP``) from which the most of
+    their ``_START_PAIRS`` sharpest match, when that is ``_START_MORE`` more than match from the
+    odometry itself; else none. ``widen``: as :func:`_kept` takes it.
 
     A sweep that lags by 120 ms is turned 4.8 degrees at 40 deg/s: started from the odometry,
     matches of a showroom's and a triangular hall's steps into and out of turns failed (7 of
     22 and 7 of 13 kept) and no lag was measured. At 40 ms they held (19 and 8)."""
-    sharp = cand[np.argsort(-np.abs(change[cand]), kind="stable")[:_START_PAIRS]]
-    ready = list(_prepared(pts, sharp))
+    sharp = set(cand[np.argsort(-np.abs(change[cand]), kind="stable")[:_START_PAIRS]].tolist())
+    ready = [pair for pair in ready if pair[0] in sharp]
     turn = -change[[k for k, *_ in ready]]
 
     def matching(lag: float) -> int:
@@ -260,20 +261,18 @@ def _kept(pair: _Pair, guess: FloatArray, widen: float = 1.0) -> MatchResult | N
 
 
 def _matched(
-    pts: list[FloatArray],
-    pairs: np.ndarray[Any, Any],
+    pairs: Iterable[_Pair],
     rel: FloatArray,
     ahead: FloatArray | None = None,
     widen: float = 1.0,
 ) -> Iterator[tuple[int, float]]:
-    """Each pair ``k`` (scan ``k`` and ``k + 1``) of ``pairs`` that matches well, and how much
-    more the match turns than the odometry (``rel``: the odometry's steps); ``ahead``: how much
-    more (radians) each pair's match starts turned than the odometry (in the order of ``pairs``;
-    None: none); ``widen``: as :func:`_kept` takes it."""
-    at = {int(k): n for n, k in enumerate(pairs)}
-    for pair in _prepared(pts, pairs):
+    """Each of the ``pairs`` (:func:`_prepared`) that matches well, as ``k`` (scan ``k`` and
+    ``k + 1``) and how much more the match turns than the odometry (``rel``: the odometry's
+    steps); ``ahead``: how much more (radians) each step's match starts turned than the
+    odometry (None: none); ``widen``: as :func:`_kept` takes it."""
+    for pair in pairs:
         k = pair[0]
-        guess = rel[k] if ahead is None else rel[k] + (0.0, 0.0, ahead[at[k]])
+        guess = rel[k] if ahead is None else rel[k] + (0.0, 0.0, ahead[k])
         r = _kept(pair, guess, widen)
         if r is not None:
             yield k, float(wrap(r.pose[2] - rel[k][2]))
@@ -297,12 +296,6 @@ def _spread(res: FloatArray, rates: FloatArray, calm: float) -> float:
     return (lo + hi) / 2.0
 
 
-def _scatter(x: FloatArray) -> float:
-    """A robust standard deviation of ``x`` about none: its median absolute value, scaled to a
-    normal distribution's."""
-    return 1.4826 * float(np.median(np.abs(x)))
-
-
 def _robust_fit(a: FloatArray, e: FloatArray) -> tuple[FloatArray, float, FloatArray]:
     """The coefficients ``(scale, lag)`` of ``e ~ a @ (scale, lag)`` fitted with Cauchy weights
     (scale from the residuals' median absolute deviation), the lag's standard error and the
@@ -314,7 +307,7 @@ def _robust_fit(a: FloatArray, e: FloatArray) -> tuple[FloatArray, float, FloatA
         sw = np.sqrt(w)
         coef = np.asarray(np.linalg.lstsq(a * sw[:, None], e * sw, rcond=None)[0], dtype=np.float64)
         res = e - a @ coef
-        sigma = max(_scatter(res), _LEAST_SIGMA)
+        sigma = max(scatter(res), _LEAST_SIGMA)
         w = np.asarray(1.0 / (1.0 + (res / (2.385 * sigma)) ** 2), dtype=np.float64)
     cov = sigma**2 * np.linalg.pinv((a * w[:, None]).T @ a)
     return coef, float(math.sqrt(max(cov[1, 1], 0.0))), e - a @ coef

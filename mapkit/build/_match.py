@@ -54,7 +54,13 @@ def surface_noise(scans: list[FloatArray], most: int = 400, reach: float = 300.0
         ab = b[ok] - a[ok]
         found.append(np.abs(ab[:, 0] * chord[ok, 1] - ab[:, 1] * chord[ok, 0]) / length[ok])
     d = np.concatenate(found) if found else np.zeros(0)
-    return 1.4826 * float(np.median(d)) / math.sqrt(1.5) if len(d) else 0.0
+    return scatter(d) / math.sqrt(1.5) if len(d) else 0.0
+
+
+def scatter(x: FloatArray) -> float:
+    """A robust standard deviation of ``x`` about none: its median absolute value, scaled to a
+    normal distribution's."""
+    return 1.4826 * float(np.median(np.abs(x)))
 
 
 #: The laser's scatter about the walls (mm, :func:`surface_noise`) up to which the matches'

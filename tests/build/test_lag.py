@@ -15,6 +15,7 @@ from mapkit.build._lag import (
     _CALM,
     _MIN_CHANGE,
     Lag,
+    _prepared,
     _robust_fit,
     _spread,
     _start,
@@ -228,6 +229,7 @@ def test_the_lag_is_started_from_none_where_none_does_better(shared_dir) -> None
     change = np.diff(vel[:, 1])
     rel = between(odo[:-1], odo[1:])
     cand = np.flatnonzero(np.abs(change) >= _MIN_CHANGE)
-    assert _start(pts, cand, rel, change) == 0.0
+    ready = list(_prepared(pts, cand))
+    assert _start(ready, cand, rel, change) == 0.0
     far = taken_from(odo, vel, -0.08)  # 80 ms more: the sweeps turned 3.2 degrees more
-    assert _start(pts, cand, between(far[:-1], far[1:]), change) == pytest.approx(0.08, abs=0.03)
+    assert _start(ready, cand, between(far[:-1], far[1:]), change) == pytest.approx(0.08, abs=0.03)
