@@ -11,7 +11,7 @@ import numpy as np
 from mapkit.build._common import FloatArray
 from mapkit.build._graph import between
 from mapkit.build._loops import _CAUCHY, match_info
-from mapkit.build._match import icp, scan_normals
+from mapkit.build._match import icp, scan_normals, widened
 from mapkit.build._odometry import _EPS, _Calibration
 
 #: Path (mm) over which the distance scale is measured (between two local-map matches).
@@ -56,6 +56,8 @@ class CalibrationFeed:
         #: The laser's own scatter about the walls (mm): the least a match's residual is taken
         #: as (see :func:`~mapkit.build._loops.match_info`).
         self.noise = noise
+        #: How much further than set its scan-to-scan matches reach (a noisy laser's).
+        self.widen = widened(noise)
         self._matches: list[tuple[int, FloatArray, FloatArray]] = []
         self._trees: dict[int, tuple[Any, FloatArray, FloatArray]] = {}
         self._last_drift = -DRIFT_EVERY
@@ -132,8 +134,9 @@ class CalibrationFeed:
         tree, p, n = self._target(k)
         if tree is None:
             return None
-        r = icp(self.src[i], tree, p, n, guess, schedule=(150.0, 60.0, 40.0), cauchy=_CAUCHY)
-        if not (r.ok and r.inliers > 0.3 and r.rms < 30.0):
+        w = self.widen
+        r = icp(self.src[i], tree, p, n, guess, schedule=(150.0, 60.0, 40.0 * w), cauchy=_CAUCHY)
+        if not (r.ok and r.inliers > 0.3 and r.rms < 30.0 * w):
             return None
         info = match_info(r, self.noise)
         var = np.asarray(np.linalg.inv(info + _EPS), dtype=np.float64)

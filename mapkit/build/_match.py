@@ -64,16 +64,22 @@ def scatter(x: FloatArray) -> float:
 
 
 #: The laser's scatter about the walls (mm, :func:`surface_noise`) up to which the matches'
-#: reaches and residual bars hold as they are set: 2.5 of its standard deviations fit within
-#: registration's last reach, 40 mm.
+#: reaches, residual bars and claims hold as they are set (for the 10-15 mm lasers they were
+#: measured on): 2.5 of its standard deviations fit within registration's last reach, 40 mm.
 _NOISE_HELD = 16.0
 
 
 def widened(noise: float) -> float:
-    """How many times further than set a match reaches, and how much more residual it allows,
-    for a laser that scatters ``noise`` (mm) about the walls: 1 up to ``_NOISE_HELD``, in
-    proportion beyond. A 30 mm laser's points (23 mm about the walls) fell out of registration's
-    40 mm: 15 % of a slipping robot's matches failed, where 4 % of a 10 mm one's did."""
+    """How many times further than set a match reaches, how much more residual it allows and
+    how much more noise it claims, for a laser that scatters ``noise`` (mm) about the walls: 1
+    up to ``_NOISE_HELD``, in proportion beyond. Every match takes it: registration's, the lag's
+    pairs', the calibration's and the refinement's; the loop closures' residual bar and claim
+    (not their reach: see :func:`~mapkit.build._loops._close`).
+
+    A 30 mm laser's points (23 mm about the walls) fell out of registration's 40 mm: 15 % of a
+    slipping robot's matches failed, where 4 % of a 10 mm one's did. Widened there alone, the
+    refinement's 20 mm reach and 10 mm claims were still a 15 mm laser's, and a slipping robot's
+    map still came out 110-230 mm from the truth (docs/logs.md, rounds 22 and 23)."""
     return max(1.0, noise / _NOISE_HELD)
 
 

@@ -23,7 +23,7 @@ from mapkit.build._common import FloatArray, _world
 from mapkit.build._graph import PoseGraph, between, plus_variance, sigma_info, wrap
 from mapkit.build._lag import calm
 from mapkit.build._loops import _CAUCHY, _MATCH_POINTS, _MATCH_SIGMA, _edge_info
-from mapkit.build._match import MatchResult, icp, local_planes
+from mapkit.build._match import MatchResult, icp, local_planes, widened
 
 #: Scans within this much path (mm) of a scan are its own pass: not matched against.
 _OWN_PASS = 5000.0
@@ -115,19 +115,33 @@ class _OtherPasses:
 
 
 def match(
-    src: FloatArray, tree: Any, tgt: FloatArray, tn: FloatArray, pose: FloatArray
+    src: FloatArray,
+    tree: Any,
+    tgt: FloatArray,
+    tn: FloatArray,
+    pose: FloatArray,
+    widen: float = 1.0,
 ) -> MatchResult | None:
     """A scan's match from ``pose`` as the refinement matches: against ``tree``, the other passes
     (:class:`_OtherPasses` set to the scan's place on the path) or any KD-tree of ``tgt`` (points,
-    with ``tn`` their normals). None when it found too little."""
+    with ``tn`` their normals). None when it found too little. ``widen``: its last reach and
+    residual bar that many times further (a noisy laser's, :func:`~mapkit.build._match.widened`).
+    """
     # Down to a 20 mm reach: matched at the true poses, a match that stopped at 40 mm was 5-30 %
     # further off in heading (docs/logs.md, round 11).
-    r = icp(src, tree, tgt, tn, pose, schedule=(80.0, 40.0, 20.0), max_iter=20, cauchy=_CAUCHY)
-    return r if r.ok and r.inliers > 0.3 and r.rms < 30.0 else None
+    r = icp(
+        src, tree, tgt, tn, pose, schedule=(80.0, 40.0, 20.0 * widen), max_iter=20, cauchy=_CAUCHY
+    )
+    return r if r.ok and r.inliers > 0.3 and r.rms < 30.0 * widen else None
 
 
 def anchor_match(
-    first: FloatArray, others: _OtherPasses, tgt: FloatArray, tn: FloatArray, pose: FloatArray
+    first: FloatArray,
+    others: _OtherPasses,
+    tgt: FloatArray,
+    tn: FloatArray,
+    pose: FloatArray,
+    widen: float = 1.0,
 ) -> MatchResult | None:
     """The first scan's match from ``pose``: as :func:`match`, against the other passes' points
     within its reach smoothed into local planes (:func:`~mapkit.build._match.local_planes`, over
@@ -142,7 +156,7 @@ def anchor_match(
     if np.count_nonzero(near) < _ANCHOR_PLANE_POINTS:
         return None
     planes, normals = local_planes(tgt[near], tn[near], _ANCHOR_PLANE_POINTS)
-    return match(first, cKDTree(planes), planes, normals, pose)
+    return match(first, cKDTree(planes), planes, normals, pose, widen)
 
 
 def refine(
@@ -157,6 +171,7 @@ def refine(
     odometry: tuple[FloatArray, FloatArray] | None = None,
     odometry_from: np.ndarray[Any, Any] | None = None,
     unsure: FloatArray | None = None,
+    laser_noise: float = 0.0,
 ) -> Refined:
     """The poses after ``rounds`` of matching every scan against the other passes' scans.
 
@@ -174,6 +189,10 @@ def refine(
     :func:`mapkit.build._lag.bases`, and are neither matched nor matched against, see
     :func:`_calm`).
 
+    ``laser_noise``: the laser's own scatter about the walls (mm,
+    :func:`~mapkit.build._match.surface_noise`): a noisier laser's matches reach further, allow
+    more residual and claim more noise (:func:`~mapkit.build._match.widened`).
+
     With ``odometry``, a heading drift the calibration missed is looked for too (see
     :func:`_drift_left`) and taken out of the odometry's steps when the matches show one.
     """
@@ -182,6 +201,7 @@ def refine(
     matched = 0
     drift = 0.0
     step_info = sigma_info(*_STEP_SIGMA)
+    widen = widened(laser_noise)
     # Node n is the map's frame: the matches place the scans in it. It is free, and the first
     # scan (node 0, held fixed: the map's origin is where the robot started) is matched into it
     # like every other scan, so that where the map sits around the start is the first scan's
@@ -225,9 +245,9 @@ def refine(
                 continue
             others.at = float(path[i])
             r = (
-                match(src[i], others, tgt, tn, x[i])
+                match(src[i], others, tgt, tn, x[i], widen)
                 if i
-                else anchor_match(anchor, others, tgt, tn, x[0])
+                else anchor_match(anchor, others, tgt, tn, x[0], widen)
             )
             if r is None:
                 continue
@@ -235,7 +255,7 @@ def refine(
                 continue
             if i == 0 and abs(wrap(r.pose[2] - x[0, 2])) > anchor_turn:
                 continue  # the first scan and the map disagree: one of them is wrong
-            info = r.info(sigma=_MATCH_SIGMA, points=_MATCH_POINTS) * share[i]
+            info = r.info(sigma=_MATCH_SIGMA * widen, points=_MATCH_POINTS) * share[i]
             # The scan's place in the map (whose frame is that of x, node 0's estimate).
             found.append((i, between(x[0], r.pose), _edge_info(info, r.pose)))
         matched = len(found)

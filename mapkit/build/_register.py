@@ -3,6 +3,7 @@ passes."""
 
 from __future__ import annotations
 
+import functools
 import itertools
 import math
 from typing import Any
@@ -152,13 +153,17 @@ def _register(
         est, model = again(model, 0.0)
     else:
         stats.update(first)
-    poses, drift = _refined(est, odo, sides, all_pts[0], stats, loop_closure, model, (per, base))
+    poses, drift = _refined(
+        est, odo, sides, all_pts[0], stats, loop_closure, model, (per, base), noise
+    )
     if drift and n <= _SECOND_PASS_MAX:
         # The refinement found a drift the calibration missed: the registration and the loop
         # closures ran with it and left the passes apart, which the refinement alone cannot
         # undo. Once more with the drift taken out.
         est, model = again(model, drift)
-        poses, _ = _refined(est, odo, sides, all_pts[0], stats, loop_closure, model, (per, base))
+        poses, _ = _refined(
+            est, odo, sides, all_pts[0], stats, loop_closure, model, (per, base), noise
+        )
     return poses
 
 
@@ -186,11 +191,13 @@ def _refined(
     loop_closure: bool,
     model: _OdometryModel,
     sweeps: tuple[FloatArray, np.ndarray[Any, Any]],
+    noise: float = 0.0,
 ) -> tuple[FloatArray, float]:
     """The poses after the global refinement (:mod:`mapkit.build._refine`) where a place was
     seen more than once (loops closed), on logs of up to ``_REFINE_MAX`` scans, and the drift
     it found left in the odometry (radians per mm, 0.0: none). The odometry goes in as
-    registration weighed it: its calibrated steps, with the noise the log showed."""
+    registration weighed it: its calibrated steps, with the noise the log showed. ``noise``:
+    the laser's scatter about the walls (mm), as :func:`_register` takes it."""
     closed = stats.get("revisits", 0) or stats.get("tag_loops_matched", 0)
     if not loop_closure or not closed or len(est) > _REFINE_MAX:
         return est, 0.0
@@ -207,6 +214,7 @@ def _refined(
         odometry=(np.array([z for z, _ in spans]), np.array([info for _, info in spans])),
         odometry_from=base[1:],
         unsure=_turning(step_variance(per)) if per.any() else None,
+        laser_noise=noise,
     )
     stats["refined"] = found.matched
     return found.poses, found.drift
@@ -279,7 +287,20 @@ def _register_pass(
     report_every = max(1, n // 200)
     weak_prior = sigma_info(300.0, 300.0, math.radians(10.0))
     feed = CalibrationFeed(model.calibration, odo, path, src, all_pts, noise)
-    last_reach = _REACH * widened(noise)  # further for a noisy laser
+    widen = widened(noise)  # a noisy laser's matches reach further
+    # A loop closure's match: scan i against the map around old scan j, from the estimate est.
+    close = functools.partial(
+        _close,
+        src=src,
+        pts=pts,
+        nrm=nrm,
+        path=path,
+        graph=graph,
+        stats=stats,
+        reach=reach,
+        laser_noise=noise,
+    )
+    last_reach = _REACH * widen
     for i in range(1, n):
         raw_step = between(odo[i - 1], odo[i])
         step = model.calibration.correct(raw_step)
@@ -321,7 +342,7 @@ def _register_pass(
             if sub.tree is not None
             else None
         )
-        dv = _seen(r, pred, trans)
+        dv = _seen(r, pred, trans, widen)
         if r is not None and dv is not None:
             scan_info = match_info(r, noise)
             model.observe(dv, scan_info, trans, float(step[2]), per[a] + per[i])
@@ -343,7 +364,7 @@ def _register_pass(
         # Loop closures.
         moved = False
         for s0, _tag in tag_at.get(i, []):
-            if _close(i, s0, est, src, pts, nrm, path, graph, stats, tagged=True, reach=reach):
+            if close(i, s0, est, tagged=True):
                 stats["tag_loops_matched"] += 1
                 moved = stats.pop("_moved", False) or moved
             else:
@@ -364,7 +385,7 @@ def _register_pass(
         if loop_closure and i >= next_check:
             j = _revisit_candidate(i, est, path)
             if j is not None:
-                if _close(i, j, est, src, pts, nrm, path, graph, stats, tagged=False, reach=reach):
+                if close(i, j, est, tagged=False):
                     stats["revisits"] += 1
                     moved = stats.pop("_moved", False) or moved
                     next_check = i + 20
@@ -433,14 +454,17 @@ def _hint(start: FloatArray, now: FloatArray) -> FloatArray:
     return np.array([0.0, 0.0, wrap(now[2] - start[2])])
 
 
-def _seen(r: MatchResult | None, pred: FloatArray, trans: float) -> FloatArray | None:
+def _seen(
+    r: MatchResult | None, pred: FloatArray, trans: float, widen: float = 1.0
+) -> FloatArray | None:
     """How far the scan match ``r`` moved the prediction, or None for no usable match.
 
     Along a corridor the scan slides where nothing holds it: that part is no evidence and is
     taken out, and only the rest is checked against how far odometry can be off (a scan that
     slid half a metre along a corridor still fixes its heading and the corridor's width).
+    ``widen``: its residual bar that many times higher (a noisy laser's).
     """
-    if r is None or not (r.ok and r.inliers > 0.25 and r.rms < 60.0):
+    if r is None or not (r.ok and r.inliers > 0.25 and r.rms < 60.0 * widen):
         return None
     dv = r.pose - pred
     dv[2] = wrap(dv[2])

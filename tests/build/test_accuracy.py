@@ -335,6 +335,26 @@ def test_a_noisy_lasers_matches_do_not_outweigh_exact_odometry(shared_dir, noise
     assert rms <= 0.4 + 15.0, rms
 
 
+@pytest.mark.parametrize(
+    ("site", "seed", "before"),
+    [("amrisim-AMROffice.map", 2, 109.8), ("omron-ld-showroom-ex4.map", 2, 160.2)],
+)
+def test_a_noisy_lasers_matches_allow_for_its_noise_everywhere(
+    shared_dir, site: str, seed: int, before: float
+) -> None:
+    """A slipping robot (the benchmark's "rough" class) with a 30 mm laser (23-25 mm about the
+    walls). Round 22 widened registration's reach alone; the refinement's matches (20 mm reach,
+    residual under 30 mm, each claimed as 10 mm points), the calibration's and the loop
+    closures' stayed set for a 15 mm laser, and the maps came out turned 0.5 and 1.4 degrees,
+    109.8 and 160.2 mm RMS from the truth. Beyond 16 mm of scatter every match now allows,
+    claims and (but for the loop closures) reaches in proportion (docs/logs.md, round 23)."""
+    res, rms = bench_log(shared_dir, site, "rough", seed=seed, simulate={"range_noise": 30.0})
+    reg = res.summary["registration"]
+    assert reg["laser_noise_mm"] > 20.0, reg
+    assert reg["refined"] > 0, reg
+    assert rms < 40.0 < before, rms
+
+
 def test_exact_odometry_built_with_what_the_robots_other_logs_taught(shared_dir) -> None:
     """Draw 11 of the test above, which misses the bar on its own (34.7 mm: its turns were
     fitted at 0.35 %, and the turns' matches outvoted true odometry). Three other logs of the
@@ -400,7 +420,9 @@ def test_the_first_scan_is_matched_against_the_other_passes_planes(shared_dir, m
     monkeypatch.setattr(
         refine_module,
         "anchor_match",
-        lambda first, others, tgt, tn, pose: refine_module.match(first, others, tgt, tn, pose),
+        lambda first, others, tgt, tn, pose, widen: refine_module.match(
+            first, others, tgt, tn, pose, widen
+        ),
     )
     _, points = bench_log(shared_dir, "aria291-columbia.map", "exact", seed=1)
     assert points > 21.0, points
