@@ -56,7 +56,8 @@ class CalibrationFeed:
         #: The laser's own scatter about the walls (mm): the least a match's residual is taken
         #: as (see :func:`~mapkit.build._loops.match_info`).
         self.noise = noise
-        #: How much further than set its scan-to-scan matches reach (a noisy laser's).
+        #: How much further than set its scan-to-scan matches reach and how much more residual
+        #: they allow (a noisy laser's, :func:`~mapkit.build._match.widened`).
         self.widen = widened(noise)
         self._matches: list[tuple[int, FloatArray, FloatArray]] = []
         self._trees: dict[int, tuple[Any, FloatArray, FloatArray]] = {}

@@ -167,9 +167,9 @@ def _close(
     robot: 14.3 to 131.2 mm RMS), and so did a lower bar on the share of points within reach
     (another office log: 8.0 to 169.6; docs/logs.md, round 23).
     """
-    widen = widened(laser_noise)
     from scipy.spatial import cKDTree
 
+    widen = widened(laser_noise)
     n = len(est)
     lo = j
     while lo > 0 and path[j] - path[lo - 1] < 3000.0 and j - lo < 15:

@@ -72,9 +72,11 @@ _NOISE_HELD = 16.0
 def widened(noise: float) -> float:
     """How many times further than set a match reaches, how much more residual it allows and
     how much more noise it claims, for a laser that scatters ``noise`` (mm) about the walls: 1
-    up to ``_NOISE_HELD``, in proportion beyond. Every match takes it: registration's, the lag's
-    pairs', the calibration's and the refinement's; the loop closures' residual bar and claim
-    (not their reach: see :func:`~mapkit.build._loops._close`).
+    up to ``_NOISE_HELD``, in proportion beyond. Every match's last reach and residual bar take
+    it (registration's, the lag's pairs', the calibration's, the refinement's), but for the loop
+    closures' reach (see :func:`~mapkit.build._loops._close`); the refinement's and the loop
+    closures' claims too (registration's and the calibration's take no residual as less than the
+    scatter itself, :func:`~mapkit.build._loops.match_info`).
 
     A 30 mm laser's points (23 mm about the walls) fell out of registration's 40 mm: 15 % of a
     slipping robot's matches failed, where 4 % of a 10 mm one's did. Widened there alone, the
