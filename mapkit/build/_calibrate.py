@@ -137,7 +137,7 @@ class CalibrationFeed:
             return None
         w = self.widen
         r = icp(self.src[i], tree, p, n, guess, schedule=(150.0, 60.0, 40.0 * w), cauchy=_CAUCHY)
-        if not (r.ok and r.inliers > 0.3 and r.rms < 30.0 * w):
+        if not r.holds(0.3, 30.0, w):
             return None
         info = match_info(r, self.noise)
         var = np.asarray(np.linalg.inv(info + _EPS), dtype=np.float64)

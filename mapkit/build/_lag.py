@@ -257,7 +257,7 @@ def _kept(pair: _Pair, guess: FloatArray, widen: float = 1.0) -> MatchResult | N
     laser's, :func:`~mapkit.build._match.widened`)."""
     _, src, tree, tgt, nrm = pair
     r = icp(src, tree, tgt, nrm, guess, schedule=(150.0, 60.0, 30.0 * widen), cauchy=_CAUCHY)
-    return r if r.ok and r.inliers > 0.3 and r.rms < 30.0 * widen else None
+    return r if r.holds(0.3, 30.0, widen) else None
 
 
 def _matched(

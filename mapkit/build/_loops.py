@@ -283,7 +283,6 @@ def _within_reach(
 
 
 def _good_closure(r: Any, tagged: bool, widen: float = 1.0) -> bool:
-    bar = 35.0 * widen
     if tagged:
-        return bool(r.ok and r.inliers > 0.35 and r.n > 60 and r.rms < bar)
-    return bool(r.ok and r.inliers > 0.45 and r.n > 80 and r.rms < bar)
+        return bool(r.holds(0.35, 35.0, widen) and r.n > 60)
+    return bool(r.holds(0.45, 35.0, widen) and r.n > 80)

@@ -132,7 +132,7 @@ def match(
     r = icp(
         src, tree, tgt, tn, pose, schedule=(80.0, 40.0, 20.0 * widen), max_iter=20, cauchy=_CAUCHY
     )
-    return r if r.ok and r.inliers > 0.3 and r.rms < 30.0 * widen else None
+    return r if r.holds(0.3, 30.0, widen) else None
 
 
 def anchor_match(

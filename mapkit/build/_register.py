@@ -464,7 +464,7 @@ def _seen(
     slid half a metre along a corridor still fixes its heading and the corridor's width).
     ``widen``: its residual bar that many times higher (a noisy laser's).
     """
-    if r is None or not (r.ok and r.inliers > 0.25 and r.rms < 60.0 * widen):
+    if r is None or not r.holds(0.25, 60.0, widen):
         return None
     dv = r.pose - pred
     dv[2] = wrap(dv[2])
