@@ -153,17 +153,24 @@ def _register(
         est, model = again(model, 0.0)
     else:
         stats.update(first)
-    poses, drift = _refined(
-        est, odo, sides, all_pts[0], stats, loop_closure, model, (per, base), noise
+    # The refinement of a pass's poses est, with its odometry model.
+    refined = functools.partial(
+        _refined,
+        odo=odo,
+        sides=sides,
+        first=all_pts[0],
+        stats=stats,
+        loop_closure=loop_closure,
+        sweeps=(per, base),
+        noise=noise,
     )
+    poses, drift = refined(est, model=model)
     if drift and n <= _SECOND_PASS_MAX:
         # The refinement found a drift the calibration missed: the registration and the loop
         # closures ran with it and left the passes apart, which the refinement alone cannot
         # undo. Once more with the drift taken out.
         est, model = again(model, drift)
-        poses, _ = _refined(
-            est, odo, sides, all_pts[0], stats, loop_closure, model, (per, base), noise
-        )
+        poses, _ = refined(est, model=model)
     return poses
 
 
