@@ -143,11 +143,11 @@ class PoseGraph:
         the rest best (its cost, optimised from ``x``), and the poses so optimised.
 
         The edge missed most is not always the wrong one. Where a wrong closure came first and
-        moved the estimate, a right one after it, matched on more points, claims more and is
-        missed by more standard deviations, though the closures after it agree with it: on an
-        office log from a slipping robot with a 40 mm laser the check switched the right one
-        off and kept one 194 mm out (docs/logs.md, round 25). Without the wrong one, the rest
-        agree."""
+        moved the estimate, a surer right one after it is missed by more standard deviations:
+        on an office log from a slipping robot with a 30 mm laser the right one was missed by 11
+        and the wrong one, 194 mm out, by 2.8. Switching off the one missed most kept the wrong
+        one, which bent the map (141.1 mm RMS; 14.9 with this choice, docs/logs.md, round
+        25)."""
         suspects = np.flatnonzero(live)
         suspects = suspects[np.argsort(-chi[suspects], kind="stable")][:_SUSPECTS]
         best: tuple[float, int, FloatArray] | None = None
