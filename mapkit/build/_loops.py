@@ -323,6 +323,6 @@ def _good_closure(r: Any, tagged: bool, widen: float = 1.0, share: float | None 
     mm (``widen`` times that for a noisy laser), it has points enough, and more than a bar of
     them found the map (``share``, default ``r.inliers``; see :func:`_share`): 0.35 of them for
     a ``loop:`` tag's, which starts where the tag says, 0.45 for a revisit's."""
-    share = float(r.inliers) if share is None else share
-    bar, points = (0.35, 60) if tagged else (0.45, 80)
-    return bool(r.ok and share > bar and r.rms < 35.0 * widen and r.n > points)
+    if tagged:
+        return bool(r.holds(0.35, 35.0, widen, share) and r.n > 60)
+    return bool(r.holds(0.45, 35.0, widen, share) and r.n > 80)

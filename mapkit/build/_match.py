@@ -227,11 +227,15 @@ class MatchResult:
     hessian: FloatArray | None = None  # sum of J^T J of the final fit (world frame)
     normals: FloatArray | None = None  # mean n n^T of the matched target normals (2x2)
 
-    def holds(self, inliers: float, residual: float, widen: float = 1.0) -> bool:
+    def holds(
+        self, inliers: float, residual: float, widen: float = 1.0, share: float | None = None
+    ) -> bool:
         """Whether the match found enough to go by: it converged, more than ``inliers`` (a
-        fraction) of its points lie within its last reach, and their residual is under
+        fraction) of its points lie within its last reach (or found the target as ``share``
+        counts them, see :func:`~mapkit.build._loops._share`), and their residual is under
         ``residual`` mm, ``widen`` times that for a noisy laser (:func:`widened`)."""
-        return bool(self.ok and self.inliers > inliers and self.rms < residual * widen)
+        found = self.inliers if share is None else share
+        return bool(self.ok and found > inliers and self.rms < residual * widen)
 
     def weak_direction(self, floor: float = 0.12) -> FloatArray | None:
         """Unit vector along which the match tells nothing (a corridor's axis), or None."""
