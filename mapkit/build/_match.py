@@ -74,9 +74,10 @@ def widened(noise: float) -> float:
     how much more noise it claims, for a laser that scatters ``noise`` (mm) about the walls: 1
     up to ``_NOISE_HELD``, in proportion beyond. Every match's last reach and residual bar take
     it (registration's, the lag's pairs', the calibration's, the refinement's), but for the loop
-    closures' reach (see :func:`~mapkit.build._loops._close`); the refinement's and the loop
-    closures' claims too (registration's and the calibration's take no residual as less than the
-    scatter itself, :func:`~mapkit.build._loops.match_info`).
+    closures' reach (see :func:`~mapkit.build._loops._close`); the refinement's claims (twice
+    over, :func:`~mapkit.build._refine.claim`) and the loop closures' too (registration's and
+    the calibration's take no residual as less than the scatter itself,
+    :func:`~mapkit.build._loops.match_info`).
 
     A 30 mm laser's points (23 mm about the walls) fell out of registration's 40 mm: 15 % of a
     slipping robot's matches failed, where 4 % of a 10 mm one's did. Widened there alone, the

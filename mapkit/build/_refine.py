@@ -135,6 +135,23 @@ def match(
     return r if r.holds(0.3, 30.0, widen) else None
 
 
+def claim(r: MatchResult, widen: float = 1.0) -> FloatArray:
+    """What a refinement match ``r`` claims (its information, world frame) for a laser widened
+    ``widen`` times (:func:`~mapkit.build._match.widened`): ``_MATCH_POINTS`` points of
+    ``_MATCH_SIGMA`` mm, times the widening *squared*.
+
+    A match's heading errs with the laser's scatter twice over: its own points scatter, and so
+    do the other passes' points it is matched against. Matched at the true poses, a 10-15 mm
+    laser's matches erred 0.060 degrees RMS where they claimed 0.049; with the claim widened
+    once, a 30 mm laser's (23-25 mm about the walls) erred 0.142 where they claimed 0.080, and a
+    40 mm laser's 0.180 where they claimed 0.086. Widened twice they claim 0.116 and 0.154: each
+    laser's matches err a fifth more than they claim, as the quiet laser's do. Claimed at half
+    their error, a noisy laser's matches outvoted the odometry and registration's steps with
+    errors of their own (docs/logs.md, round 26)."""
+    info: FloatArray = r.info(sigma=_MATCH_SIGMA * widen * widen, points=_MATCH_POINTS)
+    return info
+
+
 def anchor_match(
     first: FloatArray,
     others: _OtherPasses,
@@ -191,7 +208,7 @@ def refine(
 
     ``laser_noise``: the laser's own scatter about the walls (mm,
     :func:`~mapkit.build._match.surface_noise`): a noisier laser's matches reach further, allow
-    more residual and claim more noise (:func:`~mapkit.build._match.widened`).
+    more residual (:func:`~mapkit.build._match.widened`) and claim more noise (:func:`claim`).
 
     With ``odometry``, a heading drift the calibration missed is looked for too (see
     :func:`_drift_left`) and taken out of the odometry's steps when the matches show one.
@@ -255,7 +272,7 @@ def refine(
                 continue
             if i == 0 and abs(wrap(r.pose[2] - x[0, 2])) > anchor_turn:
                 continue  # the first scan and the map disagree: one of them is wrong
-            info = r.info(sigma=_MATCH_SIGMA * widen, points=_MATCH_POINTS) * share[i]
+            info = claim(r, widen) * share[i]
             # The scan's place in the map (whose frame is that of x, node 0's estimate).
             found.append((i, between(x[0], r.pose), _edge_info(info, r.pose)))
         matched = len(found)
