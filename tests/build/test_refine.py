@@ -197,8 +197,8 @@ def test_a_match_claims_what_it_errs_whatever_the_lasers_noise(range_noise: floa
     """Every scan of two laps matched at its true pose against the other lap, as the refinement
     matches: the heading its matches claim (:func:`~mapkit.build._refine.claim`) is what they err,
     within a factor, for a 10 mm laser (8 mm about the walls) and a 40 mm one (29 mm). Widened
-    once, the 40 mm laser's matches erred 0.14 degrees RMS and claimed 0.10, half their worth in
-    variance: the refinement believed them over its odometry."""
+    once, the 40 mm laser's matches erred 0.14 degrees RMS and claimed 0.10 (twice what they are
+    worth, in information): the refinement believed them over its odometry."""
     truth, src, pts, nrm, path = two_laps(range_noise=range_noise)
     widen = widened(surface_noise(pts))
     assert (widen > 1.5) == (range_noise > 20.0)
