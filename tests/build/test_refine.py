@@ -11,7 +11,7 @@ from hypothesis import given, strategies as st
 
 import mapkit.build._refine as refine_module
 from mapkit.build._common import _world
-from mapkit.build._graph import between, sigma_info
+from mapkit.build._graph import between, sigma_info, wrap
 from mapkit.build._match import surface_noise, widened
 from mapkit.build._odometry import _OdometryModel
 from mapkit.build._refine import refine
@@ -213,7 +213,7 @@ def test_a_match_claims_what_it_errs_whatever_the_lasers_noise(range_noise: floa
         r = refine_module.match(src[i], others, tgt, tn, truth[i], widen)
         if r is None:
             continue
-        errors.append((r.pose[2] - truth[i, 2] + np.pi) % (2 * np.pi) - np.pi)
+        errors.append(wrap(r.pose[2] - truth[i, 2]))
         claimed.append(1.0 / refine_module.claim(r, widen)[2, 2])
     assert len(errors) > 40
     ratio = math.sqrt(np.mean(np.square(errors)) / np.mean(claimed))
