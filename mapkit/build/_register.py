@@ -53,7 +53,8 @@ def _register(
     :func:`mapkit.build._lag.sweep_variance`); None: none.
 
     ``turn_error``: how far the robot's turns err, as a fraction of the turn, when it is known
-    (see :meth:`_OdometryModel.stated_as`); None: fitted from the log.
+    (see :meth:`_OdometryModel.stated_as`); None: presumed, unless the log's turns rule that
+    out, then fitted from the log.
 
     ``noise``: the laser's own scatter about the walls (mm,
     :func:`~mapkit.build._match.surface_noise`): no match's residual is taken as less, and a
@@ -90,6 +91,7 @@ def _register(
                 noise,
             )
             model.settle()
+    model.presume()
     model.calibration.mark()
     blank = dict(stats)
 
@@ -421,6 +423,7 @@ def _register_pass(
     stats["turn_error"] = model.turn_error
     stats["turn_error_stated"] = model.turn_stated
     stats["turn_error_ruled_out"] = model.turn_ruled_out
+    stats["turn_error_presumed"] = model.turn_presumed
     stats["turns"] = model.turns(since=observed)
     stats["calibration"] = model.calibration.summary()
     if loop_closure and (stats["revisits"] or stats["tag_loops"]):

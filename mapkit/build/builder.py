@@ -75,8 +75,9 @@ def robot_turn_error(builds: Iterable[BuildResult | TurnEvidence]) -> float | No
     ``turn_error`` for this robot's logs. None when the logs have fewer than 10 turning steps
     in all.
 
-    Each build fits its own log's turns too (``odometry_turn_error`` in its summary), but a
-    log's hundred-odd turning steps resolve them only coarsely: on simulated logs of robots
+    Each build fits its own log's turns too where they rule out the presumed 0.1 %
+    (``odometry_turn_error`` in its summary), but a log's hundred-odd turning steps resolve
+    them only coarsely: on simulated logs of robots
     whose turns err 0.1 %, one log alone gave anywhere from 0.03 % to 0.42 %. Built with what
     the 17 other logs of its robot taught (1,800-2,000 turning steps), 264 of 270 logs met
     every target where 258 did with their own fits; what 3 logs taught (300-400 steps) was no
@@ -304,12 +305,14 @@ def build_map(
         merge_goals: Goals of the same name (a tag repeated on every lap) become one object at
             their mean pose; ``False`` keeps one object per ``cairn:`` event.
         turn_error: How far the robot's odometry errs in its turns, as a fraction of each turn
-            (standard deviation: 0.001 for 0.1 %), when it is known; None (the default) fits it
-            from the log. A log's few dozen turns resolve it only coarsely: a good robot's
-            turns (0.1 %) can come out fitted as 0.4 %, and each turn's own scan match then
-            outvotes its odometry (docs/logs.md, round 19). Where the log's turns rule the
-            stated error out (a robot that slips), it is fitted after all
-            (``odometry_turn_error_ruled_out`` in the summary's ``registration``).
+            (standard deviation: 0.001 for 0.1 %), when it is known. None (the default)
+            presumes 0.1 % once the log's first ten turns do not rule that out
+            (``odometry_turn_error_presumed`` in the summary's ``registration``), and fits it
+            from the log where they do (a robot that slips). A log's few dozen turns resolve
+            it only coarsely: fitted alone, a good robot's turns (0.1 % or less) came out as
+            0.2-0.45 %, and each turn's own scan match then outvoted its odometry
+            (docs/logs.md, rounds 19 and 27). Where the log's turns rule a stated error out,
+            it is fitted after all (``odometry_turn_error_ruled_out``).
         progress: Called as ``progress(done, total)`` while scans are registered.
 
     Returns:
@@ -434,6 +437,7 @@ def build_map(
             ),
             "odometry_turn_error_stated": stats.get("turn_error_stated", False),
             "odometry_turn_error_ruled_out": stats.get("turn_error_ruled_out", False),
+            "odometry_turn_error_presumed": stats.get("turn_error_presumed", False),
             "refined": stats.get("refined", 0),
             "scan_lag_ms": _ms(lag.seconds),
             "scan_lag_fitted_ms": _ms(lag.fitted),

@@ -81,6 +81,49 @@ def test_a_stated_turn_error_is_kept_unless_the_turns_rule_it_out() -> None:
     assert floor.turn_scale == pytest.approx(10.0**_odometry._MIN_LOG_TURN_SCALE)
 
 
+def test_turns_are_presumed_good_unless_they_rule_it_out() -> None:
+    """With no turn error stated, registration presumes 0.1 % after its warm-up (one log's
+    turns resolve their error only coarsely; fitted alone, a simulator's came out 0.2-0.45 %).
+    Turns that agree with it within what their matches can tell (exact, or 0.3 %) keep it, in
+    this pass and the next. Turns that slip 2 % rule it out where they were seen, and are
+    fitted exactly as with no presumption; ruled out once, it stays out in the next pass, even
+    while that pass's first turns could not tell."""
+    presumed = _odometry._PRESUMED_TURN_ERROR
+    assert presumed is not None
+    for slip in (0.0, 0.003):
+        for seed in (1, 2, 3):
+            model = _odometry._OdometryModel.stated_as(None)
+            _turns_seen(model, slip, seed)
+            model.presume()
+            assert model.turn_presumed and not model.turn_stated and not model.turn_ruled_out
+            assert model.turn_error == pytest.approx(presumed)
+            nxt = model.fresh()
+            _turns_seen(nxt, slip, seed + 10)
+            assert nxt.turn_presumed and nxt.turn_error == pytest.approx(presumed)
+    slipping = _odometry._OdometryModel.stated_as(None)
+    _turns_seen(slipping, 0.02, 1)
+    fitted = _odometry._OdometryModel()
+    _turns_seen(fitted, 0.02, 1)
+    slipping.presume()
+    assert not slipping.turn_presumed and slipping.turn_scale == fitted.turn_scale
+    # The next pass: turns that would not rule it out alone do not bring it back.
+    nxt = slipping.fresh()
+    _turns_seen(nxt, 0.0, 2)
+    assert not nxt.turn_presumed
+    assert nxt.turn_error is not None and nxt.turn_error != pytest.approx(presumed)
+    # Presumed before its turns were seen: the first fit with ten of them decides.
+    early = _odometry._OdometryModel.stated_as(None)
+    early.presume()
+    assert early.turn_scale is None
+    _turns_seen(early, 0.02, 1)
+    assert not early.turn_presumed and early.turn_error is not None and early.turn_error > 0.01
+    # A stated error is never replaced by the presumed one.
+    stated = _odometry._OdometryModel.stated_as(0.003)
+    _turns_seen(stated, 0.003, 1)
+    stated.presume()
+    assert stated.turn_stated and stated.turn_error == pytest.approx(0.003)
+
+
 def test_calibration_keeps_what_an_earlier_pass_learnt_until_it_has_samples() -> None:
     """A pass starts from the factors the pass before learnt (the warm-up's, say), and keeps them
     until it has samples enough of its own; it used to fall back to no correction at its first
