@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-import math
 from typing import Any
 
 import numpy as np
@@ -236,6 +235,14 @@ def bench_log(
     return res, rms
 
 
+def turns_fitted_alone(monkeypatch: Any) -> None:
+    """Builds from now on fit the robot's turn error from each log alone, as before round 27
+    presumed 0.1 % (for the tests whose story was told of builds that fitted it)."""
+    from mapkit.build import _odometry
+
+    monkeypatch.setattr(_odometry, "_PRESUMED_TURN_ERROR", None)
+
+
 def mobilesim() -> dict[str, Any]:
     """A simulator's odometry and laser as ARIA's logger records them from MobileSim: the
     "good" class of ``benchmarks/bench_build_real.py`` (the issue's)."""
@@ -410,10 +417,13 @@ def test_the_first_scan_is_matched_against_the_other_passes_planes(shared_dir, m
     Matched against their points (a 181-beam laser's, 15 mm of range noise) it came out 0.14
     degrees off and turned the map, 23.9 mm RMS; against those points smoothed into local planes
     it is 18.7 mm. (Both as registration weighed the matches before round 22: since it takes no
-    match's residual as less than the laser's scatter, the log is 8.8 mm either way.)"""
+    match's residual as less than the laser's scatter, the log is 8.8 mm either way; and with
+    its turns fitted from the log alone: presumed 0.1 % since round 27, its odometry holds the
+    start, and it is 13.9 mm against the points too.)"""
     import mapkit.build._refine as refine_module
     import mapkit.build.builder as builder_module
 
+    turns_fitted_alone(monkeypatch)
     monkeypatch.setattr(builder_module, "surface_noise", lambda scans: 0.0)
     _, rms = bench_log(shared_dir, "aria291-columbia.map", "exact", seed=1)
     assert rms < 21.0, rms
@@ -438,18 +448,23 @@ def test_a_start_turned_wrong_by_odometry_is_turned_back_by_the_first_scan(
     it beyond 0.15: the whole map stayed turned 0.2 degrees about the start, 40.9 mm RMS against
     the issue's 40. Taken up to 0.5 degrees, it is 33.9. (As registration weighed the matches
     before round 22; since it takes no match's residual as less than the laser's scatter the
-    log is 34.2 mm, and the first scan's match is within 0.15 degrees.)"""
-    import mapkit.build._refine as refine_module
+    log is 34.2 mm, and the first scan's match is within 0.15 degrees.) The turns are fitted
+    from the log alone here: presumed 0.1 %, which its turns cannot rule out, the odometry's
+    0.22 degrees hold the start and the log misses the bar, 46.9 mm (docs/logs.md, round 27).
+
+    With numpy 2.4 and scipy 1.17 the matches weighed as before round 22 come out otherwise by
+    a hair, and the first scan's match is within 0.15 degrees there too (34.9 mm refused, 34.1
+    taken): the log no longer shows the bar, which the office's slipping start below does.
+    What it still shows: fitted alone, its turns and first scan hold the map within the
+    issue's bar, whether or not a match's residual is floored at the laser's scatter."""
     import mapkit.build.builder as builder_module
 
+    turns_fitted_alone(monkeypatch)
     _, rms = bench_log(shared_dir, "amrisim-AMROffice.map", "drift", seed=4)
     assert rms < 37.0, rms
     monkeypatch.setattr(builder_module, "surface_noise", lambda scans: 0.0)
     _, rms = bench_log(shared_dir, "amrisim-AMROffice.map", "drift", seed=4)
     assert rms < 37.0, rms
-    monkeypatch.setattr(refine_module, "_ANCHOR_TURN", math.radians(0.15))
-    _, refused = bench_log(shared_dir, "amrisim-AMROffice.map", "drift", seed=4)
-    assert refused > 39.0, refused
 
 
 def test_a_start_that_slipped_is_turned_back_by_the_first_scan(shared_dir, monkeypatch) -> None:
@@ -477,10 +492,13 @@ def test_sweeps_whose_lag_varies_do_not_turn_the_map(shared_dir, monkeypatch) ->
     (neither matched nor matched against), 13.4 (docs/logs.md, round 18). Since the lag is
     measured on more pairs (round 21) draw 3 no longer shows it; draw 2 does: 0.25 degrees and
     54.6 mm with them, 0.09 and 23.8 without (as registration weighed the matches before round
-    22; since it takes no match's residual as less than the laser's scatter, 42.1 and 18.9)."""
+    22; since it takes no match's residual as less than the laser's scatter, 42.1 and 18.9).
+    Both with the turns fitted from the log alone (0.38 %): presumed 0.1 % (round 27), the
+    odometry holds the turning sweeps too, and the log is 16.0 mm either way."""
     import mapkit.build._refine as refine_module
     import mapkit.build.builder as builder_module
 
+    turns_fitted_alone(monkeypatch)
     _, rms = bench_log(shared_dir, "amrisim-AMROffice.map", "jitter", seed=2)
     assert rms < 30.0, rms
     monkeypatch.setattr(builder_module, "surface_noise", lambda scans: 0.0)
@@ -491,16 +509,43 @@ def test_sweeps_whose_lag_varies_do_not_turn_the_map(shared_dir, monkeypatch) ->
     assert with_them > 45.0, with_them
 
 
-def test_a_robots_turn_error_stated_holds_its_turns(shared_dir) -> None:
+def test_a_robots_turn_error_stated_holds_its_turns(shared_dir, monkeypatch) -> None:
     """The benchmark's "jitter" class on a real ARIA map, draw 2: a simulator's turns (0.1 %,
     stated as such). Fitted from the log, the turns' error came out 0.38 %, each turn's own
     scan match outvoted its odometry, and the turn into a dead-end corridor driven out and back
-    turned it 0.26 degrees: 40.8 mm RMS. Stated, 18.6 (docs/logs.md, round 19)."""
+    turned it 0.26 degrees: 40.8 mm RMS. Stated, 18.6 (docs/logs.md, round 19); 16.0 now, as
+    with none stated (0.1 % is presumed, round 27)."""
     res, rms = bench_log(shared_dir, "amrisim-AMROffice.map", "jitter", seed=2, turn_error=0.001)
     assert res.summary["registration"]["odometry_turn_error_stated"]
     assert rms < 25.0, rms
+    turns_fitted_alone(monkeypatch)
     _, fitted = bench_log(shared_dir, "amrisim-AMROffice.map", "jitter", seed=2)
     assert fitted > rms, fitted
+
+
+def test_a_robots_turns_are_presumed_good_unless_its_log_rules_it_out(
+    shared_dir, monkeypatch
+) -> None:
+    """The benchmark's "jitter" class (a simulator's turns, right to a few hundredths of a
+    percent) on a real ARIA map, draw 20, which no round was measured on before round 27.
+    Fitted from the log alone, its turns came out 0.45 %: the odometry of its first turn on the
+    spot (216 degrees) was held to 1 degree, and the first scan's match, 0.2 degrees off even
+    against the true walls, turned the whole map 0.19 degrees about the start: 39.9 mm RMS.
+    Presumed 0.1 % (its turns do not rule that out), 13.3. A robot that slips 2 % in its turns
+    (the "rough" class, draw 21) rules the presumption out in registration's warm-up, and is
+    built exactly as with its turns fitted alone (docs/logs.md, round 27)."""
+    res, rms = bench_log(shared_dir, "amrisim-AMROffice.map", "jitter", seed=20)
+    reg = res.summary["registration"]
+    assert reg["odometry_turn_error_presumed"] and reg["odometry_turn_error"] == 0.001, reg
+    assert rms < 20.0, rms
+    slipping, _ = bench_log(shared_dir, "amrisim-AMROffice.map", "rough", seed=21)
+    reg = slipping.summary["registration"]
+    assert not reg["odometry_turn_error_presumed"] and reg["odometry_turn_error"] > 0.005, reg
+    turns_fitted_alone(monkeypatch)
+    _, fitted = bench_log(shared_dir, "amrisim-AMROffice.map", "jitter", seed=20)
+    assert fitted > 30.0, fitted
+    alone, _ = bench_log(shared_dir, "amrisim-AMROffice.map", "rough", seed=21)
+    np.testing.assert_array_equal(alone.poses, slipping.poses)
 
 
 def test_sweeps_older_than_their_poses_are_placed_where_they_were_taken(
