@@ -1,10 +1,11 @@
 """Benchmark of a robot's turn error learnt from several of its logs (``robot_turn_error``,
-``mapkit turn-error``) against each log's own fit, on logs simulated from real ARIA maps.
+``mapkit turn-error``) against each log's own, on logs simulated from real ARIA maps.
 
-Each log is built as ``mapkit build`` does (its turns' error fitted from itself: the baseline,
-measured in the same run), then again with the turn error ``robot_turn_error`` learns from the
-*other* logs of the same robot (the same odometry class; never the log itself), as a user who
-ran ``mapkit turn-error`` over the robot's other logs would build it.
+Each log is built as ``mapkit build`` does (its turns' error presumed 0.1 % unless its turns rule
+that out, then fitted from itself: the baseline, measured in the same run), then again with the
+turn error ``robot_turn_error`` learns from the *other* logs of the same robot (the same odometry
+class; never the log itself), as a user who ran ``mapkit turn-error`` over the robot's other logs
+would build it.
 
     python benchmarks/bench_turns_learnt.py --maps ../shared/sample-data/real --seeds 6 --jobs 2
     python benchmarks/bench_turns_learnt.py --maps DIR --seeds 6 --same-map 3   # 3 logs, one site
