@@ -453,8 +453,8 @@ def test_a_start_turned_wrong_by_odometry_is_turned_back_by_the_first_scan(
     0.22 degrees hold the start and the log misses the bar, 46.9 mm (docs/logs.md, round 27).
 
     With numpy 2.4 and scipy 1.17 the matches weighed as before round 22 come out otherwise by
-    a hair, and the first scan's match is within 0.15 degrees there too (34.9 mm refused, 34.1
-    taken): the log no longer shows the bar, which the office's slipping start below does.
+    a hair, and the first scan's match is within 0.15 degrees there too (34.9 mm with the bar
+    at 0.15): the log no longer shows the bar, which the office's slipping start below does.
     What it still shows: fitted alone, its turns and first scan hold the map within the
     issue's bar, whether or not a match's residual is floored at the laser's scatter."""
     import mapkit.build.builder as builder_module
@@ -494,7 +494,7 @@ def test_sweeps_whose_lag_varies_do_not_turn_the_map(shared_dir, monkeypatch) ->
     54.6 mm with them, 0.09 and 23.8 without (as registration weighed the matches before round
     22; since it takes no match's residual as less than the laser's scatter, 42.1 and 18.9).
     Both with the turns fitted from the log alone (0.38 %): presumed 0.1 % (round 27), the
-    odometry holds the turning sweeps too, and the log is 16.0 mm either way."""
+    odometry holds the turning sweeps too, 16.0 mm, and 21.2 with them matched."""
     import mapkit.build._refine as refine_module
     import mapkit.build.builder as builder_module
 
