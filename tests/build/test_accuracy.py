@@ -452,11 +452,11 @@ def test_a_start_turned_wrong_by_odometry_is_turned_back_by_the_first_scan(
     from the log alone here: presumed 0.1 %, which its turns cannot rule out, the odometry's
     0.22 degrees hold the start and the log misses the bar, 46.9 mm (docs/logs.md, round 27).
 
-    With numpy 2.4 and scipy 1.17 the matches weighed as before round 22 come out otherwise by
-    a hair, and the first scan's match is within 0.15 degrees there too (34.9 mm with the bar
-    at 0.15): the log no longer shows the bar, which the office's slipping start below does.
-    What it still shows: fitted alone, its turns and first scan hold the map within the
-    issue's bar, whether or not a match's residual is floored at the laser's scatter."""
+    On round 27's machine the matches weighed as before round 22 come out otherwise by a hair
+    (at the previous commit too), and the first scan's match is within 0.15 degrees there too
+    (34.9 mm with the bar at 0.15): the log no longer shows the bar, which the office's slipping
+    start below does. What it still shows: fitted alone, its turns and first scan hold the map
+    within the issue's bar, whether or not a match's residual is floored at the laser's scatter."""
     import mapkit.build.builder as builder_module
 
     turns_fitted_alone(monkeypatch)
