@@ -252,10 +252,13 @@ class _OdometryModel:
         :meth:`_fit_turns`); None: fitted from the log (until :meth:`presume`)."""
         if turn_error is None:
             return _OdometryModel()
-        # Never below the fit's own floor: odometry is never taken as exact.
-        return _OdometryModel(
-            stated=max((turn_error / _TURN_SHAPE) ** 2, 10.0**_MIN_LOG_TURN_SCALE)
-        )
+        return _OdometryModel(stated=_OdometryModel._turn_scale_of(turn_error))
+
+    @staticmethod
+    def _turn_scale_of(turn_error: float) -> float:
+        """The turns' noise scale of a turn error (a fraction of the turn, standard deviation),
+        never below the fit's own floor: odometry is never taken as exact."""
+        return float(max((turn_error / _TURN_SHAPE) ** 2, 10.0**_MIN_LOG_TURN_SCALE))
 
     def presume(self) -> None:
         """Hold the turns' scale at the presumed one (``_PRESUMED_TURN_ERROR``) from now on
@@ -268,7 +271,7 @@ class _OdometryModel:
         there was one."""
         if self.stated is not None or _PRESUMED_TURN_ERROR is None:
             return
-        self.presumed = max((_PRESUMED_TURN_ERROR / _TURN_SHAPE) ** 2, 10.0**_MIN_LOG_TURN_SCALE)
+        self.presumed = self._turn_scale_of(_PRESUMED_TURN_ERROR)
         turns = self.turns()
         if len(turns.disagreement) >= _MIN_TURNS:
             self._hold(turns)
