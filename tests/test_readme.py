@@ -22,7 +22,7 @@ import pytest
 ROOT = Path(__file__).resolve().parent.parent
 README = ROOT / "README.md"
 SETUP = "./scripts/setup && "
-TEST_COMMAND = "./scripts/setup && .venv/bin/python -m pytest -q"
+TEST_COMMAND = "./scripts/setup && .venv/bin/python -m pytest -q -n 2"
 #: What a user has: docs must not send them to files outside the checkout.
 OUTSIDE = re.compile(
     r"\.\./shared|\bshared/|FORMATS\.md|ROS-MAPS\.md|TRANSFER\.md|ROS2-DDS\.md|"
