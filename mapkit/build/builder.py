@@ -308,7 +308,8 @@ def build_map(
             (standard deviation: 0.001 for 0.1 %), when it is known. None (the default)
             presumes 0.1 % once registration's warm-up (the first 150 scans) has seen the turns
             and they do not rule that out (``odometry_turn_error_presumed`` in the summary's
-            ``registration``), and fits it from the log where they do (a robot that slips).
+            ``registration``), and fits it from the log where they do (a robot that slips) or
+            where the laser scatters more than 16 mm about the walls (``laser_noise_mm``).
             A log's few dozen turns resolve it only coarsely: fitted alone, a good robot's
             turns (0.1 % or less) came out as 0.2-0.45 %, and each turn's own scan match then
             outvoted its odometry (docs/logs.md, rounds 19 and 27). Where the log's turns rule

@@ -366,7 +366,8 @@ class _Bar:
     default=None,
     help="How far the robot's odometry errs in its turns, as a fraction of each turn (0.001: "
     "0.1 %), when known (a calibration, or several logs' odometry_turn_error in --json); "
-    "default: 0.1 % unless this log's turns rule that out, then fitted from them.",
+    "default: 0.1 % unless this log's turns rule that out or its laser scatters more than "
+    "16 mm, then fitted from them.",
 )
 @click.option(
     "--poses",
