@@ -92,12 +92,7 @@ def _register(
                 noise,
             )
             model.settle()
-    # The presumption was measured under lasers as quiet as the benchmark's (16 mm or less about
-    # the walls). Under a noisier one its turning sweeps' matches stray further than the held
-    # turns allow for: a robot whose turns truly erred 0.1 % came out 205.1 mm from the truth with
-    # them held there, 23.6 fitted from the log (docs/logs.md, round 28).
-    if widened(noise) <= 1.0:
-        model.presume()
+    model.presume(noise)
     model.calibration.mark()
     blank = dict(stats)
 

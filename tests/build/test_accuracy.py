@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import math
 from typing import Any
 
 import numpy as np
@@ -546,6 +547,26 @@ def test_a_robots_turns_are_presumed_good_unless_its_log_rules_it_out(
     assert fitted > 30.0, fitted
     alone, _ = bench_log(shared_dir, "amrisim-AMROffice.map", "rough", seed=21)
     np.testing.assert_array_equal(alone.poses, slipping.poses)
+
+
+def test_a_noisy_lasers_robot_has_its_turns_fitted_not_presumed(shared_dir, monkeypatch) -> None:
+    """The benchmark's "jitter" class (turns that err 0.1 %, sweeps whose lag varies) with a
+    30 mm laser (20 mm about the walls), columbia-2.9.1 draw 2. With its turns held at the
+    presumed 0.1 % (which is what they err), its first turns on the spot were registered 0.9
+    degrees off, and the map came out 205.1 mm from the truth; fitted from the log (0.4 %), 23.6.
+    The presumption was measured under the benchmark's 10-15 mm lasers and holds only under a
+    laser that scatters 16 mm or less (docs/logs.md, round 28)."""
+    from mapkit.build import _odometry
+
+    noisy = {"range_noise": 30.0}
+    res, rms = bench_log(shared_dir, "aria291-columbia.map", "jitter", seed=2, simulate=noisy)
+    reg = res.summary["registration"]
+    assert reg["laser_noise_mm"] > 16.0 and not reg["odometry_turn_error_presumed"], reg
+    assert rms < 40.0, rms
+    monkeypatch.setattr(_odometry, "_PRESUMED_UP_TO_NOISE", math.inf)
+    res, held = bench_log(shared_dir, "aria291-columbia.map", "jitter", seed=2, simulate=noisy)
+    assert res.summary["registration"]["odometry_turn_error_presumed"]
+    assert held > 100.0, held
 
 
 def test_sweeps_older_than_their_poses_are_placed_where_they_were_taken(

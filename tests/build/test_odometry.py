@@ -117,6 +117,13 @@ def test_turns_are_presumed_good_unless_they_rule_it_out() -> None:
     assert early.turn_scale is None
     _turns_seen(early, 0.02, 1)
     assert not early.turn_presumed and early.turn_error is not None and early.turn_error > 0.01
+    # Not under a laser noisier than those it was measured under (round 28).
+    for noise, held in ((16.0, True), (16.5, False), (30.0, False)):
+        model = _odometry._OdometryModel.stated_as(None)
+        _turns_seen(model, 0.0, 1)
+        model.presume(noise)
+        assert model.turn_presumed is held and not model.turn_ruled_out
+        assert (model.turn_error == pytest.approx(presumed)) is held
     # A stated error is never replaced by the presumed one.
     stated = _odometry._OdometryModel.stated_as(0.003)
     _turns_seen(stated, 0.003, 1)
