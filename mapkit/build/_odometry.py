@@ -60,7 +60,8 @@ _PRESUMED_TURN_ERROR: float | None = 0.001
 #: lasers the presumption was measured under (the benchmark's, 16 mm or less). Under noisier
 #: ones it did worse on 144 logs, and a robot whose turns truly erred 0.1 %, with a 30 mm laser
 #: and sweeps whose lag varies, came out 205.1 mm from the truth with them held there and 23.6
-#: fitted from the log; why is not known yet (docs/logs.md, round 28).
+#: fitted from the log: a loop closure matched against the start's turning sweeps turned the map
+#: (docs/logs.md, round 28).
 _PRESUMED_UP_TO_NOISE = 16.0
 
 #: The median of chi-square with 1 degree of freedom.

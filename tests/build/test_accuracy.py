@@ -552,8 +552,9 @@ def test_a_robots_turns_are_presumed_good_unless_its_log_rules_it_out(
 def test_a_noisy_lasers_robot_has_its_turns_fitted_not_presumed(shared_dir, monkeypatch) -> None:
     """The benchmark's "jitter" class (turns that err 0.1 %, sweeps whose lag varies) with a
     30 mm laser (20 mm about the walls), columbia-2.9.1 draw 2. With its turns held at the
-    presumed 0.1 % (which is what they err), its first turns on the spot were registered 0.9
-    degrees off, and the map came out 205.1 mm from the truth; fitted from the log (0.4 %), 23.6.
+    presumed 0.1 % (which is what they err), a loop closure matched against its first turns'
+    sweeps turned the map 0.9 degrees about the start: 205.1 mm from the truth; fitted from the
+    log (0.4 %), 23.6.
     The presumption was measured under the benchmark's 10-15 mm lasers and holds only under a
     laser that scatters 16 mm or less (docs/logs.md, round 28)."""
     from mapkit.build import _odometry
