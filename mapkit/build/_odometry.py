@@ -13,6 +13,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from mapkit.build._graph import wrap
+from mapkit.build._match import _NOISE_HELD
 
 FloatArray = np.ndarray[Any, np.dtype[np.float64]]
 
@@ -57,12 +58,13 @@ _MIN_TURNS = 10
 _PRESUMED_TURN_ERROR: float | None = 0.001
 
 #: The laser's scatter about the walls (mm) up to which turns are presumed good: as quiet as the
-#: lasers the presumption was measured under (the benchmark's, 16 mm or less). Under noisier
+#: lasers the presumption was measured under (the benchmark's, 16 mm or less), the bar at which
+#: every match's allowance for a noisy laser starts (``_match._NOISE_HELD``). Under noisier
 #: ones it did worse on 144 logs, and a robot whose turns truly erred 0.1 %, with a 30 mm laser
 #: and sweeps whose lag varies, came out 205.1 mm from the truth with them held there and 23.6
 #: fitted from the log: a loop closure matched against the start's turning sweeps turned the map
 #: (docs/logs.md, round 28).
-_PRESUMED_UP_TO_NOISE = 16.0
+_PRESUMED_UP_TO_NOISE = _NOISE_HELD
 
 #: The median of chi-square with 1 degree of freedom.
 _CHI2_1_HALF = 0.455
